@@ -1,0 +1,1 @@
+"""Statistics of measured displacements: pair binning, multi-Δt fits, S2 and ε."""

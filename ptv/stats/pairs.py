@@ -1,0 +1,159 @@
+"""Longitudinal second moments binned over all particle pairs of a snapshot.
+
+For every pair (i, j) of particles of one snapshot with separation r = x_j − x_i in a
+logarithmic bin, and for every column k of an increment array d (displacements at the
+K values of Δt, or velocities), accumulate q = [(d_jk − d_ik)·e]², e = r/|r|. The mean
+of q per bin is the longitudinal second-order structure function of d.
+"""
+
+from dataclasses import dataclass
+from math import log, sqrt
+
+import numpy as np
+from numba import get_num_threads, njit, prange
+
+
+@dataclass(frozen=True)
+class LogBins:
+    """Logarithmically spaced separation bins.
+
+    Parameters
+    ----------
+    r_min, r_max : float
+        Outer edges, m, 0 < r_min < r_max.
+    n_bins : int
+        Number of bins ≥ 1.
+    """
+
+    r_min: float
+    r_max: float
+    n_bins: int
+
+    def __post_init__(self) -> None:
+        if not (0 < self.r_min < self.r_max < np.inf):
+            raise ValueError(f"need 0 < r_min < r_max, got r_min={self.r_min}, r_max={self.r_max}")
+        if not isinstance(self.n_bins, int | np.integer) or self.n_bins < 1:
+            raise ValueError(f"n_bins must be an integer >= 1, got {self.n_bins!r}")
+
+    @property
+    def edges(self) -> np.ndarray:
+        """Bin edges, shape (n_bins + 1,), m."""
+        return np.geomspace(self.r_min, self.r_max, self.n_bins + 1)
+
+    @property
+    def centres(self) -> np.ndarray:
+        """Geometric bin centres, shape (n_bins,), m."""
+        e = self.edges
+        return np.sqrt(e[1:] * e[:-1])
+
+
+@dataclass(frozen=True)
+class PairSums:
+    """Per-bin sums over pairs, to be added across snapshots.
+
+    Attributes
+    ----------
+    count : ndarray of int64, shape (B,)
+        Pairs per bin.
+    sum_q : ndarray, shape (B, K)
+        Σ q per bin and increment column, (units of d)².
+    sum_q2 : ndarray, shape (B, K)
+        Σ q² per bin and column, (units of d)⁴.
+    sum_r : ndarray, shape (B,)
+        Σ |r| per bin, m (for the mean separation of each bin).
+    """
+
+    count: np.ndarray
+    sum_q: np.ndarray
+    sum_q2: np.ndarray
+    sum_r: np.ndarray
+
+    def __add__(self, other: "PairSums") -> "PairSums":
+        return PairSums(
+            self.count + other.count,
+            self.sum_q + other.sum_q,
+            self.sum_q2 + other.sum_q2,
+            self.sum_r + other.sum_r,
+        )
+
+    @property
+    def mean(self) -> np.ndarray:
+        """⟨q⟩ per bin and column, shape (B, K); NaN in empty bins."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.sum_q / self.count[:, None]
+
+    @property
+    def mean_separation(self) -> np.ndarray:
+        """⟨|r|⟩ per bin, shape (B,), m; NaN in empty bins."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.sum_r / self.count
+
+
+@njit(parallel=True, fastmath={"contract", "nsz", "arcp"}, cache=True)
+def _pair_sums(x, d, r_min, r_max, n_bins, n_chunks):
+    p, k = d.shape[0], d.shape[1]
+    r2_min, r2_max = r_min * r_min, r_max * r_max
+    log_r_min = log(r_min)
+    inv_dlog = n_bins / (log(r_max) - log_r_min)
+    count = np.zeros((n_chunks, n_bins), dtype=np.int64)
+    sum_q = np.zeros((n_chunks, n_bins, k))
+    sum_q2 = np.zeros((n_chunks, n_bins, k))
+    sum_r = np.zeros((n_chunks, n_bins))
+    for c in prange(n_chunks):
+        for i in range(c, p, n_chunks):  # interleaved rows balance the triangle
+            xi, yi, zi = x[i, 0], x[i, 1], x[i, 2]
+            for j in range(i + 1, p):
+                dx, dy, dz = x[j, 0] - xi, x[j, 1] - yi, x[j, 2] - zi
+                r2 = dx * dx + dy * dy + dz * dz
+                if r2 < r2_min or r2 >= r2_max:
+                    continue
+                r = sqrt(r2)
+                b = min(int((log(r) - log_r_min) * inv_dlog), n_bins - 1)
+                count[c, b] += 1
+                sum_r[c, b] += r
+                ex, ey, ez = dx / r, dy / r, dz / r
+                for m in range(k):
+                    q = (
+                        (d[j, m, 0] - d[i, m, 0]) * ex
+                        + (d[j, m, 1] - d[i, m, 1]) * ey
+                        + (d[j, m, 2] - d[i, m, 2]) * ez
+                    )
+                    q *= q
+                    sum_q[c, b, m] += q
+                    sum_q2[c, b, m] += q * q
+    return count.sum(axis=0), sum_q.sum(axis=0), sum_q2.sum(axis=0), sum_r.sum(axis=0)
+
+
+def pair_sums(positions: np.ndarray, increments: np.ndarray, bins: LogBins) -> PairSums:
+    """Accumulate longitudinal squared increments over all pairs of one snapshot.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (P, 3)
+        Particle positions at time t, m.
+    increments : ndarray, shape (P, K, 3) or (P, 3)
+        Per-particle vectors (displacements at K values of Δt, or velocities).
+    bins : LogBins
+        Separation bins.
+
+    Returns
+    -------
+    PairSums
+        Sums with K columns (K = 1 for a (P, 3) input).
+    """
+    x = np.ascontiguousarray(positions, dtype=np.float64)
+    d = np.asarray(increments, dtype=np.float64)
+    if d.ndim == 2:
+        d = d[:, None, :]
+    d = np.ascontiguousarray(d)
+    if x.ndim != 2 or x.shape[1] != 3:
+        raise ValueError(f"positions must have shape (P, 3), got {x.shape}")
+    if d.ndim != 3 or d.shape[0] != x.shape[0] or d.shape[2] != 3:
+        raise ValueError(f"increments must have shape ({x.shape[0]}, K, 3), got {d.shape}")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(d))):
+        raise ValueError("positions or increments contain NaN or infinite values")
+    n_chunks = 8 * get_num_threads()
+    count, sum_q, sum_q2, sum_r = _pair_sums(
+        x, d, float(bins.r_min), float(bins.r_max), int(bins.n_bins), n_chunks
+    )
+    return PairSums(count=count, sum_q=sum_q, sum_q2=sum_q2, sum_r=sum_r)

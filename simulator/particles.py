@@ -1,0 +1,380 @@
+"""Tracer particles in a KS flow: seeding, RK4 trajectories and the sample truth.
+
+Every snapshot is an independent KS realization seeded afresh (PHYSICS.md §1.3), so
+snapshots are independent samples. Particles are seeded uniformly in the illuminated
+slab padded by a margin larger than any particle travels during the snapshot; since the
+flow is incompressible the particle density inside the slab stays uniform at every
+time, so particles leaving the slab are replaced by particles entering it without
+biasing the sample (no particle is re-injected by hand). Whether a particle is in the
+slab or the analysis volume at a given time is a mask computed by the consumer.
+
+Trajectories are integrated with classical RK4 in float64, with steps no longer than
+min(Δt_min/2, 0.05 τ_η, 0.2/ω_N) (PHYSICS.md §1.1).
+"""
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from simulator import ks_kernels
+from simulator.flow import DEFAULT_UNSTEADINESS, KSField, draw_ks_field
+from simulator.spectra import Spectrum
+
+log = logging.getLogger(__name__)
+
+#: Margin of the seeding box, in units of u' times the longest time a snapshot spans.
+MARGIN_IN_U_RMS = 6.0
+
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned box.
+
+    Parameters
+    ----------
+    size : tuple of 3 floats
+        Edge lengths along X, Y, Z, m.
+    centre : tuple of 3 floats
+        Centre, m.
+    """
+
+    size: tuple[float, float, float]
+    centre: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        size = np.asarray(self.size, dtype=float)
+        centre = np.asarray(self.centre, dtype=float)
+        if size.shape != (3,) or np.any(~np.isfinite(size)) or np.any(size <= 0):
+            raise ValueError(f"box size must be 3 finite lengths > 0, got {self.size!r}")
+        if centre.shape != (3,) or np.any(~np.isfinite(centre)):
+            raise ValueError(f"box centre must be 3 finite coordinates, got {self.centre!r}")
+
+    @property
+    def volume(self) -> float:
+        """Volume, m³."""
+        return float(np.prod(self.size))
+
+    def padded(self, margin: float) -> "Box":
+        """The box grown by ``margin`` (m) on every side."""
+        return Box(tuple(float(s) + 2 * margin for s in self.size), self.centre)
+
+    def contains(self, x: np.ndarray) -> np.ndarray:
+        """Mask of points inside the box; x of shape (..., 3), mask of shape (...)."""
+        half = 0.5 * np.asarray(self.size)
+        return np.all(np.abs(np.asarray(x) - np.asarray(self.centre)) <= half, axis=-1)
+
+    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """n points uniform in the box, shape (n, 3), m."""
+        half = 0.5 * np.asarray(self.size)
+        return np.asarray(self.centre) + rng.uniform(-half, half, size=(n, 3))
+
+
+#: The paper's illuminated volume: 100 × 100 mm, a 10 mm thick laser sheet normal to Z.
+SHEET = Box((0.100, 0.100, 0.010))
+#: The paper's analysis volume, 70 × 70 × 2 mm, centred in the sheet.
+ANALYSIS_VOLUME = Box((0.070, 0.070, 0.002))
+
+
+@dataclass(frozen=True)
+class ParticleSnapshots:
+    """Independent snapshots of particles followed over a set of times.
+
+    Attributes
+    ----------
+    times : ndarray, shape (T,)
+        Times after the snapshot start, s; times[0] = 0.
+    positions : ndarray, shape (M, T, P, 3)
+        Exact positions X(t) of P particles in each of M snapshots, m.
+    velocity : ndarray, shape (M, T, P, 3)
+        Exact velocities u(X(t), t), m/s.
+    acceleration : ndarray, shape (M, T, P, 3)
+        Exact Lagrangian accelerations, m/s².
+    """
+
+    times: np.ndarray
+    positions: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+
+
+@dataclass(frozen=True)
+class DoubleFrameSample:
+    """Double-frame recordings: one independent experiment per Δt.
+
+    Attributes
+    ----------
+    dt : ndarray, shape (K,)
+        Frame separations Δt_k, s.
+    runs : tuple of K ParticleSnapshots
+        runs[k] holds M snapshots at times (0, Δt_k).
+    """
+
+    dt: np.ndarray
+    runs: tuple[ParticleSnapshots, ...]
+
+
+@dataclass(frozen=True)
+class TimeResolvedSample:
+    """Time-resolved recordings: frames every τ, Δt = mτ taken by skipping frames.
+
+    Attributes
+    ----------
+    frame_interval : float
+        τ, s.
+    snapshots : ParticleSnapshots
+        M sequences of F frames at times f τ, f = 0 … F−1.
+    """
+
+    frame_interval: float
+    snapshots: ParticleSnapshots = field(repr=False)
+
+    def pairs(self, skip: int) -> tuple[np.ndarray, np.ndarray]:
+        """Positions at t and t + mτ over all frame pairs m frames apart.
+
+        Parameters
+        ----------
+        skip : int
+            m ≥ 1.
+
+        Returns
+        -------
+        start, end : ndarray, shape (M, F − m, P, 3)
+            X(fτ) and X((f + m)τ), m.
+        """
+        n_frames = self.snapshots.positions.shape[1]
+        if not 1 <= skip < n_frames:
+            raise ValueError(f"skip must be in [1, {n_frames - 1}], got {skip}")
+        x = self.snapshots.positions
+        return x[:, :-skip], x[:, skip:]
+
+
+def max_step(field: KSField, dt_min: float) -> float:
+    """Longest RK4 step allowed: min(Δt_min/2, 0.05 τ_η, 0.2/ω_N), s."""
+    limits = [0.5 * dt_min, 0.05 * field.parameters.tau_eta]
+    if field.omega.max() > 0:
+        limits.append(0.2 / field.omega.max())
+    return min(limits)
+
+
+def integrate(
+    field: KSField, x0: np.ndarray, times: np.ndarray, *, h_max: float
+) -> np.ndarray:
+    """Positions of particles advected by a field, with RK4.
+
+    Parameters
+    ----------
+    field : KSField
+        The flow.
+    x0 : ndarray, shape (P, 3)
+        Positions at times[0], m.
+    times : ndarray, shape (T,)
+        Increasing output times, s.
+    h_max : float
+        Longest step, s; each interval between output times is cut in equal steps.
+
+    Returns
+    -------
+    ndarray, shape (T, P, 3)
+        Positions at the output times, m.
+    """
+    times = np.asarray(times, dtype=float)
+    if times.ndim != 1 or len(times) < 1 or np.any(np.diff(times) <= 0):
+        raise ValueError(f"times must be a strictly increasing 1-D array, got {times}")
+    if not (np.isfinite(h_max) and h_max > 0):
+        raise ValueError(f"h_max must be > 0, got {h_max}")
+    steps: list[np.ndarray] = []
+    record = [0]
+    for lo, hi in zip(times[:-1], times[1:], strict=True):
+        n = int(np.ceil((hi - lo) / h_max * (1 - 1e-12)))
+        steps.append(np.full(n, (hi - lo) / n))
+        record.append(record[-1] + n)
+    h = np.concatenate(steps) if steps else np.empty(0)
+    starts = times[0] + np.concatenate([[0.0], np.cumsum(h)])
+    stage_times = np.empty(2 * len(h) + 1)
+    stage_times[0::2] = starts
+    stage_times[1::2] = starts[:-1] + 0.5 * h
+    phases = np.ascontiguousarray(field.phases(stage_times))
+    x0 = np.ascontiguousarray(x0, dtype=np.float64)
+    return ks_kernels.rk4_trajectories(
+        x0, phases, h, np.asarray(record, dtype=np.int64), field.wavevectors, field.a, field.b
+    )
+
+
+def _check_positive(name: str, values) -> np.ndarray:
+    arr = np.atleast_1d(np.asarray(values, dtype=float))
+    if arr.size == 0 or np.any(~np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f"{name} must be finite and > 0, got {values!r}")
+    return arr
+
+
+def _check_count(name: str, value: int, minimum: int = 1) -> int:
+    if not isinstance(value, int | np.integer) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def follow_snapshots(
+    spectrum: Spectrum,
+    times: np.ndarray,
+    *,
+    particles: int,
+    snapshots: int,
+    region: Box = SHEET,
+    n_modes: int = 200,
+    unsteadiness: float = DEFAULT_UNSTEADINESS,
+    rng: np.random.Generator | int | None = None,
+    progress: Progress | None = None,
+) -> ParticleSnapshots:
+    """Seed independent snapshots and follow their particles over ``times``.
+
+    Parameters
+    ----------
+    spectrum : PopeSpectrum or KolmogorovBandSpectrum
+        The flow's spectrum; each snapshot draws its own realization.
+    times : array_like, shape (T,)
+        Output times after the seeding, s, starting at 0 and increasing.
+    particles : int
+        Mean number of particles inside ``region`` (the seeding box is ``region``
+        padded by 6 u' times[-1] and holds proportionally more).
+    snapshots : int
+        Number of independent snapshots M.
+    region : Box
+        The illuminated volume.
+    n_modes, unsteadiness :
+        KS options, see :func:`simulator.flow.draw_ks_field`.
+    rng : numpy.random.Generator, int or None
+        Randomness; snapshot j uses the j-th spawned child, so results do not depend
+        on how snapshots are chunked.
+    progress : callable(done, total), optional
+        Called after each snapshot.
+
+    Returns
+    -------
+    ParticleSnapshots
+    """
+    times = np.asarray(times, dtype=float)
+    if times.ndim != 1 or times[0] != 0 or np.any(np.diff(times) <= 0):
+        raise ValueError(f"times must start at 0 and increase strictly, got {times}")
+    _check_count("particles", particles)
+    _check_count("snapshots", snapshots)
+    margin = MARGIN_IN_U_RMS * spectrum.parameters.u_rms * times[-1]
+    seed_box = region.padded(margin)
+    n_seed = int(round(particles * seed_box.volume / region.volume))
+    children = np.random.default_rng(rng).spawn(snapshots)
+    shape = (snapshots, len(times), n_seed, 3)
+    positions, velocity, acceleration = np.empty(shape), np.empty(shape), np.empty(shape)
+    for m, child in enumerate(children):
+        flow = draw_ks_field(spectrum, n_modes=n_modes, unsteadiness=unsteadiness, rng=child)
+        x0 = seed_box.sample(n_seed, child)
+        if len(times) > 1:
+            h_max = max_step(flow, float(np.diff(times).min()))
+            positions[m] = integrate(flow, x0, times, h_max=h_max)
+        else:
+            positions[m, 0] = x0
+        for f, t in enumerate(times):
+            u, _, _, a = flow.derivatives(positions[m, f], t)
+            velocity[m, f] = u
+            acceleration[m, f] = a
+        if progress is not None:
+            progress(m + 1, snapshots)
+    escaped = ~seed_box.contains(positions[:, -1])
+    if escaped.any():
+        log.warning("%d particles left the seeding box; the margin is too small", escaped.sum())
+    return ParticleSnapshots(times, positions, velocity, acceleration)
+
+
+def double_frame(
+    spectrum: Spectrum,
+    dt: np.ndarray,
+    *,
+    particles: int,
+    snapshots: int,
+    region: Box = SHEET,
+    n_modes: int = 200,
+    unsteadiness: float = DEFAULT_UNSTEADINESS,
+    rng: np.random.Generator | int | None = None,
+    progress: Progress | None = None,
+) -> DoubleFrameSample:
+    """Independent double-frame experiments, one per Δt, each of M snapshots.
+
+    Parameters
+    ----------
+    dt : array_like, shape (K,)
+        Frame separations, s, > 0.
+    Other parameters as in :func:`follow_snapshots`.
+
+    Returns
+    -------
+    DoubleFrameSample
+    """
+    dt = _check_positive("dt", dt)
+    children = np.random.default_rng(rng).spawn(len(dt))
+    done = [0]
+
+    def step(_: int, __: int) -> None:
+        done[0] += 1
+        if progress is not None:
+            progress(done[0], len(dt) * snapshots)
+
+    runs = tuple(
+        follow_snapshots(
+            spectrum,
+            np.array([0.0, d]),
+            particles=particles,
+            snapshots=snapshots,
+            region=region,
+            n_modes=n_modes,
+            unsteadiness=unsteadiness,
+            rng=child,
+            progress=step,
+        )
+        for d, child in zip(dt, children, strict=True)
+    )
+    return DoubleFrameSample(dt=dt, runs=runs)
+
+
+def time_resolved(
+    spectrum: Spectrum,
+    frame_interval: float,
+    frames: int,
+    *,
+    particles: int,
+    snapshots: int,
+    region: Box = SHEET,
+    n_modes: int = 200,
+    unsteadiness: float = DEFAULT_UNSTEADINESS,
+    rng: np.random.Generator | int | None = None,
+    progress: Progress | None = None,
+) -> TimeResolvedSample:
+    """Time-resolved sequences of ``frames`` frames every ``frame_interval``.
+
+    Parameters
+    ----------
+    frame_interval : float
+        τ, s, > 0.
+    frames : int
+        Frames per sequence F ≥ 2.
+    Other parameters as in :func:`follow_snapshots`.
+
+    Returns
+    -------
+    TimeResolvedSample
+    """
+    tau = float(_check_positive("frame_interval", frame_interval)[0])
+    _check_count("frames", frames, minimum=2)
+    sample = follow_snapshots(
+        spectrum,
+        tau * np.arange(frames),
+        particles=particles,
+        snapshots=snapshots,
+        region=region,
+        n_modes=n_modes,
+        unsteadiness=unsteadiness,
+        rng=rng,
+        progress=progress,
+    )
+    return TimeResolvedSample(frame_interval=tau, snapshots=sample)

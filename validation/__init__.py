@@ -1,0 +1,1 @@
+"""Where truth and estimate meet: scenarios, experiments, claims, studies, reports, CLI."""
