@@ -218,4 +218,3 @@ def draw_ks_field(
         b=b,
         omega=omega,
     )
-

@@ -228,17 +228,23 @@ def rk4_trajectories(x0, phases, steps, record, k, a, b):
                 for i in range(m):
                     acc[j, i] = kv[j, i]
                     tmp[j, i] = pos[j, i] + 0.5 * h * kv[j, i]
-            _block_velocity(tmp[0], tmp[1], tmp[2], m, phases[2 * s + 1], k, a, b, kv[0], kv[1], kv[2])
+            _block_velocity(
+                tmp[0], tmp[1], tmp[2], m, phases[2 * s + 1], k, a, b, kv[0], kv[1], kv[2]
+            )
             for j in range(3):
                 for i in range(m):
                     acc[j, i] += 2.0 * kv[j, i]
                     tmp[j, i] = pos[j, i] + 0.5 * h * kv[j, i]
-            _block_velocity(tmp[0], tmp[1], tmp[2], m, phases[2 * s + 1], k, a, b, kv[0], kv[1], kv[2])
+            _block_velocity(
+                tmp[0], tmp[1], tmp[2], m, phases[2 * s + 1], k, a, b, kv[0], kv[1], kv[2]
+            )
             for j in range(3):
                 for i in range(m):
                     acc[j, i] += 2.0 * kv[j, i]
                     tmp[j, i] = pos[j, i] + h * kv[j, i]
-            _block_velocity(tmp[0], tmp[1], tmp[2], m, phases[2 * s + 2], k, a, b, kv[0], kv[1], kv[2])
+            _block_velocity(
+                tmp[0], tmp[1], tmp[2], m, phases[2 * s + 2], k, a, b, kv[0], kv[1], kv[2]
+            )
             for j in range(3):
                 for i in range(m):
                     pos[j, i] += h / 6.0 * (acc[j, i] + kv[j, i])

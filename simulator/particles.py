@@ -15,6 +15,7 @@ min(Δt_min/2, 0.05 τ_η, 0.2/ω_N) (PHYSICS.md §1.1).
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from itertools import pairwise
 
 import numpy as np
 
@@ -160,9 +161,7 @@ def max_step(field: KSField, dt_min: float) -> float:
     return min(limits)
 
 
-def integrate(
-    field: KSField, x0: np.ndarray, times: np.ndarray, *, h_max: float
-) -> np.ndarray:
+def integrate(field: KSField, x0: np.ndarray, times: np.ndarray, *, h_max: float) -> np.ndarray:
     """Positions of particles advected by a field, with RK4.
 
     Parameters
@@ -188,7 +187,7 @@ def integrate(
         raise ValueError(f"h_max must be > 0, got {h_max}")
     steps: list[np.ndarray] = []
     record = [0]
-    for lo, hi in zip(times[:-1], times[1:], strict=True):
+    for lo, hi in pairwise(times):
         n = int(np.ceil((hi - lo) / h_max * (1 - 1e-12)))
         steps.append(np.full(n, (hi - lo) / n))
         record.append(record[-1] + n)
@@ -263,7 +262,7 @@ def follow_snapshots(
     _check_count("snapshots", snapshots)
     margin = MARGIN_IN_U_RMS * spectrum.parameters.u_rms * times[-1]
     seed_box = region.padded(margin)
-    n_seed = int(round(particles * seed_box.volume / region.volume))
+    n_seed = round(particles * seed_box.volume / region.volume)
     children = np.random.default_rng(rng).spawn(snapshots)
     shape = (snapshots, len(times), n_seed, 3)
     positions, velocity, acceleration = np.empty(shape), np.empty(shape), np.empty(shape)

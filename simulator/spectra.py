@@ -57,7 +57,7 @@ class PopeSpectrum:
     C: float = C_KOLMOGOROV
     p0: float = 2.0
     beta: float = 5.2
-    c_L: float = field(init=False)  # noqa: N815 (Pope's name)
+    c_L: float = field(init=False)
     c_eta: float = field(init=False)
 
     def __post_init__(self) -> None:
@@ -75,7 +75,7 @@ class PopeSpectrum:
             )
 
     @property
-    def L(self) -> float:  # noqa: N802 (Pope's name)
+    def L(self) -> float:
         """Pope's length k_t^{3/2}/ε = 1.837 u'³/ε, m."""
         p = self.parameters
         return p.k_t**1.5 / p.epsilon
@@ -184,7 +184,9 @@ class KolmogorovBandSpectrum:
         k = np.asarray(k, dtype=float)
         inside = (k >= self.k_min) & (k <= self.k_max)
         safe = np.where(inside, k, 1.0)
-        return np.where(inside, self.C * self.parameters.epsilon ** (2.0 / 3.0) * safe ** (-5.0 / 3.0), 0.0)
+        return np.where(
+            inside, self.C * self.parameters.epsilon ** (2.0 / 3.0) * safe ** (-5.0 / 3.0), 0.0
+        )
 
     def kinetic_energy(self) -> float:
         """∫E dk in closed form, m²/s²."""

@@ -57,12 +57,12 @@ class TurbulenceParameters:
         return sqrt(15.0 * self.nu * self.u_rms**2 / self.epsilon)
 
     @property
-    def R_lambda(self) -> float:  # noqa: N802 (the physics name)
+    def R_lambda(self) -> float:
         """Taylor-scale Reynolds number (15 u'⁴/(εν))^{1/2}."""
         return sqrt(15.0 * self.u_rms**4 / (self.epsilon * self.nu))
 
     @property
-    def L_int(self) -> float:  # noqa: N802 (the paper's name)
+    def L_int(self) -> float:
         """The paper's integral scale u'³/ε, m."""
         return self.u_rms**3 / self.epsilon
 

@@ -31,19 +31,29 @@ def _flow_parameters(args: argparse.Namespace) -> TurbulenceParameters:
 
 def _print_flow(summary: dict) -> None:
     p, r, s = summary["prescribed"], summary["realized"], summary["spectrum"]
-    print(f"spectrum        {s['kind']}, {s['n_modes']} modes, "
-          f"k = {s['k_min']:.4g} … {s['k_max']:.4g} 1/m")
-    print(f"                modes carry {s['modes_energy_over_k_t']:.4f} k_t and "
-          f"{s['modes_dissipation_over_epsilon']:.4f} epsilon")
-    print(f"prescribed      u' = {p['u_rms']:.4g} m/s   epsilon = {p['epsilon']:.4g} m^2/s^3   "
-          f"nu = {p['nu']:.3g} m^2/s")
-    print(f"                eta = {p['eta'] * 1e6:.1f} um   tau_eta = {p['tau_eta'] * 1e3:.3f} ms   "
-          f"R_lambda = {p['R_lambda']:.1f}   L_int = u'^3/eps = {p['L_int'] * 100:.2f} cm")
+    print(
+        f"spectrum        {s['kind']}, {s['n_modes']} modes, "
+        f"k = {s['k_min']:.4g} … {s['k_max']:.4g} 1/m"
+    )
+    print(
+        f"                modes carry {s['modes_energy_over_k_t']:.4f} k_t and "
+        f"{s['modes_dissipation_over_epsilon']:.4f} epsilon"
+    )
+    print(
+        f"prescribed      u' = {p['u_rms']:.4g} m/s   epsilon = {p['epsilon']:.4g} m^2/s^3   "
+        f"nu = {p['nu']:.3g} m^2/s"
+    )
+    print(
+        f"                eta = {p['eta'] * 1e6:.1f} um   tau_eta = {p['tau_eta'] * 1e3:.3f} ms   "
+        f"R_lambda = {p['R_lambda']:.1f}   L_int = u'^3/eps = {p['L_int'] * 100:.2f} cm"
+    )
     print(f"realized        u' = {r['u_rms']:.4g} ± {r['u_rms_stderr']:.2g} m/s")
     lo, hi = r["s2_r_range"]
-    print(f"                sample-truth S2 vs exact D_LL over {lo * 1e3:.2f} … {hi * 1e3:.1f} mm: "
-          f"max |rel. error| = {100 * r['s2_max_rel_err']:.2f} % "
-          f"(largest standard error {100 * r['s2_max_rel_stderr']:.2f} %)")
+    print(
+        f"                sample-truth S2 vs exact D_LL over {lo * 1e3:.2f} … {hi * 1e3:.1f} mm: "
+        f"max |rel. error| = {100 * r['s2_max_rel_err']:.2f} % "
+        f"(largest standard error {100 * r['s2_max_rel_stderr']:.2f} %)"
+    )
 
 
 def _run_flow(args: argparse.Namespace) -> int:
@@ -99,8 +109,10 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``synptv`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="%(levelname)s %(name)s: %(message)s")
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
     try:
         return args.run(args)
     except ValueError as err:  # bad input: one line, status 2

@@ -36,7 +36,8 @@ def sample_structure_function(
     velocity = np.asarray(velocity)
     if positions.ndim != 3 or positions.shape != velocity.shape:
         raise ValueError(
-            f"positions and velocity must both be (M, P, 3), got {positions.shape}, {velocity.shape}"
+            "positions and velocity must both be (M, P, 3), "
+            f"got {positions.shape} and {velocity.shape}"
         )
     total = None
     for x, u in zip(positions, velocity, strict=True):

@@ -1,0 +1,143 @@
+"""Particles: RK4 accuracy and order, Lagrangian acceleration, unbiased seeding, samples."""
+
+import numpy as np
+import pytest
+
+from simulator.flow import draw_ks_field
+from simulator.particles import (
+    ANALYSIS_VOLUME,
+    SHEET,
+    Box,
+    double_frame,
+    follow_snapshots,
+    integrate,
+    max_step,
+    time_resolved,
+)
+from simulator.presets import flow_preset
+from simulator.spectra import PopeSpectrum
+
+PRESET = flow_preset("lem-10hz")
+PARAMS = PRESET.parameters
+SPECTRUM = PopeSpectrum(PARAMS)
+
+
+@pytest.fixture(scope="module")
+def field():
+    return draw_ks_field(SPECTRUM, n_modes=150, unsteadiness=1.0, rng=3)
+
+
+def test_rk4_converges_at_fourth_order(field):
+    x0 = SHEET.sample(64, np.random.default_rng(0))
+    t_end = 2.0 * PARAMS.tau_eta  # long enough for the error to be far above round-off
+    times = np.array([0.0, t_end])
+    reference = integrate(field, x0, times, h_max=t_end / 4096)[-1]
+    errors = [
+        np.abs(integrate(field, x0, times, h_max=t_end / n)[-1] - reference).max()
+        for n in (64, 128, 256)  # h k_max u' < 1: the asymptotic regime
+    ]
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all((orders > 3.6) & (orders < 4.4)), orders
+
+
+def test_acceleration_is_the_time_derivative_of_velocity_along_trajectories(field):
+    x0 = SHEET.sample(40, np.random.default_rng(1))
+    t0, dt = 0.004, 2e-6
+    times = np.array([0.0, t0 - dt, t0, t0 + dt])
+    path = integrate(field, x0, times, h_max=1e-6)
+    u_minus = field.velocity(path[1], t0 - dt)
+    u_plus = field.velocity(path[3], t0 + dt)
+    numerical = (u_plus - u_minus) / (2 * dt)  # error O(dt² ȧ̇) ≪ a
+    analytic = field.acceleration(path[2], t0)
+    scale = np.sqrt(np.mean(analytic**2))
+    assert np.abs(numerical - analytic).max() < 1e-4 * scale
+
+
+def test_step_rule_and_displacements_follow_the_analytic_taylor_expansion(field):
+    h = max_step(field, PRESET.dt[0])
+    assert h <= 0.5 * PRESET.dt[0] and h <= 0.05 * PARAMS.tau_eta
+    x0 = SHEET.sample(200, np.random.default_rng(2))
+    u, _, _, a = field.derivatives(x0, 0.0)
+    remainders = []
+    for dt in (0.02 * PARAMS.tau_eta, 0.01 * PARAMS.tau_eta):
+        x1 = integrate(field, x0, np.array([0.0, dt]), h_max=h)[-1]
+        remainders.append(np.abs(x1 - (x0 + u * dt + 0.5 * a * dt**2)).max())
+    # X(Δt) − (X + vΔt + ½aΔt²) = ȧΔt³/6 + …: halving Δt divides it by 8. In KS the
+    # particles sweep through frozen small modes, so ȧ ~ a u'/η and the cubic term is
+    # not negligible at Δt ~ 0.2 τ_η (PHYSICS.md §1.3); its order is what is checked.
+    assert 6.5 < remainders[0] / remainders[1] < 9.5, remainders
+
+
+def test_density_in_the_sheet_stays_uniform():
+    # Incompressible flow + a padded seeding box: the number and spread of particles in
+    # the sheet are the same at the start and the end (no depletion at the faces).
+    # Over 2 τ_η about 20 % of the particles cross the faces of a 4 mm slab.
+    slab = Box((0.02, 0.02, 0.004))
+    sample = follow_snapshots(
+        SPECTRUM,
+        np.array([0.0, 2 * PARAMS.tau_eta]),
+        particles=4000,
+        snapshots=6,
+        region=slab,
+        n_modes=100,
+        rng=4,
+    )
+    start = slab.contains(sample.positions[:, 0]).sum()
+    end_mask = slab.contains(sample.positions[:, 1])
+    end = end_mask.sum()
+    assert abs(int(end) - int(start)) < 4 * np.sqrt(start)
+    z_end = sample.positions[:, 1][end_mask][:, 2]
+    near_faces = np.mean(np.abs(z_end) > 0.4 * slab.size[2])  # outer 20 % of thickness
+    assert near_faces == pytest.approx(0.2, abs=4 * np.sqrt(0.2 * 0.8 / end_mask.sum()))
+
+
+def test_double_frame_runs_are_independent_experiments_per_dt():
+    sample = double_frame(SPECTRUM, PRESET.dt[:2], particles=100, snapshots=3, n_modes=50, rng=5)
+    assert len(sample.runs) == 2
+    first, second = sample.runs
+    assert first.positions.shape[:2] == (3, 2)
+    assert not np.array_equal(
+        first.positions[:, 0], second.positions[:, 0][:, : first.positions.shape[2]]
+    )
+    assert np.array_equal(first.times, [0.0, PRESET.dt[0]])
+    # Each run's frame 2 is frame 1 advected by Δt (first-order check against velocity).
+    d = first.positions[:, 1] - first.positions[:, 0]
+    assert np.allclose(
+        d, first.velocity[:, 0] * PRESET.dt[0], atol=0.05 * PARAMS.u_rms * PRESET.dt[0]
+    )
+
+
+def test_time_resolved_skipping_frames_gives_dt_multiples():
+    tau = PRESET.dt[0]
+    sample = time_resolved(SPECTRUM, tau, 6, particles=50, snapshots=2, n_modes=50, rng=6)
+    start, end = sample.pairs(3)
+    assert start.shape == end.shape == (2, 3, sample.snapshots.positions.shape[2], 3)
+    assert np.array_equal(start[:, 0], sample.snapshots.positions[:, 0])
+    assert np.array_equal(end[:, 0], sample.snapshots.positions[:, 3])
+    with pytest.raises(ValueError, match="skip"):
+        sample.pairs(6)
+
+
+def test_same_seed_gives_identical_snapshots():
+    kw = dict(particles=40, region=ANALYSIS_VOLUME, n_modes=40, snapshots=3)
+    first = follow_snapshots(SPECTRUM, np.array([0.0, 1e-4]), rng=9, **kw)
+    again = follow_snapshots(SPECTRUM, np.array([0.0, 1e-4]), rng=9, **kw)
+    other = follow_snapshots(SPECTRUM, np.array([0.0, 1e-4]), rng=10, **kw)
+    assert np.array_equal(first.positions, again.positions)
+    assert np.array_equal(first.velocity, again.velocity)
+    assert not np.array_equal(first.positions, other.positions)
+
+
+@pytest.mark.parametrize("dt", [[0.0], [-1e-4], [1e-4, -1e-4], [float("nan")]])
+def test_nonpositive_dt_is_rejected(dt):
+    with pytest.raises(ValueError, match="dt"):
+        double_frame(SPECTRUM, dt, particles=10, snapshots=1)
+
+
+def test_bad_sizes_are_rejected():
+    with pytest.raises(ValueError, match="particles"):
+        follow_snapshots(SPECTRUM, np.array([0.0]), particles=0, snapshots=1)
+    with pytest.raises(ValueError, match="frames"):
+        time_resolved(SPECTRUM, 1e-4, 1, particles=10, snapshots=1)
+    with pytest.raises(ValueError, match="box size"):
+        Box((0.1, -0.1, 0.01))
