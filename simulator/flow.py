@@ -6,7 +6,8 @@ k̂_n uniform on the sphere, A_n and B_n perpendicular to k_n (so ∇·u ≡ 0 m
 
 Velocity, its gradient and the exact Lagrangian acceleration
 a = ∂u/∂t + (u·∇)u are evaluated by the compiled kernels of
-:mod:`simulator.ks_kernels`, in chunks of particles so that memory stays bounded.
+:mod:`simulator.ks_kernels`, which work on blocks of 128 particles: besides the
+outputs, memory does not grow with the number of particles or modes.
 """
 
 from dataclasses import dataclass
@@ -17,9 +18,6 @@ from simulator import ks_kernels
 from simulator.spectra import ModeSpectrum, Spectrum, discretise
 from simulator.truth import structure_kernel
 from simulator.turbulence import TurbulenceParameters
-
-#: Particles per kernel call: bounds the temporaries of one call (~50 MB for gradients).
-CHUNK = 200_000
 
 #: Default unsteadiness λ in ω_n = λ √(k³E); 0 freezes the field.
 DEFAULT_UNSTEADINESS = 0.5
@@ -112,12 +110,7 @@ class KSField:
         """
         x = _as_points(x)
         phase = self.phases(_check_time(t))
-        out = np.empty_like(x)
-        for lo in range(0, len(x), CHUNK):
-            out[lo : lo + CHUNK] = ks_kernels.velocity(
-                x[lo : lo + CHUNK], phase, self.wavevectors, self.a, self.b
-            )
-        return out
+        return ks_kernels.velocity(x, phase, self.wavevectors, self.a, self.b)
 
     def derivatives(self, x: np.ndarray, t: float = 0.0) -> tuple[np.ndarray, ...]:
         """Velocity, ∂u/∂t, velocity gradient and Lagrangian acceleration.
@@ -142,14 +135,11 @@ class KSField:
         """
         x = _as_points(x)
         phase = self.phases(_check_time(t))
-        parts = [
-            ks_kernels.velocity_derivatives(
-                x[lo : lo + CHUNK], phase, self.wavevectors, self.a, self.b, self.omega
-            )
-            for lo in range(0, len(x), CHUNK)
-        ] or [(np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3, 3)))]
-        u, dudt, grad = (np.concatenate(p) for p in zip(*parts, strict=True))
-        accel = dudt + np.einsum("pij,pj->pi", grad, u)
+        u, dudt, accel = np.empty_like(x), np.empty_like(x), np.empty_like(x)
+        grad = np.empty((len(x), 3, 3))
+        ks_kernels.velocity_derivatives(
+            x, phase, self.wavevectors, self.a, self.b, self.omega, u, dudt, grad, accel
+        )
         return u, dudt, grad, accel
 
     def acceleration(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:

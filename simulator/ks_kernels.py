@@ -115,8 +115,8 @@ def velocity(x, phase, k, a, b):
 
 
 @njit(parallel=True, fastmath=_FLAGS, cache=True)
-def velocity_derivatives(x, phase, k, a, b, omega):
-    """Velocity, its local time derivative and its gradient at points, from one sincos.
+def velocity_derivatives(x, phase, k, a, b, omega, u, dudt, grad, accel):
+    """Velocity, ∂u/∂t, gradient and Lagrangian acceleration at points, from one sincos.
 
     Parameters
     ----------
@@ -128,20 +128,16 @@ def velocity_derivatives(x, phase, k, a, b, omega):
         Wavevectors (1/m) and amplitudes (m/s).
     omega : ndarray, shape (N,)
         Angular frequencies ω_n, rad/s.
-
-    Returns
-    -------
     u : ndarray, shape (P, 3)
-        Velocity, m/s.
+        Output: velocity, m/s.
     dudt : ndarray, shape (P, 3)
-        ∂u/∂t = Σ ω_n (B_n cos θ_n − A_n sin θ_n), m/s².
+        Output: ∂u/∂t = Σ ω_n (B_n cos θ_n − A_n sin θ_n), m/s².
     grad : ndarray, shape (P, 3, 3)
-        grad[p, i, j] = ∂u_i/∂x_j = Σ k_nj (B_ni cos θ_n − A_ni sin θ_n), 1/s.
+        Output: grad[p, i, j] = ∂u_i/∂x_j = Σ k_nj (B_ni cos θ_n − A_ni sin θ_n), 1/s.
+    accel : ndarray, shape (P, 3)
+        Output: a = ∂u/∂t + (u·∇)u, m/s².
     """
     p = x.shape[0]
-    u = np.zeros((p, 3))
-    dudt = np.zeros((p, 3))
-    grad = np.zeros((p, 3, 3))
     for blk in prange((p + BLOCK - 1) // BLOCK):
         lo = blk * BLOCK
         m = min(BLOCK, p - lo)
@@ -177,9 +173,11 @@ def velocity_derivatives(x, phase, k, a, b, omega):
             for j in range(3):
                 u[lo + i, j] = acc[j, i]
                 dudt[lo + i, j] = acc[3 + j, i]
+                advection = 0.0
                 for q in range(3):
                     grad[lo + i, j, q] = acc[6 + 3 * j + q, i]
-    return u, dudt, grad
+                    advection += acc[6 + 3 * j + q, i] * acc[q, i]
+                accel[lo + i, j] = acc[3 + j, i] + advection
 
 
 @njit(parallel=True, fastmath=_FLAGS, cache=True)
