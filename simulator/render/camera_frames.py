@@ -1,0 +1,167 @@
+"""Particle frames as a camera of a rig records them, with the truth of every particle.
+
+For each particle: the exact image of its centre through the camera's refracting window
+(``Camera.project``), a spot whose diameter adds in quadrature the geometric image
+M·d_p, the diffraction spot 2.44 f#(M+1)λ and the defocus blur computed by the optics
+for that particle, and a brightness set by the laser-sheet profile. The sensor model
+then records the expected photo-electrons as a uint16 image.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from simulator.optics import Camera, defocus_blur
+from simulator.render.particles import render_particles
+from simulator.render.sensor import Sensor
+from simulator.render.spot import LaserSheet, SpotOptics, gaussian_sigma, particle_electrons
+
+
+@dataclass(frozen=True)
+class ParticleLighting:
+    """Tracer particles and their illumination.
+
+    Parameters
+    ----------
+    particle_diameter : float
+        d_p, m (the paper's polystyrene tracers: 225 µm).
+    sheet : LaserSheet
+        Laser-sheet profile (centre and e⁻² half-width, m).
+    electrons_at_reference : float
+        Photo-electrons collected from a particle of diameter d_p on the sheet's centre
+        plane, e⁻.
+    wavelength : float
+        Laser wavelength, m.
+    cutoff : float
+        Particles further than ``cutoff`` e⁻² half-widths from the sheet centre are dark.
+    """
+
+    particle_diameter: float = 225e-6
+    sheet: LaserSheet = field(default_factory=lambda: LaserSheet(center=0.0, half_width=5e-3))
+    electrons_at_reference: float = 6000.0
+    wavelength: float = 532e-9
+    cutoff: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("particle_diameter", "electrons_at_reference", "wavelength", "cutoff"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be > 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class ParticleFrame:
+    """One recorded frame of one camera.
+
+    Attributes
+    ----------
+    image : ndarray of uint16, shape (rows, cols)
+        The recorded frame, DN.
+    xy : ndarray, shape (P, 2)
+        Exact image of each particle centre, px (NaN where not imaged).
+    sigma : ndarray, shape (P,)
+        Gaussian σ of each spot, px.
+    electrons : ndarray, shape (P,)
+        Expected photo-electrons of each spot, e⁻.
+    visible : ndarray of bool, shape (P,)
+        Particle lit and its spot (at least partly) on the sensor.
+    """
+
+    image: np.ndarray
+    xy: np.ndarray
+    sigma: np.ndarray
+    electrons: np.ndarray
+    visible: np.ndarray
+
+
+def local_magnification(camera: Camera, points: np.ndarray, *, step: float = 1e-4) -> np.ndarray:
+    """Lateral magnification at world points, from the image of a small step along Y.
+
+    Parameters
+    ----------
+    camera : Camera
+        The camera.
+    points : ndarray, shape (P, 3)
+        World points, m.
+    step : float
+        Step along world Y, m.
+
+    Returns
+    -------
+    ndarray, shape (P,)
+        M = (image displacement on the sensor) / (object displacement).
+    """
+    offset = np.array([0.0, step, 0.0])
+    shift = camera.project(points + offset) - camera.project(points - offset)
+    return np.linalg.norm(shift, axis=1) * camera.lens.pixel_pitch / (2 * step)
+
+
+def record_particles(
+    camera: Camera,
+    positions: np.ndarray,
+    *,
+    lighting: ParticleLighting,
+    sensor: Sensor,
+    rng: np.random.Generator | int | None = None,
+) -> ParticleFrame:
+    """Render and record the particles at ``positions`` as ``camera`` sees them.
+
+    Parameters
+    ----------
+    camera : Camera
+        A physical camera of a rig.
+    positions : ndarray, shape (P, 3)
+        Particle centres, m.
+    lighting : ParticleLighting
+        Particle size and laser sheet.
+    sensor : Sensor
+        Noise, gain and bit depth.
+    rng : numpy.random.Generator, int or None
+        Sensor noise.
+
+    Returns
+    -------
+    ParticleFrame
+    """
+    positions = np.asarray(positions, dtype=float)
+    if positions.ndim != 2 or positions.shape[1] != 3 or not np.isfinite(positions).all():
+        raise ValueError(f"positions must be finite with shape (P, 3), got {positions.shape}")
+    lens = camera.lens
+    lit = (
+        np.abs(positions[:, 2] - lighting.sheet.center)
+        <= lighting.cutoff * lighting.sheet.half_width
+    )
+    xy = np.full((len(positions), 2), np.nan)
+    sigma = np.full(len(positions), np.nan)
+    electrons = np.zeros(len(positions))
+    if lit.any():
+        p = positions[lit]
+        xy_lit = camera.project(p)
+        seen = np.isfinite(xy_lit).all(axis=1)
+        magnification = np.where(seen, local_magnification(camera, p), np.nan)
+        optics = SpotOptics(
+            magnification=float(np.nanmedian(magnification)) if seen.any() else 0.05,
+            f_number=lens.f_number,
+            wavelength=lighting.wavelength,
+            pixel_pitch=lens.pixel_pitch,
+        )
+        geometric = magnification * lighting.particle_diameter / lens.pixel_pitch
+        diffraction = optics.diffraction_diameter / lens.pixel_pitch
+        blur = np.where(seen, defocus_blur(camera, p), np.nan)
+        diameter = np.sqrt(geometric**2 + diffraction**2 + blur**2)
+        xy[lit] = xy_lit
+        sigma[lit] = gaussian_sigma(diameter, convention=optics.convention)
+        electrons[lit] = particle_electrons(
+            lighting.particle_diameter,
+            p[:, 2],
+            sheet=lighting.sheet,
+            electrons_at_reference=lighting.electrons_at_reference,
+            reference_diameter=lighting.particle_diameter,
+        )
+    shape = (lens.sensor_size[1], lens.sensor_size[0])
+    drawn = lit & np.isfinite(xy).all(axis=1)
+    spots = render_particles(np.where(drawn[:, None], xy, np.nan), sigma, electrons, shape=shape)
+    image = sensor.record(spots.image, rng)
+    return ParticleFrame(
+        image=image, xy=xy, sigma=sigma, electrons=electrons, visible=drawn & spots.visible
+    )

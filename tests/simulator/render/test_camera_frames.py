@@ -1,0 +1,61 @@
+"""Particle frames of a rig camera: positions, spot sizes and brightness from the optics."""
+
+import numpy as np
+import pytest
+
+from simulator.optics import defocus_blur
+from simulator.render.camera_frames import ParticleLighting, local_magnification, record_particles
+from simulator.render.sensor import Sensor
+from simulator.rigs import load_rig
+
+NOISELESS = Sensor(read_noise=0.0, offset=0.0, gain=1.0, bit_depth=16, full_well=60000)
+
+
+@pytest.fixture(scope="module")
+def camera():
+    return load_rig("paper-stereo").cameras[0]
+
+
+def test_spots_sit_at_the_projected_centres_with_the_optics_size_and_sheet_brightness(camera):
+    rng = np.random.default_rng(0)
+    lighting = ParticleLighting()
+    positions = np.column_stack(
+        [rng.uniform(-0.04, 0.04, 60), rng.uniform(-0.04, 0.04, 60), rng.uniform(-4e-3, 4e-3, 60)]
+    )
+    frame = record_particles(camera, positions, lighting=lighting, sensor=NOISELESS, rng=1)
+    assert np.allclose(frame.xy, camera.project(positions))
+    # d_τ² = (M d_p)² + (2.44 f# (M+1) λ)² + blur², σ = d_τ/4 (e⁻² convention), in px.
+    m = local_magnification(camera, positions)
+    pitch, f_number = camera.lens.pixel_pitch, camera.lens.f_number
+    m_ref = np.median(m)
+    d = np.sqrt(
+        (m * lighting.particle_diameter / pitch) ** 2
+        + (2.44 * f_number * (m_ref + 1) * lighting.wavelength / pitch) ** 2
+        + defocus_blur(camera, positions) ** 2
+    )
+    assert np.allclose(frame.sigma, d / 4, rtol=1e-9)
+    w = lighting.sheet.half_width
+    assert np.allclose(frame.electrons, 6000.0 * np.exp(-2 * positions[:, 2] ** 2 / w**2))
+    # Total recorded light equals the expected electrons (gain 1, no noise, no offset).
+    assert frame.image.sum() == pytest.approx(frame.electrons.sum(), rel=2e-3)
+
+
+def test_magnification_matches_a_tenth_of_a_millimetre_per_pixel(camera):
+    m = local_magnification(camera, np.zeros((1, 3)))
+    assert m[0] * 1e-4 / camera.lens.pixel_pitch == pytest.approx(1.0, rel=0.05)
+
+
+def test_particles_outside_the_lit_sheet_are_dark(camera):
+    lighting = ParticleLighting()
+    z = np.array([0.0, 2.1 * lighting.sheet.half_width])
+    frame = record_particles(
+        camera, np.column_stack([[0.0, 0.0], [0.0, 0.0], z]), lighting=lighting, sensor=NOISELESS
+    )
+    assert frame.visible.tolist() == [True, False]
+
+
+def test_bad_positions_are_rejected(camera):
+    with pytest.raises(ValueError, match="positions"):
+        record_particles(camera, np.zeros((3, 2)), lighting=ParticleLighting(), sensor=NOISELESS)
+    with pytest.raises(ValueError, match="particle_diameter"):
+        ParticleLighting(particle_diameter=0.0)

@@ -1,0 +1,98 @@
+"""Rigs: presets load, see the sheet at ~0.1 mm/px, focus claims; rig-file errors."""
+
+import tomllib
+from importlib import resources
+
+import numpy as np
+import pytest
+
+from simulator.optics import Camera, defocus_blur, focus_on_plane
+from simulator.rigs import RigFileError, check_sees_sheet, load_rig, rig_from_dict, rig_presets
+
+
+def sheet_grid(n=21, half=0.05):
+    u = np.linspace(-half, half, n)
+    x, y = np.meshgrid(u, u)
+    return np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+
+
+def preset_spec(name):
+    return tomllib.loads(
+        (resources.files("simulator") / "rig_presets" / f"{name}.toml").read_text()
+    )
+
+
+def test_presets_are_listed():
+    assert {"paper-stereo", "conventional"} <= set(rig_presets())
+
+
+@pytest.mark.parametrize("name", ["paper-stereo", "conventional"])
+def test_cameras_see_the_whole_sheet_at_a_tenth_of_a_millimetre_per_pixel(name):
+    rig = load_rig(name)
+    assert len(rig.cameras) == 2
+    for camera in rig.cameras:
+        xy = camera.project(sheet_grid())
+        assert np.isfinite(xy).all()
+        centre = camera.project(np.array([[0, 0, 0.0], [0, 1e-3, 0.0]]))
+        # Sensor y ~ world Y: 1 mm along Y moves ~10 px (0.1 mm per object-side pixel).
+        assert np.linalg.norm(centre[1] - centre[0]) == pytest.approx(10.0, rel=0.05)
+
+
+def test_paper_stereo_is_in_focus_with_the_tilt_and_blurred_without():
+    rig = load_rig("paper-stereo")
+    points = sheet_grid()
+    for camera in rig.cameras:
+        assert abs(camera.lens.tau_y) > np.deg2rad(1.0)  # a real Scheimpflug tilt
+        assert defocus_blur(camera, points).max() <= 1.0
+        untilted = focus_on_plane(camera, tilt=False)
+        assert defocus_blur(untilted, points).max() > 2.0
+
+
+def test_conventional_has_untilted_sensors_and_perpendicular_windows():
+    rig = load_rig("conventional")
+    for camera in rig.cameras:
+        assert camera.lens.tau_x == 0 and camera.lens.tau_y == 0
+        assert np.isclose(abs(camera.interfaces.normal @ camera.axis), 1.0, atol=1e-3)
+
+
+def test_missing_field_is_named():
+    spec = preset_spec("paper-stereo")
+    del spec["cameras"][1]["window"]["water_path"]
+    with pytest.raises(RigFileError, match=r"cameras\[1\]\.window: missing field 'water_path'"):
+        rig_from_dict(spec, source="mine.toml")
+
+
+def test_unknown_field_is_named():
+    spec = preset_spec("paper-stereo")
+    spec["cameras"][0]["focal_lenght"] = 0.05
+    with pytest.raises(RigFileError, match="unknown field 'focal_lenght'"):
+        rig_from_dict(spec)
+
+
+def test_bad_value_is_named():
+    spec = preset_spec("paper-stereo")
+    spec["cameras"][0]["sensor_size"] = [2048]
+    with pytest.raises(RigFileError, match="sensor_size"):
+        rig_from_dict(spec)
+
+
+def test_camera_that_sees_none_of_the_sheet_is_an_error():
+    rig = load_rig("conventional")
+    camera = rig.cameras[0]
+    turned = Camera(  # the same camera turned 180° about its image y axis: looks away
+        camera.center, np.diag([-1.0, 1.0, -1.0]) @ camera.rotation, camera.lens, camera.interfaces
+    )
+    assert not np.isfinite(turned.project(sheet_grid())).any()
+    with pytest.raises(RigFileError, match="camera 'cam1' sees none of the laser sheet"):
+        check_sees_sheet("cam1", turned, rig.sheet, "mine.toml: cameras[0]")
+
+
+def test_unknown_preset_and_bad_files(tmp_path):
+    with pytest.raises(RigFileError, match="unknown rig 'stereo'"):
+        load_rig("stereo")
+    with pytest.raises(RigFileError, match="does not exist"):
+        load_rig(tmp_path / "none.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("name = [")
+    with pytest.raises(RigFileError, match="not valid TOML"):
+        load_rig(bad)
