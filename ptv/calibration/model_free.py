@@ -1,0 +1,268 @@
+"""The paper's model-free calibration: every pixel is a straight line in the water.
+
+Steps (PHYSICS.md §6; MLBAV §2):
+
+1. For each traverse plane Z_j, fit T_j: pixel → (X, Y) on the plane, a 2-D polynomial
+   (cubic by default), and its separate inverse T_j⁻¹: (X, Y) → pixel.
+2. On a grid of pixels, evaluate (X_j, Y_j) = T_j(x, y) for every plane and fit by
+   least squares X = X₀ + a (Z − Z̄), Y = Y₀ + b (Z − Z̄) (Z_j are exact: regression on Z).
+3. Interpolate X₀, Y₀, a, b over the sensor with bicubic splines; a pixel's ray is
+   O = (X₀, Y₀, Z̄), V = (a, b, 1)/√(1 + a² + b²).
+4. Pixels outside the area where dots were seen (the union of the planes' convex hulls)
+   are invalid (NaN rays), never extrapolated. Near the edge of that area some planes'
+   T_j are evaluated slightly beyond their own dots (the plate's image shifts with Z in
+   an oblique view); ``line_rms`` shows where this bends the fitted lines.
+5. ``project`` (world → pixel) solves "the ray of pixel (x, y) passes through P" by a
+   2-D Newton iteration started from T_j⁻¹ of the nearest plane.
+
+No optical model is assumed; refraction by flat windows maps each pixel to an exact
+line in the water, so the straight-line model is exact for such rigs.
+"""
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import RectBivariateSpline
+from scipy.spatial import Delaunay
+
+from ptv.calibration.polynomial import Polynomial2D, fit_polynomial2d
+from ptv.rays import Rays
+
+log = logging.getLogger(__name__)
+
+#: Newton iterations and tolerance (px) of ``project``.
+_NEWTON_STEPS = 20
+_NEWTON_TOL = 1e-10
+#: Barycentric tolerance of the hull test: dots on the hull itself are inside.
+_HULL_TOL = 1e-9
+
+
+@dataclass(frozen=True)
+class PlaneObservation:
+    """Identified dots of one calibration plane in one camera.
+
+    Attributes
+    ----------
+    z : float
+        Traverse position Z_j, m.
+    pixels : ndarray, shape (N, 2)
+        Dot centres in the image, px.
+    world_xy : ndarray, shape (N, 2)
+        Their nominal (X, Y) on the plate, m.
+    """
+
+    z: float
+    pixels: np.ndarray
+    world_xy: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class PlaneFit:
+    """The fitted transforms of one plane and their residuals.
+
+    Attributes
+    ----------
+    z : float
+        Z_j, m.
+    to_world : Polynomial2D
+        T_j: pixel → (X, Y), m.
+    to_pixel : Polynomial2D
+        T_j⁻¹: (X, Y) → pixel (a separate fit, not an exact inverse).
+    residual_px : ndarray, shape (N,)
+        |T_j⁻¹(X, Y) − pixel| of each dot, px.
+    residual_m : ndarray, shape (N,)
+        |T_j(pixel) − (X, Y)| of each dot, m.
+    hull : Delaunay
+        Triangulation of the dots' pixels: the area this plane calibrates.
+    """
+
+    z: float
+    to_world: Polynomial2D
+    to_pixel: Polynomial2D
+    residual_px: np.ndarray
+    residual_m: np.ndarray
+    hull: Delaunay = field(repr=False)
+
+
+def fit_plane(observation: PlaneObservation, *, degree: int = 3) -> PlaneFit:
+    """Fit T_j and T_j⁻¹ for one plane (PHYSICS.md §6 step 2)."""
+    px = np.asarray(observation.pixels, dtype=float)
+    xy = np.asarray(observation.world_xy, dtype=float)
+    to_world = fit_polynomial2d(px, xy, degree=degree)
+    to_pixel = fit_polynomial2d(xy, px, degree=degree)
+    return PlaneFit(
+        z=float(observation.z),
+        to_world=to_world,
+        to_pixel=to_pixel,
+        residual_px=np.linalg.norm(to_pixel(xy) - px, axis=1),
+        residual_m=np.linalg.norm(to_world(px) - xy, axis=1),
+        hull=Delaunay(px),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class ModelFreeCalibration:
+    """Pixel → line calibration of one camera.
+
+    Attributes
+    ----------
+    image_size : tuple of int
+        (width, height), px.
+    planes : tuple of PlaneFit
+        The per-plane transforms (at least two planes).
+    z_ref : float
+        Z̄, the mean of the plane positions, m: ray origins lie on Z = Z̄.
+    grid_x, grid_y : ndarray
+        Pixel grid of the line fits, px.
+    line_parameters : ndarray, shape (4, ny, nx)
+        X₀ (m), Y₀ (m), a, b on the grid.
+    line_rms : ndarray, shape (ny, nx)
+        RMS distance of the plane points from the fitted line, m (ray curvature, noise).
+    """
+
+    image_size: tuple[int, int]
+    planes: tuple[PlaneFit, ...]
+    z_ref: float
+    grid_x: np.ndarray
+    grid_y: np.ndarray
+    line_parameters: np.ndarray
+    line_rms: np.ndarray
+    _splines: tuple[RectBivariateSpline, ...] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        splines = tuple(
+            RectBivariateSpline(self.grid_y, self.grid_x, p, kx=3, ky=3)
+            for p in self.line_parameters
+        )
+        object.__setattr__(self, "_splines", splines)
+
+    def covered(self, xy: np.ndarray) -> np.ndarray:
+        """Pixels inside the area where dots were seen on some plane, shape (N,)."""
+        xy = np.asarray(xy, dtype=float)
+        finite = np.isfinite(xy).all(axis=1)
+        safe = np.where(finite[:, None], xy, 0.0)
+        inside = np.zeros(len(xy), dtype=bool)
+        for plane in self.planes:
+            inside |= plane.hull.find_simplex(safe, tol=_HULL_TOL) >= 0
+        return finite & inside
+
+    def line_at(self, xy: np.ndarray, *, dx: int = 0, dy: int = 0) -> np.ndarray:
+        """X₀, Y₀, a, b (or their pixel derivatives) at pixels xy (N, 2); shape (N, 4)."""
+        xy = np.asarray(xy, dtype=float)
+        return np.stack([s.ev(xy[:, 1], xy[:, 0], dx=dy, dy=dx) for s in self._splines], axis=1)
+
+    def pixel_to_ray(self, xy: np.ndarray) -> Rays:
+        """Rays in the water of pixels xy (N, 2); NaN rows outside the calibrated area."""
+        xy = np.asarray(xy, dtype=float)
+        if xy.ndim != 2 or xy.shape[1] != 2:
+            raise ValueError(f"pixels must have shape (N, 2), got {xy.shape}")
+        ok = self.covered(xy)
+        p = self.line_at(np.where(ok[:, None], xy, 0.0))
+        origins = np.column_stack([p[:, 0], p[:, 1], np.full(len(p), self.z_ref)])
+        directions = np.column_stack([p[:, 2], p[:, 3], np.ones(len(p))])
+        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+        origins[~ok] = np.nan
+        directions[~ok] = np.nan
+        return Rays(origins, directions)
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Pixels (N, 2) whose rays pass through world points (N, 3); NaN if uncalibrated."""
+        points = np.asarray(points, dtype=float)
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise ValueError(f"points must have shape (N, 3), got {points.shape}")
+        finite = np.isfinite(points).all(axis=1)
+        p = np.where(finite[:, None], points, 0.0)
+        z_planes = np.array([plane.z for plane in self.planes])
+        nearest = np.argmin(np.abs(p[:, 2:3] - z_planes[None]), axis=1)
+        xy = np.empty((len(p), 2))
+        for j, plane in enumerate(self.planes):
+            sel = nearest == j
+            if sel.any():
+                xy[sel] = plane.to_pixel(p[sel, :2])
+        dz = p[:, 2] - self.z_ref
+        for _ in range(_NEWTON_STEPS):
+            line = self.line_at(xy)
+            residual = np.column_stack(
+                [line[:, 0] + line[:, 2] * dz - p[:, 0], line[:, 1] + line[:, 3] * dz - p[:, 1]]
+            )
+            d_dx = self.line_at(xy, dx=1)
+            d_dy = self.line_at(xy, dy=1)
+            jac = np.empty((len(p), 2, 2))
+            jac[:, 0, 0] = d_dx[:, 0] + d_dx[:, 2] * dz
+            jac[:, 1, 0] = d_dx[:, 1] + d_dx[:, 3] * dz
+            jac[:, 0, 1] = d_dy[:, 0] + d_dy[:, 2] * dz
+            jac[:, 1, 1] = d_dy[:, 1] + d_dy[:, 3] * dz
+            step = np.linalg.solve(jac, residual[..., None])[..., 0]
+            xy -= step
+            if np.nanmax(np.abs(step), initial=0.0) < _NEWTON_TOL:
+                break
+        ok = finite & self.covered(xy)
+        xy[~ok] = np.nan
+        return xy
+
+
+def calibrate_model_free(
+    observations: list[PlaneObservation],
+    image_size: tuple[int, int],
+    *,
+    degree: int = 3,
+    grid_step: int = 16,
+) -> ModelFreeCalibration:
+    """Build the pixel → line calibration of one camera from its plane observations.
+
+    Parameters
+    ----------
+    observations : list of PlaneObservation
+        One per traverse plane, at least two with distinct Z.
+    image_size : tuple of int
+        (width, height) of the images, px.
+    degree : int
+        Degree of the plane transforms T_j (1 to 3; the paper uses 3).
+    grid_step : int
+        Spacing of the pixel grid on which lines are fitted, px.
+
+    Returns
+    -------
+    ModelFreeCalibration
+    """
+    if len(observations) < 2:
+        raise ValueError(f"need at least two calibration planes, got {len(observations)}")
+    z = np.array([o.z for o in observations], dtype=float)
+    if len(np.unique(z)) != len(z) or not np.isfinite(z).all():
+        raise ValueError(f"calibration planes need distinct finite Z, got {z.tolist()}")
+    width, height = image_size
+    if width < 2 * grid_step or height < 2 * grid_step:
+        raise ValueError(f"image size {image_size} too small for grid step {grid_step}")
+    planes = tuple(fit_plane(o, degree=degree) for o in observations)
+    for plane in planes:
+        log.info(
+            "plane Z = %.4g m: max residual %.3g px (%d dots)",
+            plane.z,
+            plane.residual_px.max(),
+            len(plane.residual_px),
+        )
+    grid_x = np.unique(np.append(np.arange(0, width, grid_step, dtype=float), width - 1.0))
+    grid_y = np.unique(np.append(np.arange(0, height, grid_step, dtype=float), height - 1.0))
+    gx, gy = np.meshgrid(grid_x, grid_y)
+    pixels = np.column_stack([gx.ravel(), gy.ravel()])
+    world = np.stack([plane.to_world(pixels) for plane in planes])  # (N_Z, G, 2)
+    z_ref = float(z.mean())
+    dz = z - z_ref
+    slope = np.einsum("j,jgc->gc", dz, world) / np.sum(dz**2)
+    intercept = world.mean(axis=0)
+    fitted = intercept[None] + dz[:, None, None] * slope[None]
+    rms = np.sqrt(np.mean(np.sum((world - fitted) ** 2, axis=-1), axis=0))
+    shape = gx.shape
+    params = np.stack([intercept[:, 0], intercept[:, 1], slope[:, 0], slope[:, 1]]).reshape(
+        4, *shape
+    )
+    return ModelFreeCalibration(
+        image_size=(int(width), int(height)),
+        planes=planes,
+        z_ref=z_ref,
+        grid_x=grid_x,
+        grid_y=grid_y,
+        line_parameters=params,
+        line_rms=rms.reshape(shape),
+    )
