@@ -1,0 +1,58 @@
+"""The pyrender overview picture of a rig: size, content, the sheet's colour, the PNG."""
+
+import cv2
+import numpy as np
+import pytest
+
+from simulator.rigs import load_rig
+from simulator.scene import SceneOptions, render_scene, save_scene_png
+from simulator.target import PlateDesign, build_plate
+
+RIG = load_rig("paper-stereo")
+SMALL = SceneOptions(size=(400, 250), show_axes=False)
+
+
+def sheet_pixels(rgb):
+    """Pixels where green clearly dominates (the translucent green sheet)."""
+    r, g, b = (rgb[:, :, k].astype(int) for k in range(3))
+    return (g - np.maximum(r, b)) > 30
+
+
+def test_picture_has_the_size_and_shows_rig_and_sheet():
+    rgb = render_scene(RIG, options=SMALL)
+    assert rgb.shape == (250, 400, 3) and rgb.dtype == np.uint8
+    background = (rgb == 255).all(axis=2)
+    assert 0.05 < 1.0 - background.mean() < 0.9  # something drawn, not everything
+    assert background[0].all() or background[-1].all()  # framed with a margin
+    green = sheet_pixels(rgb)
+    assert green.sum() > 20
+    no_sheet = render_scene(
+        RIG, options=SceneOptions(size=(400, 250), show_axes=False, show_sheet=False)
+    )
+    assert sheet_pixels(no_sheet).sum() < 0.1 * green.sum()
+
+
+def test_plate_and_particles_are_drawn_and_the_png_is_written(tmp_path):
+    plate = build_plate(PlateDesign(), [0.0, 1e-3])
+    particles = RIG.sheet.sample(200, np.random.default_rng(0))
+    path = save_scene_png(
+        RIG, tmp_path / "scene.png", plate=plate, plate_plane=1, particles=particles, options=SMALL
+    )
+    assert path.exists() and [p.name for p in tmp_path.iterdir()] == ["scene.png"]
+    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    assert bgr.shape == (250, 400, 3)
+    plain = render_scene(RIG, options=SMALL)
+    # The dark plate changes the picture where the sheet is.
+    changed = np.abs(bgr[:, :, ::-1].astype(int) - plain.astype(int)).sum(axis=2) > 60
+    assert changed.sum() > 50
+
+
+def test_bad_arguments_are_rejected(tmp_path):
+    with pytest.raises(ValueError, match="png"):
+        save_scene_png(RIG, tmp_path / "scene.jpg", options=SMALL)
+    with pytest.raises(ValueError, match="size"):
+        SceneOptions(size=(0, 100))
+    with pytest.raises(ValueError, match="particles"):
+        render_scene(RIG, particles=np.zeros((3, 2)), options=SMALL)
+    with pytest.raises(ValueError, match="plate_plane"):
+        render_scene(RIG, plate=build_plate(PlateDesign(), [0.0, 1e-3]), plate_plane=5)
