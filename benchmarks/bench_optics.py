@@ -46,7 +46,8 @@ def run(quick: bool) -> dict:
 
     t_project = _best_time(lambda: camera.project(points), repeats)
     t_rays = _best_time(lambda: camera.pixel_to_ray(pixels), repeats)
-    back, visible = camera.project(points)
+    back = camera.project(points)
+    visible = np.isfinite(back).all(axis=1)
     error = np.abs(back[visible] - pixels[visible])
     return {
         "n_points": n,

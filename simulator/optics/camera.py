@@ -108,8 +108,27 @@ class Camera:
         xy[~visible] = np.nan
         return xy, visible
 
-    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def project(self, points: np.ndarray) -> np.ndarray:
         """Pixel positions of world points (exact refraction, Newton to 1e-12).
+
+        The camera protocol of DESIGN.md: a NaN row wherever the point is not imaged.
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3)
+            World points, m (finite).
+
+        Returns
+        -------
+        ndarray, shape (N, 2)
+            Pixel coordinates (x = column, y = row), px; NaN rows for points behind
+            the camera, on the camera's side of the last interface (in the air or
+            inside the glass), beyond the fold of the distortion, or off the sensor.
+        """
+        return self.project_visible(points)[0]
+
+    def project_visible(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`project` together with the visibility mask.
 
         Parameters
         ----------
@@ -123,7 +142,7 @@ class Camera:
         visible : ndarray of bool, shape (N,)
             False for points behind the camera, on the camera's side of the last
             interface (in the air or inside the glass), beyond the fold of the
-            distortion, or off the sensor.
+            distortion, or off the sensor; equal to ``isfinite(xy).all(axis=1)``.
         """
         points = as_points(points, 3, "points")
         xy = np.empty((len(points), 2))

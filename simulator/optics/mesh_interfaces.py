@@ -45,13 +45,6 @@ PROJECT_MAX_ITERATIONS = 40
 PROJECT_STEP = 1e-4
 
 
-def pixels_only(projected: object) -> np.ndarray:
-    """``xy`` of a ``project`` result, whether it is ``xy`` or ``(xy, visible)``."""
-    if isinstance(projected, tuple):
-        return projected[0]
-    return projected
-
-
 def _index(name: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
         raise ValueError(f"{name} must be a refractive index (a number); got {value!r}")
@@ -641,7 +634,7 @@ class MeshCamera:
         points = as_points(points, 3, "points")
         n = len(points)
         # Start: the straight-line projection; the principal point where it has none.
-        xy = np.array(pixels_only(self.camera.project(points)), dtype=np.float64)
+        xy = np.array(self.camera.project(points), dtype=np.float64)
         bad = ~np.isfinite(xy).all(axis=1)
         xy[bad] = self.camera.lens.principal_point
         converged = np.zeros(n, dtype=bool)

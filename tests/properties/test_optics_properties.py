@@ -63,8 +63,8 @@ def test_project_inverts_pixel_to_ray(camera, fractions, depth):
     xy = np.array(fractions) * [width - 1, height - 1]
     rays = camera.pixel_to_ray(xy)
     assert rays.valid.all()
-    back, visible = camera.project(rays.point_at(depth))
-    assert visible.all()
+    back = camera.project(rays.point_at(depth))
+    assert np.isfinite(back).all()
     assert np.max(np.abs(back - xy)) < 1e-6
 
 
@@ -92,8 +92,8 @@ def test_round_trip_through_general_stacks(n_layers, data, fractions, depth):
     xy = np.array(fractions) * [2047, 1087]
     rays = camera.pixel_to_ray(xy)
     ok = rays.valid
-    back, visible = camera.project(rays.point_at(depth)[ok])
-    assert visible.all()
+    back = camera.project(rays.point_at(depth)[ok])
+    assert np.isfinite(back).all()
     if ok.any():
         assert np.max(np.abs(back - xy[ok])) < 1e-6
 

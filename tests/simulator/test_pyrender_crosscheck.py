@@ -19,11 +19,6 @@ from simulator.rigs import load_rig
 SENSOR = (320, 240)
 
 
-def pixels(result):
-    """``project`` returns xy (or (xy, visible) in older versions)."""
-    return result[0] if isinstance(result, tuple) else result
-
-
 def plain_camera():
     # Off-centre principal point: catches a half-pixel or a flipped-axis convention error.
     lens = Lens(
@@ -57,7 +52,7 @@ def test_pyrender_spheres_land_where_project_and_the_analytic_renderer_put_them(
     centres = rays.point_at(rng.uniform(0.9, 1.1, len(targets)))
     # Radius for an image ~3 px across at 1 m.
     radius = 1.5 / camera.lens.fx * 1.0
-    projected = pixels(camera.project(centres))
+    projected = camera.project(centres)
     assert np.isfinite(projected).all()
 
     gl = render_spheres(camera, centres, radius, supersample=8)

@@ -20,12 +20,12 @@ def _straight_camera(window=None):
 def test_pinhole_projection_is_the_textbook_formula():
     cam = Camera(np.array([0.1, -0.2, -1.0]), np.eye(3), LENS)
     points = np.array([[0.1, -0.2, 0.0], [0.15, -0.18, 0.2], [0.05, -0.25, -0.1]])
-    xy, visible = cam.project(points)
+    xy = cam.project(points)
     rel = points - cam.center
     fx = 0.05 / 5.5e-6
     expected = np.column_stack([fx * rel[:, 0] / rel[:, 2] + 1023.5,
                                 fx * rel[:, 1] / rel[:, 2] + 543.5])
-    assert visible.all()
+    assert xy.shape == (3, 2)
     np.testing.assert_allclose(xy, expected, atol=1e-9)
 
 
@@ -46,8 +46,7 @@ def test_refraction_at_a_perpendicular_window_matches_snell_by_hand():
                 + h_w * np.tan(np.arcsin(s / n_w)) - rho)
 
     theta = brentq(miss, 0.0, 0.5, xtol=1e-15)
-    xy, visible = cam.project(point)
-    assert visible[0]
+    xy = cam.project(point)
     assert xy[0, 0] == pytest.approx(LENS.fx * np.tan(theta) + 1023.5, abs=1e-7)
     assert xy[0, 1] == pytest.approx(543.5, abs=1e-9)
 
@@ -60,10 +59,10 @@ def test_pixel_to_ray_without_window_is_the_pinhole_ray():
     np.testing.assert_allclose(rays.origins, np.broadcast_to(cam.center, (3, 3)))
     # the centre pixel looks along the optical axis, towards the target
     np.testing.assert_allclose(rays.directions[1], cam.axis, atol=1e-15)
-    np.testing.assert_allclose(cam.project(rays.point_at(0.8))[0], xy, atol=1e-8)
+    np.testing.assert_allclose(cam.project(rays.point_at(0.8)), xy, atol=1e-8)
 
 
-def test_invisible_points_are_nan_with_a_false_mask():
+def test_invisible_points_are_nan_rows():
     window = flat_window([0, 0, 1.0], 0.3, 0.02)
     cam = _straight_camera(window)
     points = np.array(
@@ -75,12 +74,14 @@ def test_invisible_points_are_nan_with_a_false_mask():
             [2.0, 0.0, 0.6],  # in water, far off the sensor
         ]
     )
-    xy, visible = cam.project(points)
-    assert visible.tolist() == [True, False, False, False, False]
+    xy = cam.project(points)
     assert np.isfinite(xy[0]).all() and np.isnan(xy[1:]).all()
+    rich, visible = cam.project_visible(points)
+    assert visible.tolist() == [True, False, False, False, False]
+    np.testing.assert_array_equal(rich, xy)
     air_cam = _straight_camera()
-    xy, visible = air_cam.project(np.array([[0, 0, -1.0], [0, 0, 1.0], [1.0, 0, 0.0]]))
-    assert visible.tolist() == [False, True, False]
+    xy = air_cam.project(np.array([[0, 0, -1.0], [0, 0, 1.0], [1.0, 0, 0.0]]))
+    assert np.isfinite(xy).all(axis=1).tolist() == [False, True, False]
     assert np.isnan(xy[[0, 2]]).all()
 
 

@@ -16,8 +16,7 @@ def test_target_images_at_the_principal_point(obliquity_deg, direction):
     window = WindowSpec(0.25, 0.015, np.radians(obliquity_deg), direction)
     cam = look_at_camera(TARGET, LENS, distance=0.9, azimuth=np.radians(-35),
                          elevation=np.radians(5), window=window)
-    xy, visible = cam.project(TARGET[None, :])
-    assert visible[0]
+    xy = cam.project(TARGET[None, :])
     np.testing.assert_allclose(xy[0], LENS.principal_point, atol=1e-8)
 
 
@@ -36,11 +35,11 @@ def test_image_is_upright_with_rows_along_world_y():
     assert x_axis[1] == pytest.approx(0.0, abs=1e-15)  # image x horizontal
     assert y_axis[1] < -0.99  # image y (rows, down) along −Y
     # a point above the target images on an earlier row
-    xy, _ = cam.project(np.array([TARGET, TARGET + np.array([0, 0.01, 0])]))
+    xy = cam.project(np.array([TARGET, TARGET + np.array([0, 0.01, 0])]))
     assert xy[1, 1] < xy[0, 1]
     # straight on from +Z, image x runs along +X
     front = look_at_camera(TARGET, LENS, distance=0.7, azimuth=0.0)
-    xy, _ = front.project(np.array([TARGET, TARGET + np.array([0.01, 0, 0])]))
+    xy = front.project(np.array([TARGET, TARGET + np.array([0.01, 0, 0])]))
     assert xy[1, 0] > xy[0, 0]
 
 
