@@ -8,8 +8,12 @@ import argparse
 import json
 import logging
 import sys
+from pathlib import Path
+
+import numpy as np
 
 from simulator.presets import FLOW_PRESETS, flow_preset
+from simulator.rigs import load_rig, rig_presets
 from simulator.spectra import SPECTRA
 from simulator.turbulence import NU_WATER, TurbulenceParameters
 from validation.flow_summary import FlowSettings, summarize_flow
@@ -76,6 +80,33 @@ def _run_flow(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_render(args: argparse.Namespace) -> int:
+    from validation.dataset import RenderSettings, write_dataset
+
+    rig = load_rig(args.rig)
+    preset = flow_preset(args.preset)
+    settings = RenderSettings(
+        frames=args.frames, particles=args.particles, planes=args.planes, seed=args.seed
+    )
+    bar = ProgressBar("render", enabled=not args.quiet)
+    out = write_dataset(Path(args.out), rig, preset, settings, progress=bar)
+    print(f"dataset written to {out}")
+    return 0
+
+
+def _run_scene(args: argparse.Namespace) -> int:
+    from simulator.particles import SHEET
+    from simulator.scene import save_scene_png
+    from simulator.target import PlateDesign, build_plate, traverse_positions
+
+    rig = load_rig(args.rig)
+    plate = build_plate(PlateDesign(), traverse_positions()) if args.plate else None
+    particles = SHEET.sample(args.particles, np.random.default_rng(0)) if args.particles else None
+    out = save_scene_png(rig, args.out, plate=plate, plate_plane=6, particles=particles)
+    print(f"scene picture written to {out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``synptv`` and its subcommands."""
     parser = argparse.ArgumentParser(prog="synptv", description="A virtual 3D-PTV laboratory.")
@@ -102,6 +133,40 @@ def build_parser() -> argparse.ArgumentParser:
     flow.add_argument("--json", action="store_true", help="print one JSON object")
     flow.add_argument("--quiet", action="store_true", help="no progress bar")
     flow.set_defaults(run=_run_flow)
+
+    render = sub.add_parser(
+        "render",
+        help="render a dataset: plate images, particle image pairs per dt, truth",
+        description="Simulate the flow, render the calibration plate at every traverse "
+        "position and double-frame particle images at every dt for every camera of a rig, "
+        "and write them as 16-bit TIFF with experiment.json and truth.h5 (see README).",
+    )
+    render.add_argument(
+        "--rig", default="paper-stereo", help=f"{', '.join(rig_presets())} or a .toml file"
+    )
+    render.add_argument("--preset", default="lem-10hz", help=f"one of {', '.join(FLOW_PRESETS)}")
+    render.add_argument("--out", required=True, help="new folder to write")
+    render.add_argument("--frames", type=int, default=10, help="frame pairs per dt")
+    render.add_argument("--particles", type=int, default=1000, help="particles in the sheet")
+    render.add_argument("--planes", type=int, default=13, help="calibration traverse positions")
+    render.add_argument("--seed", type=int, default=0)
+    render.add_argument("--quiet", action="store_true", help="no progress bar")
+    render.set_defaults(run=_run_render)
+
+    scene = sub.add_parser(
+        "scene",
+        help="draw a picture of a rig: tank, windows, cameras, laser sheet, plate",
+        description="Render an offscreen picture (pyrender, EGL) of a rig: the icosahedral "
+        "tank, the windows the cameras look through, camera frusta and refracted corner "
+        "rays, the laser sheet, optionally the calibration plate and particles.",
+    )
+    scene.add_argument(
+        "--rig", default="paper-stereo", help=f"{', '.join(rig_presets())} or a .toml file"
+    )
+    scene.add_argument("--out", default="scene.png", help="PNG file to write")
+    scene.add_argument("--plate", action="store_true", help="draw the calibration plate")
+    scene.add_argument("--particles", type=int, default=300, help="particles to draw (0: none)")
+    scene.set_defaults(run=_run_scene)
     return parser
 
 

@@ -1,0 +1,80 @@
+"""``synptv render`` datasets: layout, images, truth consistent with the cameras, atomicity."""
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+import tifffile
+
+from simulator.presets import flow_preset
+from simulator.rigs import load_rig
+from validation.cli import main
+from validation.dataset import RenderSettings, write_dataset
+
+SETTINGS = RenderSettings(frames=1, planes=2, particles=200, n_modes=60, seed=3)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    out = tmp_path_factory.mktemp("render") / "ds"
+    rig = load_rig("paper-stereo")
+    write_dataset(out, rig, flow_preset("lem-10hz"), SETTINGS)
+    return out, rig
+
+
+def test_layout_and_experiment_description(dataset):
+    out, rig = dataset
+    exp = json.loads((out / "experiment.json").read_text())
+    assert exp["dt"] == pytest.approx(list(flow_preset("lem-10hz").dt))
+    assert exp["traverse_z"] == pytest.approx([-0.5e-3, 0.5e-3])
+    assert exp["target"]["pitch"] == 5e-3 and exp["target"]["marks"]["x_axis"] == [2, 0]
+    for name in rig.camera_names:
+        for j in range(2):
+            image = tifffile.imread(out / "calibration" / name / f"plane_{j:02d}.tif")
+            assert image.dtype == np.uint16 and image.shape == (1088, 2048)
+        for k in range(5):
+            for label in "ab":
+                assert (out / "particles" / f"dt{k}" / name / f"000000_{label}.tif").is_file()
+
+
+def test_truth_is_consistent_with_the_cameras_and_the_images(dataset):
+    out, rig = dataset
+    with h5py.File(out / "truth.h5") as truth:
+        dots = truth["plate/dots_world"][:]
+        for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
+            assert np.allclose(
+                truth[f"plate/{name}/dots_xy"][1],
+                camera.project(dots[1]),
+                atol=1e-9,
+                equal_nan=True,
+            )
+            positions = truth["particles/dt2/positions"][0, 1]  # snapshot 0, frame b
+            xy = truth[f"particles/dt2/{name}/xy"][0, 1]
+            visible = truth[f"particles/dt2/{name}/visible"][0, 1]
+            assert np.allclose(xy[visible], camera.project(positions[visible]), atol=1e-9)
+            image = tifffile.imread(out / "particles" / "dt2" / name / "000000_b.tif")
+            # Lit particles are bright where the truth puts them (sheet-centre ones the most).
+            lit = visible & (np.abs(positions[:, 2]) < 2e-3)
+            cols, rows = np.round(xy[lit]).astype(int).T
+            assert np.median(image[rows, cols]) > np.median(image) + 100
+
+
+def test_existing_folder_is_refused_and_interrupted_runs_leave_nothing(tmp_path):
+    rig = load_rig("paper-stereo")
+    (tmp_path / "taken").mkdir()
+    with pytest.raises(ValueError, match="already exists"):
+        write_dataset(tmp_path / "taken", rig, flow_preset("lem-10hz"), SETTINGS)
+
+    def interrupt(done, total):
+        if done > 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        write_dataset(tmp_path / "new", rig, flow_preset("lem-10hz"), SETTINGS, progress=interrupt)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"]
+
+
+def test_render_cli_reports_bad_input_in_one_line(capsys, tmp_path):
+    assert main(["render", "--rig", "nope", "--out", str(tmp_path / "x"), "--quiet"]) == 2
+    assert "unknown rig 'nope'" in capsys.readouterr().err
