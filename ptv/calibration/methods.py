@@ -1,0 +1,80 @@
+"""One entry point for every calibration method, selected by name.
+
+Each method takes the plane observations of one camera and the nominal data-sheet
+values a user knows (image size, pixel pitch, lens focal length) and returns an
+object offering the camera protocol (``pixel_to_ray``, ``project``).
+"""
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from ptv.calibration.model_free import PlaneObservation, calibrate_model_free
+from ptv.calibration.pinhole import calibrate_pinhole
+from ptv.calibration.soloff import calibrate_soloff
+from ptv.calibration.tsai import calibrate_tsai
+from ptv.camera_model import CameraModel
+
+
+@dataclass(frozen=True)
+class CameraSheet:
+    """Nominal camera data a user knows from the data sheets.
+
+    Attributes
+    ----------
+    image_size : tuple of int
+        (width, height), px.
+    pixel_pitch : float
+        Pixel size, m.
+    focal_length : float
+        Nominal lens focal length, m.
+    """
+
+    image_size: tuple[int, int]
+    pixel_pitch: float
+    focal_length: float
+
+
+def _model_free(observations: Sequence[PlaneObservation], sheet: CameraSheet) -> CameraModel:
+    return calibrate_model_free(list(observations), sheet.image_size)
+
+
+def _tsai(observations: Sequence[PlaneObservation], sheet: CameraSheet) -> CameraModel:
+    return calibrate_tsai(observations, pixel_pitch=sheet.pixel_pitch, sensor_size=sheet.image_size)
+
+
+def _pinhole(observations: Sequence[PlaneObservation], sheet: CameraSheet) -> CameraModel:
+    return calibrate_pinhole(
+        list(observations), sheet.image_size, focal_px=sheet.focal_length / sheet.pixel_pitch
+    )
+
+
+def _soloff(observations: Sequence[PlaneObservation], sheet: CameraSheet) -> CameraModel:
+    return calibrate_soloff(list(observations), sheet.image_size)
+
+
+#: Calibration methods by name: the paper's model-free method and the baselines.
+CALIBRATION_METHODS: dict[str, Callable[[Sequence[PlaneObservation], CameraSheet], CameraModel]] = {
+    "model-free": _model_free,
+    "tsai": _tsai,
+    "pinhole": _pinhole,
+    "soloff": _soloff,
+}
+
+
+def calibrate(
+    method: str, observations: Sequence[PlaneObservation], sheet: CameraSheet
+) -> CameraModel:
+    """Calibrate one camera with the method called ``method``.
+
+    Raises
+    ------
+    ValueError
+        Unknown method (the message lists the known ones) or bad observations.
+    """
+    try:
+        fit = CALIBRATION_METHODS[method]
+    except KeyError:
+        raise ValueError(
+            f"unknown calibration method {method!r}; known: {', '.join(CALIBRATION_METHODS)}"
+        ) from None
+    return fit(observations, sheet)
