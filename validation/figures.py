@@ -1,0 +1,128 @@
+"""Figures of the calibration comparison: the paper's Fig. 3 error maps and the studies.
+
+Each function returns a matplotlib Figure (Agg backend); :func:`save_figure` writes it
+as a PNG under a temporary name and renames it. Lengths are shown in mm and errors in
+µm, as labelled.
+"""
+
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
+
+from validation.calibration_accuracy import PositionErrors
+
+
+def save_figure(figure: Figure, path: str | os.PathLike, *, dpi: int = 110) -> Path:
+    """Write a figure as PNG atomically and close it."""
+    path = Path(path)
+    handle, temporary = tempfile.mkstemp(suffix=".png", dir=path.parent, prefix=f".{path.name}.")
+    os.close(handle)
+    try:
+        figure.savefig(temporary, dpi=dpi, bbox_inches="tight")
+        os.replace(temporary, path)
+    finally:
+        plt.close(figure)
+        if os.path.exists(temporary):
+            os.remove(temporary)
+    return path
+
+
+def _mean_over_planes(errors: PositionErrors) -> tuple[np.ndarray, np.ndarray]:
+    """Per (X, Y) dot site: nominal position (mm) and mean 3-D error over planes (µm)."""
+    sites = np.round(errors.truth[:, :2], 3)  # dots of different planes share (X, Y) to 1 mm
+    keys, inverse = np.unique(sites, axis=0, return_inverse=True)
+    distance = np.linalg.norm(errors.delta, axis=1)
+    total = np.bincount(inverse.ravel(), weights=np.nan_to_num(distance), minlength=len(keys))
+    count = np.bincount(inverse.ravel(), weights=np.isfinite(distance), minlength=len(keys))
+    with np.errstate(invalid="ignore"):
+        return keys * 1e3, total / count * 1e6
+
+
+def error_maps(errors_by_method: Mapping[str, PositionErrors], *, title: str = "") -> Figure:
+    """The paper's Fig. 3: mean 3-D error of each dot site over the planes, per method.
+
+    Each panel shares one colour scale so methods compare at a glance; the panel title
+    gives the Table 1 components.
+    """
+    methods = list(errors_by_method)
+    figure, axes = plt.subplots(
+        1, len(methods), figsize=(4.2 * len(methods), 4.0), squeeze=False, layout="constrained"
+    )
+    maps = {m: _mean_over_planes(e) for m, e in errors_by_method.items()}
+    vmax = max(np.nanpercentile(v, 99) for _, v in maps.values())
+    for ax, method in zip(axes[0], methods, strict=True):
+        xy, value = maps[method]
+        image = ax.scatter(
+            xy[:, 0], xy[:, 1], c=value, s=28, marker="s", vmin=0, vmax=vmax, cmap="viridis"
+        )
+        dx, dy, dz = errors_by_method[method].components * 1e6
+        ax.set_title(
+            f"{method}\nd_X {dx:.1f}, d_Y {dy:.1f}, d_Z {dz:.1f}, "
+            f"d {errors_by_method[method].d * 1e6:.1f} µm",
+            fontsize=9,
+        )
+        ax.set_xlabel("X (mm)")
+        ax.set_aspect("equal")
+    axes[0, 0].set_ylabel("Y (mm)")
+    figure.colorbar(image, ax=axes[0].tolist(), label="mean |Δ| over planes (µm)", shrink=0.8)
+    if title:
+        figure.suptitle(title)
+    return figure
+
+
+def obliquity_curves(rows: Sequence[Mapping[str, float]]) -> Figure:
+    """Table 1 error ratio to the model-free method against window obliquity, per method."""
+    directions = sorted({r["direction_deg"] for r in rows})
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    figure, axes = plt.subplots(
+        1,
+        len(directions),
+        figsize=(5.0 * len(directions), 4.0),
+        squeeze=False,
+        layout="constrained",
+        sharey=True,
+    )
+    for ax, direction in zip(axes[0], directions, strict=True):
+        for method in methods:
+            sel = sorted(
+                (r for r in rows if r["direction_deg"] == direction and r["method"] == method),
+                key=lambda r: r["obliquity_deg"],
+            )
+            ax.plot(
+                [r["obliquity_deg"] for r in sel],
+                [r["ratio_to_model_free"] for r in sel],
+                marker="o",
+                label=method,
+            )
+        where = "in the camera plane" if direction == 0 else f"about a {direction:g}° diagonal"
+        ax.set_title(f"window tilted {where}", fontsize=10)
+        ax.set_xlabel("window obliquity (°)")
+        ax.set_yscale("log")
+        ax.axhline(1.0, color="0.6", lw=0.8)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0, 0].set_ylabel("Table 1 d / d(model-free)")
+    axes[0, -1].legend(fontsize=8)
+    return figure
+
+
+def plane_count_curves(rows: Sequence[Mapping[str, float]]) -> Figure:
+    """Error with N_Z planes relative to all planes, on both metrics."""
+    rows = sorted(rows, key=lambda r: r["planes"])
+    figure, ax = plt.subplots(figsize=(5.0, 3.8), layout="constrained")
+    n = [r["planes"] for r in rows]
+    ax.plot(n, [r["table1_ratio"] for r in rows], marker="o", label="Table 1 metric (dots)")
+    ax.plot(n, [r["model_ratio"] for r in rows], marker="s", label="model error (random points)")
+    ax.axhline(1.0, color="0.6", lw=0.8)
+    ax.set_xlabel("calibration planes N_Z (spanning the depth)")
+    ax.set_ylabel(f"error / error with {n[-1]} planes")
+    ax.legend(fontsize=8)
+    ax.grid(True, alpha=0.3)
+    return figure
