@@ -181,7 +181,11 @@ def _experiment_description(rig: Rig, plate, dt: np.ndarray, settings: RenderSet
         "units": "SI (m, s); pixel coordinates: x = column, y = row, (0, 0) = centre of the "
         "top-left pixel",
         "cameras": {
-            name: {"image_size": list(camera.lens.sensor_size)}
+            name: {
+                "image_size": list(camera.lens.sensor_size),
+                "pixel_pitch": camera.lens.pixel_pitch,
+                "focal_length": camera.lens.focal_length,
+            }
             for name, camera in zip(rig.camera_names, rig.cameras, strict=True)
         },
         "target": settings.plate.as_dict(),
