@@ -1,0 +1,28 @@
+"""Particle detection on camera images (no knowledge of any simulator).
+
+- :mod:`ptv.detect.background`: robust background level and noise (median, MAD),
+  globally or per tile; threshold = level + k · noise.
+- :mod:`ptv.detect.locate`: local maxima above threshold, connected regions split
+  between resolved maxima, sub-pixel centres (3-point Gaussian or threshold-subtracted
+  centroid), intensity, peak, size and flags.
+- :mod:`ptv.detect.detections`: the :class:`Detections` result and its flags.
+- :mod:`ptv.detect.peaklocking`: histogram of the fractional positions and a test of
+  its uniformity (peak-locking diagnostic).
+"""
+
+from ptv.detect._image import check_image
+from ptv.detect.background import BackgroundEstimate, estimate_background
+from ptv.detect.detections import DetectionFlag, Detections
+from ptv.detect.locate import detect_particles
+from ptv.detect.peaklocking import PeakLocking, peak_locking
+
+__all__ = [
+    "BackgroundEstimate",
+    "DetectionFlag",
+    "Detections",
+    "PeakLocking",
+    "check_image",
+    "detect_particles",
+    "estimate_background",
+    "peak_locking",
+]

@@ -1,0 +1,111 @@
+"""The result of particle detection: aligned arrays, one row per detected particle."""
+
+import enum
+from dataclasses import dataclass
+
+import numpy as np
+
+
+class DetectionFlag(enum.IntFlag):
+    """Bits of :attr:`Detections.flags` (0: an isolated, clean detection).
+
+    OVERLAP
+        The particle shared its connected region above threshold with other resolved
+        maxima and was split from them (each pixel goes to the nearest maximum).
+    ELONGATED
+        One detection standing for what is probably several particles: a single maximum
+        whose spot is elongated beyond ``max_elongation`` (two unresolved overlapping
+        particles, or a streak), or a region with too many maxima to split (more than
+        64: a blob such as a reflection, or a threshold set inside the noise), reported
+        at its brightest maximum.
+    SATURATED
+        At least one of its pixels is at or above the saturation level.
+    EDGE
+        Its pixels touch the image border: the spot is cut and its centre biased.
+    FALLBACK
+        The chosen Gaussian estimator was ill-posed (a value <= background, a flat or
+        non-concave profile, the border) and a simpler one was used: the 3-point
+        Gaussian for ``"gauss"``, the centroid for ``"gauss3"`` (on the axis concerned).
+    """
+
+    OVERLAP = 1
+    ELONGATED = 2
+    SATURATED = 4
+    EDGE = 8
+    FALLBACK = 16
+
+
+@dataclass(frozen=True, eq=False)
+class Detections:
+    """Particles detected on one image.
+
+    Parameters
+    ----------
+    xy : ndarray, shape (N, 2), float64
+        Sub-pixel centres (x = column, y = row), px; the centre of the top-left pixel
+        is (0, 0) (OpenCV convention).
+    intensity : ndarray, shape (N,), float64
+        Integrated intensity above background, Σ (I − background) over the particle's
+        pixels above threshold, DN (the spot's tails below threshold are not counted).
+    peak : ndarray, shape (N,), float64
+        Brightest pixel above background, I_max − background, DN.
+    size : ndarray, shape (N,), int64
+        Pixels above threshold that belong to the particle.
+    flags : ndarray, shape (N,), uint8
+        Bitwise OR of :class:`DetectionFlag` values; 0 for a clean detection.
+    shape : (H, W)
+        Rows and columns of the image.
+    """
+
+    xy: np.ndarray
+    intensity: np.ndarray
+    peak: np.ndarray
+    size: np.ndarray
+    flags: np.ndarray
+    shape: tuple[int, int]
+
+    def __post_init__(self) -> None:
+        xy = np.asarray(self.xy, dtype=np.float64)
+        if xy.ndim != 2 or xy.shape[1] != 2:
+            raise ValueError(f"xy must have shape (N, 2), got {xy.shape}")
+        n = xy.shape[0]
+        fields = {
+            "intensity": np.float64,
+            "peak": np.float64,
+            "size": np.int64,
+            "flags": np.uint8,
+        }
+        object.__setattr__(self, "xy", xy)
+        for name, dtype in fields.items():
+            arr = np.asarray(getattr(self, name), dtype=dtype)
+            if arr.shape != (n,):
+                raise ValueError(f"{name} must have shape ({n},) like xy, got {arr.shape}")
+            object.__setattr__(self, name, arr)
+        shape = tuple(int(v) for v in self.shape)
+        if len(shape) != 2 or min(shape) < 1:
+            raise ValueError(f"shape must be (rows, cols) of positive integers, got {self.shape}")
+        object.__setattr__(self, "shape", shape)
+
+    def __len__(self) -> int:
+        return self.xy.shape[0]
+
+    def has(self, flag: DetectionFlag) -> np.ndarray:
+        """(N,) bool: detections carrying any bit of ``flag``."""
+        return (self.flags & np.uint8(flag)) != 0
+
+    @property
+    def clean(self) -> np.ndarray:
+        """(N,) bool: detections with no flag except FALLBACK."""
+        return (self.flags & np.uint8(0xFF ^ DetectionFlag.FALLBACK)) == 0
+
+    def select(self, mask: object) -> "Detections":
+        """The detections picked by a boolean mask or an index array."""
+        idx = np.asarray(mask)
+        return Detections(
+            xy=self.xy[idx],
+            intensity=self.intensity[idx],
+            peak=self.peak[idx],
+            size=self.size[idx],
+            flags=self.flags[idx],
+            shape=self.shape,
+        )
