@@ -14,7 +14,8 @@ Layout of a dataset folder (all lengths in m, times in s)::
 window parameters), ``/flow`` (attributes: u', ε, ν, the preset, the spectrum),
 ``/plate`` (``z_nominal`` (N_Z,), ``z_actual`` (N_Z,), ``dots_world`` (N_Z, D, 3) and per
 camera ``<camera>/dots_xy`` (N_Z, D, 2) image of each dot centre, ``<camera>/dots_centroid``
-(N_Z, D, 2) centroid of each dot's light) and ``/particles/dt<k>`` (attribute ``dt``;
+(N_Z, D, 2) centroid of each dot's light, ``<camera>/dots_on_sensor`` (N_Z, D) whole dot
+on the sensor) and ``/particles/dt<k>`` (attribute ``dt``;
 ``positions`` (M, 2, P, 3) at t and t + Δt, ``velocity`` (M, P, 3) at t, and per camera
 ``<camera>/xy`` (M, 2, P, 2) and ``<camera>/visible`` (M, 2, P)).
 
@@ -132,7 +133,7 @@ def _write_plates(staging: Path, truth: h5py.File, rig: Rig, plate, settings, ti
     group.create_dataset("dot_indices", data=settings.plate.indices)
     rng = np.random.default_rng(settings.seed + 1)
     for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
-        projected, centroid = [], []
+        projected, centroid, on_sensor = [], [], []
         for j in range(len(plate.poses)):
             rendered = render_plate(
                 plate, camera, j, full_brightness=settings.plate_brightness, defocus=True
@@ -141,9 +142,11 @@ def _write_plates(staging: Path, truth: h5py.File, rig: Rig, plate, settings, ti
             _write_tiff(staging / "calibration" / name / f"plane_{j:02d}.tif", image)
             projected.append(rendered.projected)
             centroid.append(rendered.centroid)
+            on_sensor.append(rendered.on_sensor)
             tick()
         group.create_dataset(f"{name}/dots_xy", data=np.stack(projected))
         group.create_dataset(f"{name}/dots_centroid", data=np.stack(centroid))
+        group.create_dataset(f"{name}/dots_on_sensor", data=np.stack(on_sensor))
 
 
 def _write_particles(staging: Path, truth: h5py.File, rig: Rig, sample, settings, tick) -> None:
