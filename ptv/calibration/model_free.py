@@ -22,6 +22,7 @@ line in the water, so the straight-line model is exact for such rigs.
 import logging
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 from scipy.spatial import Delaunay
@@ -34,8 +35,8 @@ log = logging.getLogger(__name__)
 #: Newton iterations and tolerance (px) of ``project``.
 _NEWTON_STEPS = 20
 _NEWTON_TOL = 1e-10
-#: Barycentric tolerance of the hull test: dots on the hull itself are inside.
-_HULL_TOL = 1e-9
+#: Fractional bits of the hull vertices when rasterising the calibrated area.
+_SUBPIXEL_BITS = 4
 
 
 @dataclass(frozen=True)
@@ -101,6 +102,18 @@ def fit_plane(observation: PlaneObservation, *, degree: int = 3) -> PlaneFit:
     )
 
 
+def _coverage_mask(planes: tuple[PlaneFit, ...], image_size: tuple[int, int]) -> np.ndarray:
+    """Boolean (height, width) mask of the union of the planes' dot hulls."""
+    width, height = image_size
+    mask = np.zeros((height, width), dtype=np.uint8)
+    for plane in planes:
+        hull = cv2.convexHull(plane.hull.points.astype(np.float32))[:, 0]
+        vertices = np.rint(hull * (1 << _SUBPIXEL_BITS)).astype(np.int32)
+        cv2.fillConvexPoly(mask, vertices, 1, lineType=cv2.LINE_8, shift=_SUBPIXEL_BITS)
+    # One pixel of dilation keeps the dots on the hull itself inside after rounding.
+    return cv2.dilate(mask, np.ones((3, 3), np.uint8)).astype(bool)
+
+
 @dataclass(frozen=True, eq=False)
 class ModelFreeCalibration:
     """Pixel → line calibration of one camera.
@@ -129,6 +142,7 @@ class ModelFreeCalibration:
     line_parameters: np.ndarray
     line_rms: np.ndarray
     _splines: tuple[RectBivariateSpline, ...] = field(init=False, repr=False)
+    _coverage: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         splines = tuple(
@@ -136,16 +150,22 @@ class ModelFreeCalibration:
             for p in self.line_parameters
         )
         object.__setattr__(self, "_splines", splines)
+        object.__setattr__(self, "_coverage", _coverage_mask(self.planes, self.image_size))
 
     def covered(self, xy: np.ndarray) -> np.ndarray:
-        """Pixels inside the area where dots were seen on some plane, shape (N,)."""
+        """Pixels inside the area where dots were seen on some plane, shape (N,).
+
+        The area is the union of the planes' convex hulls, rasterised once on the pixel
+        grid and grown by one pixel: nothing beyond one pixel of the dots is calibrated.
+        """
         xy = np.asarray(xy, dtype=float)
-        finite = np.isfinite(xy).all(axis=1)
-        safe = np.where(finite[:, None], xy, 0.0)
-        inside = np.zeros(len(xy), dtype=bool)
-        for plane in self.planes:
-            inside |= plane.hull.find_simplex(safe, tol=_HULL_TOL) >= 0
-        return finite & inside
+        width, height = self.image_size
+        col = np.rint(np.where(np.isfinite(xy[:, 0]), xy[:, 0], -1.0))
+        row = np.rint(np.where(np.isfinite(xy[:, 1]), xy[:, 1], -1.0))
+        inside = (col >= 0) & (col < width) & (row >= 0) & (row < height)
+        out = np.zeros(len(xy), dtype=bool)
+        out[inside] = self._coverage[row[inside].astype(int), col[inside].astype(int)]
+        return out
 
     def line_at(self, xy: np.ndarray, *, dx: int = 0, dy: int = 0) -> np.ndarray:
         """X₀, Y₀, a, b (or their pixel derivatives) at pixels xy (N, 2); shape (N, 4)."""

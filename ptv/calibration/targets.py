@@ -1,0 +1,901 @@
+"""Dots of a calibration plate image: detection, centroids and grid indexing (MLBAV step 1).
+
+A plate carries a square grid of dots (pitch p) and three larger *marks* at known grid
+indices (synptv's plate: the origin (0, 0), an X mark at (2, 0) and a Y mark at (0, 3)).
+For one image, :func:`find_dots` returns every dot it could identify with its pixel
+centre, its integer grid index (i, j) and its nominal plate coordinates (X, Y) = p·(i, j).
+
+Steps
+-----
+1. **Background and threshold.** The background level is the median of coarse tiles
+   (median-filtered over the tile grid, bilinear between tile centres), so a slowly
+   varying background is followed. The noise σ is 1.4826·MAD of horizontal pixel
+   differences / √2 (a smooth background cancels; the dots' edges are too few to
+   matter). The signal is the 99.9th percentile above the background. Pixels brighter
+   than background + max(k·σ, f·signal) (k = ``noise_sigmas``, f = ``threshold_fraction``)
+   form the dot mask: a low fraction of the signal keeps dimly back-lit dots (uneven
+   lighting) whole. Dark dots on a bright plate are handled by inverting the image.
+2. **Blobs.** 8-connected components (OpenCV). Specks smaller than ``min_area`` px are
+   dropped. A blob is rejected when its measurement window (the blob grown by
+   ``margin`` px) leaves the image (a dot cut by the edge), when two windows touch
+   (crowded), or when its area is implausible next to the median area of its 12
+   nearest blobs: below 0.4× (fragments) or above 1.6 × (D_mark/D_dot)² (merged blobs,
+   reflections).
+3. **Centroids.** Intensity-weighted centre of mass over the window, with the local
+   background (the mean of a ring of ``ring`` px around the window, outside every
+   blob) subtracted and the signed values kept (clipping the noise at zero would bias
+   the centroid). The window holds all of the dot's light, blurred edges included.
+4. **Marks.** The blobs whose area exceeds √((D_mark/D_dot)²) times their neighbours'
+   median (the geometric midpoint between a dot and a mark). Each triple of candidates
+   and each assignment of the three mark names to it defines an affine map
+   grid index → pixel; the right one predicts the neighbouring dots (a wrong one
+   predicts a lattice of the wrong spacing or orientation), so the assignment that
+   matches the most detections near the marks wins. Mirrored or rotated images are
+   handled alike.
+5. **Indexing.** From the marks the grid grows ring by ring: each unassigned
+   neighbour of an indexed node is predicted by an affine map fitted to the indexed
+   nodes within two grid steps (nearest indexed nodes if too few), and takes the
+   nearest unused detection within 0.3 local pitches. Candidates are resolved closest
+   first, so no detection is assigned twice. Local fits follow perspective,
+   Scheimpflug tilt, lens distortion and refraction. A final cubic fit of all
+   pixels against their indices flags gross outliers (> 0.25 pitch), which are
+   dropped.
+6. **Missing nodes.** Grid nodes that should be seen but were not: inside the plate's
+   ``extent`` (when known; else inside the index box of the found dots) and within two
+   grid steps of found dots, predicted with their whole window on the image.
+
+Errors (``ValueError`` subclasses, naming ``source``): a non-2-D or non-real image,
+NaNs; :class:`NoTargetError` when too few dot-like blobs are seen;
+:class:`MarkersNotFoundError` when the three marks cannot be found or placed.
+"""
+
+import itertools
+import logging
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy import ndimage
+from scipy.spatial import cKDTree
+
+from ptv.calibration.model_free import PlaneObservation
+from ptv.calibration.polynomial import fit_polynomial2d
+
+log = logging.getLogger(__name__)
+
+#: Bit flags of :attr:`PlaneDots.flags`.
+FLAG_MARK = 1
+FLAG_SATURATED = 2
+
+#: MAD → σ for Gaussian noise.
+_MAD_TO_SIGMA = 1.482602218505602
+#: Relative floor of the noise estimate (noise-free images), of the image's span.
+_NOISE_FLOOR = 1e-6
+#: Fewest dot-like blobs an image of a target must show (three marks and neighbours).
+MIN_BLOBS = 12
+#: Neighbours whose median area is a blob's reference area.
+_AREA_NEIGHBOURS = 12
+#: Plausible blob area relative to its neighbours' median: below → fragment.
+_MIN_AREA_RATIO = 0.4
+#: Above this times the expected mark/dot area ratio → not a dot.
+_MAX_MARK_RATIO = 1.6
+#: Matching tolerance of the indexing, in local pitches.
+_MATCH_TOL = 0.3
+#: Matching tolerance when scoring a mark assignment, in pitches.
+_SCORE_TOL = 0.25
+#: Grid steps around the marks scored for a mark assignment.
+_SCORE_REACH = 3
+#: Fewest matched fraction of the predicted dots around the marks.
+_MIN_SCORE = 0.5
+#: Mark candidates tried (the largest relative areas), in triples.
+_MAX_MARK_CANDIDATES = 6
+#: Residual of the final cubic grid fit above which a dot is dropped, in pitches.
+_OUTLIER_TOL = 0.25
+#: Index support radius (Chebyshev, grid steps) of the local affine predictions.
+_SUPPORT_RADIUS = 2
+
+
+class NoTargetError(ValueError):
+    """The image shows no calibration target (too few dot-like blobs)."""
+
+
+class MarkersNotFoundError(ValueError):
+    """The three marked dots of the plate could not be found or placed."""
+
+
+# -- the plate description ---------------------------------------------------------------
+@dataclass(frozen=True)
+class PlateDescription:
+    """The nominal plate, as an experimentalist describes it to the calibration software.
+
+    Parameters
+    ----------
+    pitch : float
+        Dot spacing along X and Y, m.
+    dot_diameter : float
+        Diameter of the ordinary dots, m.
+    mark_diameter : float
+        Diameter of the three marked dots, m (larger than ``dot_diameter``).
+    marks : dict of str to (int, int)
+        Grid indices (i, j) of the three marks, e.g. ``{"origin": (0, 0),
+        "x_axis": (2, 0), "y_axis": (0, 3)}``; not collinear. Plate coordinates are
+        (X, Y) = pitch·(i, j).
+    dots : str
+        ``"bright"`` (back-lit dots on a dark plate) or ``"dark"`` (dark dots on a
+        bright plate).
+    extent : ((int, int), (int, int)) or None
+        ((i_min, i_max), (j_min, j_max)), inclusive: the grid nodes the plate has.
+        None when unknown (then only holes inside the found grid count as missing).
+    """
+
+    pitch: float
+    dot_diameter: float
+    mark_diameter: float
+    marks: Mapping[str, tuple[int, int]]
+    dots: str = "bright"
+    extent: tuple[tuple[int, int], tuple[int, int]] | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("pitch", "dot_diameter", "mark_diameter"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
+                raise ValueError(f"plate {name} must be a number (m), got {value!r}")
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"plate {name} must be finite and > 0 (m), got {value!r}")
+            object.__setattr__(self, name, float(value))
+        if not self.dot_diameter < self.mark_diameter:
+            raise ValueError(
+                f"the marks must be larger than the dots: mark_diameter {self.mark_diameter} "
+                f"m <= dot_diameter {self.dot_diameter} m"
+            )
+        if not self.mark_diameter < self.pitch:
+            raise ValueError(
+                f"mark_diameter {self.mark_diameter} m must be smaller than the pitch "
+                f"{self.pitch} m"
+            )
+        if self.dots not in ("bright", "dark"):
+            raise ValueError(f"dots must be 'bright' or 'dark', got {self.dots!r}")
+        if not isinstance(self.marks, Mapping) or len(self.marks) != 3:
+            raise ValueError(
+                f"the plate needs exactly three marks {{name: (i, j)}}, got {self.marks!r}"
+            )
+        marks = {str(k): _grid_pair(v, f"mark {k!r}") for k, v in self.marks.items()}
+        g = np.array(list(marks.values()), dtype=float)
+        if abs(np.linalg.det(np.column_stack([g, np.ones(3)]))) < 0.5:
+            raise ValueError(f"the three marks must not be collinear, got {marks}")
+        object.__setattr__(self, "marks", marks)
+        if self.extent is not None:
+            ext = np.asarray(self.extent)
+            if ext.shape != (2, 2) or not np.issubdtype(ext.dtype, np.integer):
+                raise ValueError(
+                    f"extent must be ((i_min, i_max), (j_min, j_max)) integers, got {self.extent!r}"
+                )
+            if np.any(ext[:, 0] > ext[:, 1]):
+                raise ValueError(f"extent must have min <= max, got {self.extent!r}")
+            ext_t = ((int(ext[0, 0]), int(ext[0, 1])), (int(ext[1, 0]), int(ext[1, 1])))
+            for name, (i, j) in marks.items():
+                if not (ext_t[0][0] <= i <= ext_t[0][1] and ext_t[1][0] <= j <= ext_t[1][1]):
+                    raise ValueError(f"mark {name!r} at {(i, j)} lies outside the extent {ext_t}")
+            object.__setattr__(self, "extent", ext_t)
+
+    @property
+    def mark_area_ratio(self) -> float:
+        """Nominal area of a mark over that of a dot, (D_mark/D_dot)²."""
+        return (self.mark_diameter / self.dot_diameter) ** 2
+
+    def in_extent(self, indices: np.ndarray) -> np.ndarray:
+        """Whether grid indices (N, 2) lie on the plate (all True when the extent is unknown)."""
+        idx = np.asarray(indices).reshape(-1, 2)
+        if self.extent is None:
+            return np.ones(len(idx), dtype=bool)
+        (i0, i1), (j0, j1) = self.extent
+        return (idx[:, 0] >= i0) & (idx[:, 0] <= i1) & (idx[:, 1] >= j0) & (idx[:, 1] <= j1)
+
+    @classmethod
+    def from_dict(cls, spec: Mapping, *, source: str = "target description") -> "PlateDescription":
+        """Read the ``"target"`` entry of ``experiment.json`` (SI units).
+
+        Required: ``pitch``, ``dot_diameter``, ``mark_diameter`` (m) and ``marks``
+        ({name: [i, j]}, three of them). Optional: ``extent``
+        ([[i_min, i_max], [j_min, j_max]]), or ``columns`` and ``rows``, which give
+        the extent of synptv's layout with the origin mark in the middle of the grid
+        (i from −⌊columns/2⌋ to columns − 1 − ⌊columns/2⌋, likewise j); ``dots`` or
+        ``dots_are`` (text starting with "bright" or "dark"; bright by default).
+        Other fields (e.g. ``thickness``) are ignored.
+
+        Raises
+        ------
+        ValueError
+            Naming ``source`` and the field, for a missing or malformed field.
+        """
+        if not isinstance(spec, Mapping):
+            raise ValueError(f"{source}: the target must be a table of fields, got {spec!r}")
+        missing = [k for k in ("pitch", "dot_diameter", "mark_diameter", "marks") if k not in spec]
+        if missing:
+            raise ValueError(
+                f"{source}: the target description lacks the field(s) {', '.join(missing)} "
+                "(needs pitch, dot_diameter, mark_diameter in m and marks {name: [i, j]})"
+            )
+        marks = spec["marks"]
+        if not isinstance(marks, Mapping):
+            raise ValueError(f"{source}: 'marks' must map names to [i, j], got {marks!r}")
+        dots = spec.get("dots", spec.get("dots_are", "bright"))
+        if not isinstance(dots, str) or not dots.strip():
+            raise ValueError(f"{source}: 'dots' must be 'bright' or 'dark', got {dots!r}")
+        word = dots.strip().split()[0].lower()
+        extent = spec.get("extent")
+        if extent is None and ("columns" in spec or "rows" in spec):
+            if not ("columns" in spec and "rows" in spec):
+                raise ValueError(f"{source}: give both 'columns' and 'rows' (or neither)")
+            columns, rows = spec["columns"], spec["rows"]
+            for name, value in (("columns", columns), ("rows", rows)):
+                if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                    raise ValueError(
+                        f"{source}: '{name}' must be a positive integer, got {value!r}"
+                    )
+            extent = (
+                (-(columns // 2), columns - 1 - columns // 2),
+                (-(rows // 2), rows - 1 - rows // 2),
+            )
+        try:
+            return cls(
+                pitch=spec["pitch"],
+                dot_diameter=spec["dot_diameter"],
+                mark_diameter=spec["mark_diameter"],
+                marks={
+                    str(k): tuple(v) if isinstance(v, list | tuple) else v for k, v in marks.items()
+                },
+                dots=word,
+                extent=None if extent is None else tuple(tuple(e) for e in extent),
+            )
+        except (ValueError, TypeError) as err:
+            raise ValueError(f"{source}: {err}") from None
+
+
+def _grid_pair(value: object, what: str) -> tuple[int, int]:
+    arr = np.asarray(value)
+    if arr.shape != (2,) or not (
+        np.issubdtype(arr.dtype, np.integer)
+        or (np.issubdtype(arr.dtype, np.floating) and np.all(arr == np.round(arr)))
+    ):
+        raise ValueError(f"{what} must be two integers (i, j), got {value!r}")
+    return int(arr[0]), int(arr[1])
+
+
+# -- results -----------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class PlaneDots:
+    """The identified dots of one plate image.
+
+    Attributes
+    ----------
+    pixels : ndarray, shape (N, 2), float64
+        Intensity-weighted dot centres, px (x = column, y = row).
+    indices : ndarray, shape (N, 2), int64
+        Grid index (i, j) of each dot.
+    world_xy : ndarray, shape (N, 2), float64
+        Nominal plate coordinates pitch·(i, j), m.
+    area : ndarray, shape (N,), int64
+        Pixels of each dot above the threshold, px.
+    flags : ndarray, shape (N,), uint8
+        Bit flags: :data:`FLAG_MARK` (one of the three marks), :data:`FLAG_SATURATED`
+        (a pixel at the saturation level: the centroid may be biased).
+    marks : dict of str to int
+        Row of each mark (by its name in the description).
+    missing : ndarray, shape (M, 2), int64
+        Grid nodes expected on the image (whole, inside the plate's extent) but not found.
+    rejected_pixels : ndarray, shape (K, 2), float64
+        Centroids of blobs that were not used, px.
+    rejected_reasons : tuple of str
+        Why, per rejected blob: ``"edge"`` (cut by the image edge), ``"area"``
+        (implausible size), ``"crowded"`` (touching another blob's window),
+        ``"unindexed"`` (not on the grid), ``"outlier"`` (off the smooth grid fit).
+    image_size : (int, int)
+        (width, height) of the image, px.
+    background : float
+        Median background level, image units.
+    noise : float
+        Pixel noise σ, image units.
+    threshold : float
+        Median threshold of the dot mask, image units.
+    source : str
+        The image's name (used in messages).
+    """
+
+    pixels: np.ndarray
+    indices: np.ndarray
+    world_xy: np.ndarray
+    area: np.ndarray
+    flags: np.ndarray
+    marks: dict[str, int]
+    missing: np.ndarray
+    rejected_pixels: np.ndarray
+    rejected_reasons: tuple[str, ...]
+    image_size: tuple[int, int]
+    background: float
+    noise: float
+    threshold: float
+    source: str = field(default="image")
+
+    def __len__(self) -> int:
+        return len(self.pixels)
+
+    def observation(self, z: float) -> PlaneObservation:
+        """The dots as a calibration plane at traverse position ``z`` (m)."""
+        return PlaneObservation(
+            z=float(z), pixels=self.pixels.copy(), world_xy=self.world_xy.copy()
+        )
+
+
+#: The name the brief of issue 4 uses for the result.
+DotDetections = PlaneDots
+
+
+# -- image checks and background ---------------------------------------------------------
+def _check_image(image: object, source: str) -> np.ndarray:
+    arr = np.asarray(image)
+    if arr.ndim != 2:
+        raise ValueError(
+            f"{source}: a plate image must be 2-D (rows, columns) grey levels, got "
+            f"ndim={arr.ndim} with shape {arr.shape}"
+        )
+    if arr.size == 0 or min(arr.shape) < 8:
+        raise ValueError(f"{source}: image of shape {arr.shape} is too small")
+    dt = arr.dtype
+    if dt == np.bool_ or not (np.issubdtype(dt, np.integer) or np.issubdtype(dt, np.floating)):
+        raise ValueError(
+            f"{source}: a plate image must hold real numbers (integers or floats), got dtype {dt}"
+        )
+    out = arr.astype(np.float64)
+    if not np.isfinite(out).all():
+        bad = ~np.isfinite(out)
+        r, c = np.unravel_index(int(np.flatnonzero(bad)[0]), arr.shape)
+        raise ValueError(
+            f"{source}: image has {int(bad.sum())} NaN or infinite pixel(s), first at "
+            f"(row {r}, column {c})"
+        )
+    return out
+
+
+def _background_map(image: np.ndarray, tile: int) -> np.ndarray:
+    """Median of coarse tiles, median-filtered over the grid, bilinear between centres."""
+    h, w = image.shape
+    gy, gx = max(1, h // tile), max(1, w // tile)
+    ys = np.linspace(0, h, gy + 1).astype(int)
+    xs = np.linspace(0, w, gx + 1).astype(int)
+    level = np.empty((gy, gx))
+    for a in range(gy):
+        for b in range(gx):
+            level[a, b] = np.median(image[ys[a] : ys[a + 1] : 2, xs[b] : xs[b + 1] : 2])
+    if gy >= 3 and gx >= 3:
+        level = ndimage.median_filter(level, size=3, mode="nearest")
+    if gy == 1 and gx == 1:
+        return np.full(image.shape, level[0, 0])
+    return cv2.resize(level, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def _noise_sigma(image: np.ndarray) -> float:
+    d = np.diff(image[::2], axis=1).ravel()
+    mad = np.median(np.abs(d - np.median(d)))
+    span = float(image.max() - image.min())
+    return max(_MAD_TO_SIGMA * mad / np.sqrt(2.0), _NOISE_FLOOR * span)
+
+
+# -- blobs and centroids -------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Blobs:
+    centroid: np.ndarray  # (B, 2)
+    area: np.ndarray  # (B,)
+    reason: np.ndarray  # (B,) object: "" for usable blobs
+    saturated: np.ndarray  # (B,) bool
+
+
+def _disc(radius: int) -> np.ndarray:
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+
+
+def _measure_blobs(
+    signal: np.ndarray,
+    mask: np.ndarray,
+    background: np.ndarray,
+    *,
+    min_area: int,
+    margin: int,
+    ring: int,
+    saturated_px: np.ndarray,
+) -> _Blobs:
+    h, w = signal.shape
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(
+        mask.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S
+    )
+    area = stats[:, cv2.CC_STAT_AREA].astype(np.int64)
+    keep = np.flatnonzero(area >= min_area)
+    keep = keep[keep > 0]
+    if len(keep) == 0:
+        return _Blobs(
+            np.zeros((0, 2)), np.zeros(0, np.int64), np.zeros(0, object), np.zeros(0, bool)
+        )
+    # Relabel the kept blobs 1..B (specks → background).
+    relabel = np.zeros(n, dtype=np.int32)
+    relabel[keep] = np.arange(1, len(keep) + 1, dtype=np.int32)
+    lab = relabel[labels]
+    b = len(keep)
+    big = np.float32(b + 1)
+    lab_f = lab.astype(np.float32)
+    window = cv2.dilate(lab_f, _disc(margin))
+    lowest = cv2.erode(np.where(lab > 0, lab_f, big), _disc(margin))
+    outer = cv2.dilate(lab_f, _disc(margin + ring))
+    win = window.astype(np.int64)
+    # Crowded: two blobs' windows meet.
+    clash = (win > 0) & (lowest < big) & (lowest.astype(np.int64) != win)
+    crowded = np.zeros(b + 1, dtype=bool)
+    crowded[win[clash]] = True
+    crowded[lowest[clash].astype(np.int64)] = True
+    # Ring background per blob, from pixels outside every window and blob.
+    ring_px = (outer > 0) & (win == 0) & (lab == 0)
+    rl = outer.astype(np.int64)[ring_px]
+    ring_n = np.bincount(rl, minlength=b + 1)
+    ring_sum = np.bincount(rl, weights=signal[ring_px], minlength=b + 1)
+    # Window sums.
+    sel = win > 0
+    wl = win[sel]
+    rows, cols = np.nonzero(sel)
+    val = signal[sel]
+    n_w = np.bincount(wl, minlength=b + 1).astype(float)
+    s0 = np.bincount(wl, weights=val, minlength=b + 1)
+    sx = np.bincount(wl, weights=val * cols, minlength=b + 1)
+    sy = np.bincount(wl, weights=val * rows, minlength=b + 1)
+    cx = np.bincount(wl, weights=cols.astype(float), minlength=b + 1)
+    cy = np.bincount(wl, weights=rows.astype(float), minlength=b + 1)
+    # Local background: the ring mean, or the tile map at the blob where no ring is left.
+    fallback = background[
+        np.clip(stats[keep, cv2.CC_STAT_TOP] + stats[keep, cv2.CC_STAT_HEIGHT] // 2, 0, h - 1),
+        np.clip(stats[keep, cv2.CC_STAT_LEFT] + stats[keep, cv2.CC_STAT_WIDTH] // 2, 0, w - 1),
+    ]
+    bg = np.where(ring_n[1:] > 0, ring_sum[1:] / np.maximum(ring_n[1:], 1), fallback)
+    total = s0[1:] - bg * n_w[1:]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        centroid = np.column_stack([(sx[1:] - bg * cx[1:]) / total, (sy[1:] - bg * cy[1:]) / total])
+    # Cut by the edge: the window (blob grown by the margin) must lie inside the image.
+    left = stats[keep, cv2.CC_STAT_LEFT]
+    top = stats[keep, cv2.CC_STAT_TOP]
+    right = left + stats[keep, cv2.CC_STAT_WIDTH] - 1
+    bottom = top + stats[keep, cv2.CC_STAT_HEIGHT] - 1
+    edge = (
+        (left - margin < 0)
+        | (top - margin < 0)
+        | (right + margin > w - 1)
+        | (bottom + margin > h - 1)
+    )
+    reason = np.full(b, "", dtype=object)
+    reason[crowded[1:]] = "crowded"
+    reason[edge] = "edge"
+    reason[~(total > 0) | ~np.isfinite(centroid).all(axis=1)] = "area"
+    sat = np.zeros(b + 1, dtype=bool)
+    sat[lab[saturated_px]] = True
+    sat[0] = False
+    return _Blobs(centroid=centroid, area=area[keep], reason=reason, saturated=sat[1:])
+
+
+def _relative_area(centroid: np.ndarray, area: np.ndarray) -> np.ndarray:
+    """Area of each blob over the median area of its nearest neighbours."""
+    k = min(_AREA_NEIGHBOURS, len(area) - 1)
+    if k < 1:
+        return np.ones(len(area))
+    _, nb = cKDTree(centroid).query(centroid, k=k + 1)
+    return area / np.median(area[nb[:, 1:]], axis=1)
+
+
+# -- marks ---------------------------------------------------------------------------------
+def _affine_from(grid: np.ndarray, pixels: np.ndarray) -> np.ndarray | None:
+    """Exact affine (3, 2) with [i, j, 1] @ M = pixel from three correspondences."""
+    a = np.column_stack([grid, np.ones(len(grid))])
+    if abs(np.linalg.det(a)) < 1e-9:
+        return None
+    return np.linalg.solve(a, pixels)
+
+
+def _locate_marks(
+    pts: np.ndarray,
+    tree: cKDTree,
+    candidates: np.ndarray,
+    description: PlateDescription,
+    pitch_px: float,
+    image_size: tuple[int, int],
+    source: str,
+) -> dict[str, int]:
+    """Assign the mark names to three candidate detections (indices into ``pts``)."""
+    names = list(description.marks)
+    grid = np.array([description.marks[k] for k in names], dtype=float)
+    lo = grid.min(axis=0) - _SCORE_REACH
+    hi = grid.max(axis=0) + _SCORE_REACH
+    ii, jj = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
+    nodes = np.column_stack([ii.ravel(), jj.ravel()])
+    nodes = nodes[~(nodes[:, None, :] == grid[None]).all(axis=2).any(axis=1)]
+    design = np.column_stack([nodes, np.ones(len(nodes))])
+    w, h = image_size
+    best: tuple[float, dict[str, int]] | None = None
+    for triple in itertools.combinations(candidates, 3):
+        for perm in itertools.permutations(triple):
+            m = _affine_from(grid, pts[list(perm)])
+            if m is None:
+                continue
+            steps = np.linalg.norm(m[:2], axis=1)
+            if not (0.4 * pitch_px < steps.min() and steps.max() < 2.5 * pitch_px):
+                continue
+            pred = design @ m
+            inside = (pred[:, 0] >= 0) & (pred[:, 0] <= w - 1) & (pred[:, 1] >= 0)
+            inside &= pred[:, 1] <= h - 1
+            if inside.sum() < 5:
+                continue
+            dist, hit = tree.query(pred[inside])
+            ok = dist < _SCORE_TOL * steps.min()
+            score = len(np.unique(hit[ok])) / inside.sum()
+            if best is None or score > best[0]:
+                best = (score, dict(zip(names, (int(p) for p in perm), strict=True)))
+    if best is None or best[0] < _MIN_SCORE:
+        got = "no placement" if best is None else f"at best {best[0]:.0%} of the nearby dots"
+        raise MarkersNotFoundError(
+            f"markers not found in {source}: {len(candidates)} mark-sized blob(s), but no "
+            f"assignment of the marks {description.marks} to them predicts the dot grid "
+            f"around them ({got} matched, need {_MIN_SCORE:.0%})"
+        )
+    log.debug("%s: marks placed, %.0f%% of nearby dots predicted", source, 100 * best[0])
+    return best[1]
+
+
+# -- indexing ------------------------------------------------------------------------------
+def _local_affine(nodes: np.ndarray, pix: np.ndarray, target: np.ndarray) -> np.ndarray | None:
+    """Affine (3, 2) index → pixel fitted to indexed nodes near ``target`` (2,)."""
+    d = np.abs(nodes - target).max(axis=1)
+    sel = d <= _SUPPORT_RADIUS
+    if sel.sum() < 4 or np.linalg.matrix_rank(nodes[sel] - nodes[sel].mean(axis=0)) < 2:
+        order = np.argsort(np.hypot(*(nodes - target).T), kind="stable")
+        sel = order[: max(6, int(sel.sum()))]
+        if np.linalg.matrix_rank(nodes[sel] - nodes[sel].mean(axis=0)) < 2:
+            sel = order
+            if len(sel) < 3 or np.linalg.matrix_rank(nodes - nodes.mean(axis=0)) < 2:
+                return None
+    a = np.column_stack([nodes[sel], np.ones(len(nodes[sel]))])
+    return np.linalg.lstsq(a, pix[sel], rcond=None)[0]
+
+
+_NEIGHBOURS = np.array([(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1) if (di, dj) != (0, 0)])
+
+
+def _grow(
+    pts: np.ndarray,
+    tree: cKDTree,
+    usable: np.ndarray,
+    seeds: dict[tuple[int, int], int],
+    description: PlateDescription,
+) -> dict[tuple[int, int], int]:
+    """Index detections by growing the grid outward from the marks."""
+    assigned = dict(seeds)
+    used = set(seeds.values())
+    while True:
+        nodes = np.array(list(assigned), dtype=float)
+        pix = pts[list(assigned.values())]
+        frontier = {
+            (int(a + di), int(b + dj))
+            for a, b in assigned
+            for di, dj in _NEIGHBOURS
+            if (int(a + di), int(b + dj)) not in assigned
+        }
+        frontier_arr = np.array(sorted(frontier), dtype=float).reshape(-1, 2)
+        frontier_arr = frontier_arr[description.in_extent(frontier_arr.astype(int))]
+        candidates = []
+        for node in frontier_arr:
+            m = _local_affine(nodes, pix, node)
+            if m is None:
+                continue
+            pred = np.append(node, 1.0) @ m
+            tol = _MATCH_TOL * np.linalg.norm(m[:2], axis=1).min()
+            for dist, k in zip(*tree.query(pred, k=3, distance_upper_bound=tol), strict=True):
+                if np.isfinite(dist) and usable[k] and k not in used:
+                    candidates.append((dist, (int(node[0]), int(node[1])), int(k)))
+                    break
+        added = 0
+        for _, node, k in sorted(candidates):
+            if node in assigned or k in used:
+                continue
+            assigned[node] = k
+            used.add(k)
+            added += 1
+        if added == 0:
+            return assigned
+
+
+def _predict(nodes: np.ndarray, pix: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    out = np.full((len(targets), 2), np.nan)
+    for t, node in enumerate(targets):
+        m = _local_affine(nodes, pix, node)
+        if m is not None:
+            out[t] = np.append(node, 1.0) @ m
+    return out
+
+
+# -- the detector ---------------------------------------------------------------------------
+def find_dots(
+    image: np.ndarray,
+    description: PlateDescription,
+    *,
+    source: str = "image",
+    threshold_fraction: float = 0.2,
+    noise_sigmas: float = 6.0,
+    min_area: int = 9,
+    margin: int = 3,
+    ring: int = 3,
+    background_tile: int = 64,
+    saturation: float | None = None,
+) -> PlaneDots:
+    """Detect, centre and index the dots of one plate image.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W)
+        Grey levels (integers or floats), x = column, y = row.
+    description : PlateDescription
+        The nominal plate.
+    source : str
+        Name of the image (a file name) for messages.
+    threshold_fraction : float
+        f: the dot mask threshold is at least f × the image's signal above background
+        (0 < f < 1).
+    noise_sigmas : float
+        k: and at least k noise σ above background.
+    min_area : int
+        Blobs smaller than this are specks, dropped, px.
+    margin : int
+        The centroid window is the blob grown by this many px (holds the dot's blurred
+        edge), ≥ 1.
+    ring : int
+        Width of the ring outside the window where the local background is measured, px.
+    background_tile : int
+        Tile size of the background level map, px (several dot pitches).
+    saturation : float, optional
+        Pixels at or above this level flag their dot as saturated (default: the
+        dtype's maximum for integer images; none for floats).
+
+    Returns
+    -------
+    PlaneDots
+
+    Raises
+    ------
+    ValueError
+        A non-2-D, empty or non-real image, NaN pixels, or bad options.
+    NoTargetError
+        Fewer than ``MIN_BLOBS`` dot-like blobs ("no target ... in <source>").
+    MarkersNotFoundError
+        The three marks cannot be found or placed ("markers not found in <source>").
+    """
+    raw = np.asarray(image)
+    img = _check_image(raw, source)
+    if not isinstance(description, PlateDescription):
+        raise TypeError(f"description must be a PlateDescription, got {type(description).__name__}")
+    if not 0 < threshold_fraction < 1:
+        raise ValueError(f"threshold_fraction must be in (0, 1), got {threshold_fraction!r}")
+    if not noise_sigmas > 0:
+        raise ValueError(f"noise_sigmas must be > 0, got {noise_sigmas!r}")
+    for name, value, least in (
+        ("min_area", min_area, 1),
+        ("margin", margin, 1),
+        ("ring", ring, 1),
+        ("background_tile", background_tile, 8),
+    ):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
+            raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
+    if saturation is None:
+        saturation = (
+            float(np.iinfo(raw.dtype).max) if np.issubdtype(raw.dtype, np.integer) else np.inf
+        )
+    # Only bright dots can saturate; dark dots sit below the plate's level.
+    if description.dots == "bright":
+        saturated_px = img >= saturation
+    else:
+        saturated_px = np.zeros(img.shape, dtype=bool)
+    signal = img if description.dots == "bright" else img.max() - img
+    h, w = signal.shape
+
+    background = _background_map(signal, background_tile)
+    noise = _noise_sigma(signal)
+    above = signal - background
+    peak = float(np.percentile(above, 99.9))
+    level = max(noise_sigmas * noise, threshold_fraction * peak)
+    if not peak > noise_sigmas * noise:
+        raise NoTargetError(
+            f"no target in {source}: nothing stands out of the noise (99.9th percentile "
+            f"{peak:.3g} above a background of {np.median(background):.3g}, noise σ {noise:.3g})"
+        )
+    blobs = _measure_blobs(
+        signal,
+        above > level,
+        background,
+        min_area=min_area,
+        margin=margin,
+        ring=ring,
+        saturated_px=saturated_px,
+    )
+    reason = blobs.reason.copy()
+    ok = reason == ""
+    if ok.sum() < MIN_BLOBS:
+        raise NoTargetError(
+            f"no target in {source}: {int(ok.sum())} dot-like blob(s) found, a plate "
+            f"image needs at least {MIN_BLOBS} (threshold {level:.3g} above background, "
+            f"noise σ {noise:.3g})"
+        )
+    rel = np.full(len(reason), np.nan)
+    rel[ok] = _relative_area(blobs.centroid[ok], blobs.area[ok])
+    ratio = description.mark_area_ratio
+    implausible = ok & ((rel < _MIN_AREA_RATIO) | (rel > _MAX_MARK_RATIO * ratio))
+    reason[implausible] = "area"
+    usable = reason == ""
+    if usable.sum() < MIN_BLOBS:
+        raise NoTargetError(
+            f"no target in {source}: only {int(usable.sum())} blob(s) of a plausible dot size"
+        )
+    pts = blobs.centroid
+    # Nan-safe tree over usable blobs only (others far away).
+    tree_pts = np.where(usable[:, None], pts, -1e9)
+    tree = cKDTree(tree_pts)
+    mark_like = np.flatnonzero(usable & (rel > np.sqrt(ratio)))
+    if len(mark_like) < 3:
+        raise MarkersNotFoundError(
+            f"markers not found in {source}: {len(mark_like)} blob(s) are more than "
+            f"{np.sqrt(ratio):.2f}× the area of their neighbours, need the 3 marks "
+            f"(area ratio {ratio:.2f} expected)"
+        )
+    mark_like = mark_like[np.argsort(-rel[mark_like], kind="stable")][:_MAX_MARK_CANDIDATES]
+    dot_area = float(np.median(blobs.area[usable]))
+    pitch_px = 2.0 * np.sqrt(dot_area / np.pi) * description.pitch / description.dot_diameter
+    mark_rows = _locate_marks(pts, tree, mark_like, description, pitch_px, (w, h), source)
+    seeds = {description.marks[name]: k for name, k in mark_rows.items()}
+    assigned = _grow(pts, tree, usable, seeds, description)
+
+    nodes = np.array(list(assigned), dtype=np.int64)
+    det = np.array(list(assigned.values()), dtype=np.int64)
+    # Gross-outlier check against one smooth cubic of the whole grid.
+    if len(det) >= 20:
+        poly = fit_polynomial2d(nodes.astype(float), pts[det], degree=3)
+        resid = np.linalg.norm(poly(nodes.astype(float)) - pts[det], axis=1)
+        step = np.linalg.norm(poly.jacobian(nodes.astype(float)), axis=1).min(axis=1)
+        bad = resid > _OUTLIER_TOL * step
+        is_mark = np.isin(det, list(mark_rows.values()))
+        if np.any(bad & is_mark):
+            raise MarkersNotFoundError(
+                f"markers not found in {source}: a mark lies off the grid fitted to the dots"
+            )
+        if bad.any():
+            log.warning("%s: %d dot(s) off the smooth grid dropped", source, int(bad.sum()))
+            reason[det[bad]] = "outlier"
+            nodes, det = nodes[~bad], det[~bad]
+    unindexed = usable.copy()
+    unindexed[det] = False
+    reason[unindexed] = "unindexed"
+
+    order = np.lexsort((nodes[:, 0], nodes[:, 1]))
+    nodes, det = nodes[order], det[order]
+    flags = np.zeros(len(det), dtype=np.uint8)
+    marks_out: dict[str, int] = {}
+    for name, k in mark_rows.items():
+        row = int(np.flatnonzero(det == k)[0])
+        marks_out[name] = row
+        flags[row] |= FLAG_MARK
+    flags[blobs.saturated[det]] |= FLAG_SATURATED
+
+    missing = _missing_nodes(nodes, pts[det], description, dot_area, margin, (w, h))
+    rejected = np.flatnonzero(reason != "")
+    if len(missing) or len(rejected):
+        log.info(
+            "%s: %d dots indexed, %d expected node(s) missing, %d blob(s) rejected",
+            source,
+            len(det),
+            len(missing),
+            len(rejected),
+        )
+    return PlaneDots(
+        pixels=pts[det].copy(),
+        indices=nodes,
+        world_xy=nodes.astype(float) * description.pitch,
+        area=blobs.area[det].copy(),
+        flags=flags,
+        marks=marks_out,
+        missing=missing,
+        rejected_pixels=pts[rejected].copy(),
+        rejected_reasons=tuple(str(r) for r in reason[rejected]),
+        image_size=(int(w), int(h)),
+        background=float(np.median(background)),
+        noise=float(noise),
+        threshold=float(np.median(background) + level),
+        source=source,
+    )
+
+
+def _missing_nodes(
+    nodes: np.ndarray,
+    pix: np.ndarray,
+    description: PlateDescription,
+    dot_area: float,
+    margin: int,
+    image_size: tuple[int, int],
+) -> np.ndarray:
+    """Grid nodes that should be on the image, whole, but were not found."""
+    found = {tuple(n) for n in nodes.tolist()}
+    if description.extent is None:
+        lo, hi = nodes.min(axis=0), nodes.max(axis=0)
+    else:
+        lo = np.maximum(nodes.min(axis=0) - 2, [description.extent[0][0], description.extent[1][0]])
+        hi = np.minimum(nodes.max(axis=0) + 2, [description.extent[0][1], description.extent[1][1]])
+    ii, jj = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
+    cand = np.column_stack([ii.ravel(), jj.ravel()])
+    cand = np.array([c for c in cand.tolist() if tuple(c) not in found], dtype=np.int64).reshape(
+        -1, 2
+    )
+    if len(cand) == 0:
+        return cand
+    cheb = np.abs(cand[:, None, :] - nodes[None]).max(axis=2).min(axis=1)
+    cand = cand[cheb <= 2]
+    pred = _predict(nodes.astype(float), pix, cand.astype(float))
+    reach = np.sqrt(dot_area / np.pi) + margin + 1
+    w, h = image_size
+    inside = np.isfinite(pred).all(axis=1)
+    inside &= (pred[:, 0] >= reach) & (pred[:, 0] <= w - 1 - reach)
+    inside &= (pred[:, 1] >= reach) & (pred[:, 1] <= h - 1 - reach)
+    return cand[inside]
+
+
+# -- several planes -----------------------------------------------------------------------
+def observations_from_images(
+    images: Sequence[np.ndarray],
+    z: Sequence[float],
+    description: PlateDescription,
+    *,
+    sources: Sequence[str] | None = None,
+) -> list[PlaneObservation]:
+    """Detect and index the dots of a traverse of plate images of one camera.
+
+    Parameters
+    ----------
+    images : sequence of ndarray, shape (H, W)
+        One plate image per traverse position, all of one size.
+    z : sequence of float
+        Traverse positions Z_j, m, one per image.
+    description : PlateDescription
+        The nominal plate.
+    sources : sequence of str, optional
+        Names of the images (file names) for messages.
+
+    Returns
+    -------
+    list of PlaneObservation
+        One per image, in order, ready for ``calibrate_model_free`` / ``calibrate_tsai``.
+
+    Raises
+    ------
+    ValueError
+        Fewer than two planes, a length mismatch, planes of different image sizes, or
+        any error of :func:`find_dots` (naming the image).
+    """
+    images = list(images)
+    z = [float(v) for v in z]
+    if len(images) != len(z):
+        raise ValueError(f"got {len(images)} image(s) but {len(z)} plane position(s)")
+    if len(images) < 2:
+        raise ValueError(f"a calibration needs at least two planes, got {len(images)}")
+    names = (
+        [f"plane {k} (Z = {zk:.6g} m)" for k, zk in enumerate(z)]
+        if sources is None
+        else [str(s) for s in sources]
+    )
+    if len(names) != len(images):
+        raise ValueError(f"got {len(images)} image(s) but {len(names)} source name(s)")
+    shapes = [np.shape(im) for im in images]
+    if len(set(shapes)) != 1:
+        listing = ", ".join(f"{n}: {s}" for n, s in zip(names, shapes, strict=True))
+        raise ValueError(f"planes of different image sizes: {listing}")
+    return [
+        find_dots(im, description, source=name).observation(zk)
+        for im, zk, name in zip(images, z, names, strict=True)
+    ]
