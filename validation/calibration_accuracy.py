@@ -24,7 +24,7 @@ from ptv.camera_model import CameraModel
 from ptv.triangulate import triangulate
 from simulator.optics import Camera
 from simulator.particles import Box
-from simulator.target import PhysicalPlate
+from simulator.target import PhysicalPlate, PlateDesign
 
 
 @dataclass(frozen=True)
@@ -137,13 +137,24 @@ def synthetic_plane_dots(
     return out
 
 
+def nominal_positions(design: PlateDesign, z: Sequence[float]) -> np.ndarray:
+    """Expected dot positions as the paper uses them: (indices × pitch, Z_j), (N_Z, D, 3)."""
+    xy = design.nominal_xy
+    return np.stack([np.column_stack([xy, np.full(len(xy), zj)]) for zj in z])
+
+
+def true_positions(plate: PhysicalPlate) -> np.ndarray:
+    """True dot centres (tilt, bow, manufacturing and traverse errors), (N_Z, D, 3)."""
+    return np.stack([plate.dot_centres(j) for j in range(len(plate.poses))])
+
+
 def table1_errors(
     calibrations: Sequence[CameraModel],
     dots: Sequence[Sequence[PlaneDots]],
-    plate: PhysicalPlate,
+    indices: np.ndarray,
+    expected: np.ndarray,
     *,
     planes: Sequence[int] | None = None,
-    reference: str = "nominal",
 ) -> PositionErrors:
     """The paper's Table 1 metric: each dot triangulated from all cameras vs its position.
 
@@ -153,24 +164,23 @@ def table1_errors(
         One calibration per camera.
     dots : sequence (per camera) of sequence (per plane) of PlaneDots
         Identified dots; a dot enters when every camera saw it.
-    plate : PhysicalPlate
-        Truth: the dots' actual centres.
+    indices : ndarray of int, shape (D, 2)
+        Grid indices of the plate's dots (the rows of ``expected``).
+    expected : ndarray, shape (N_Z, D, 3)
+        Where each dot should be: :func:`nominal_positions` (the paper's metric) or
+        :func:`true_positions`, m.
     planes : sequence of int, optional
         Planes to evaluate (all by default).
-    reference : {"nominal", "true"}
-        Compare with the nominal dot positions (the paper's metric) or the true centres.
 
     Returns
     -------
     PositionErrors
     """
-    if reference not in ("nominal", "true"):
-        raise ValueError(f"reference must be 'nominal' or 'true', got {reference!r}")
     if len(calibrations) != len(dots) or len(dots) < 2:
         raise ValueError("need one calibration and one set of dots per camera, two or more")
-    design_index = {tuple(ij): k for k, ij in enumerate(plate.design.indices)}
+    row_of = {tuple(ij): k for k, ij in enumerate(np.asarray(indices))}
     truth, delta, plane_of = [], [], []
-    for j in planes if planes is not None else range(len(plate.poses)):
+    for j in planes if planes is not None else range(len(expected)):
         per_camera = [
             {tuple(ij): xy for ij, xy in zip(cam[j].indices, cam[j].pixels, strict=True)}
             for cam in dots
@@ -179,12 +189,7 @@ def table1_errors(
         if not common:
             continue
         pixels = [np.array([p[key] for key in common]) for p in per_camera]
-        rows = [design_index[key] for key in common]
-        if reference == "true":
-            centres = plate.dot_centres(j)[rows]
-        else:
-            nominal_xy = plate.design.nominal_xy[rows]
-            centres = np.column_stack([nominal_xy, np.full(len(rows), plate.poses[j].z_nominal)])
+        centres = expected[j][[row_of[key] for key in common]]
         points = triangulate(calibrations, pixels).points
         truth.append(centres)
         delta.append(points - centres)

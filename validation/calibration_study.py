@@ -27,6 +27,7 @@ from simulator.target import (
 from validation.calibration_accuracy import (
     PlaneDots,
     model_errors,
+    nominal_positions,
     synthetic_plane_dots,
     table1_errors,
 )
@@ -87,11 +88,12 @@ def compare_methods(
         ``{method: {"table1": {d_X_um, d_Y_um, d_Z_um, d_um, coverage},
         "model": {...}}}``.
     """
+    expected = nominal_positions(plate.design, plate.z_nominal)
     out = {}
     for method in methods:
         calibrations = calibrate_cameras(method, rig, dots)
         out[method] = {
-            "table1": table1_errors(calibrations, dots, plate).summary(),
+            "table1": table1_errors(calibrations, dots, plate.design.indices, expected).summary(),
             "model": model_errors(calibrations, rig.cameras, MODEL_VOLUME, rng=rng).summary(),
         }
         log.info("%s: Table 1 d = %.2f um", method, out[method]["table1"]["d_um"])
@@ -117,6 +119,7 @@ def plane_count_study(
         largest count (``table1_ratio``, ``model_ratio``).
     """
     total = len(plate.poses)
+    expected = nominal_positions(plate.design, plate.z_nominal)
     rows = []
     for n, count in enumerate(counts):
         subset = plane_subset(total, count)
@@ -124,7 +127,8 @@ def plane_count_study(
         rows.append(
             {
                 "planes": count,
-                "table1_d_um": table1_errors(calibrations, dots, plate).d * 1e6,
+                "table1_d_um": table1_errors(calibrations, dots, plate.design.indices, expected).d
+                * 1e6,
                 "model_d_um": model_errors(calibrations, rig.cameras, MODEL_VOLUME, rng=rng).d
                 * 1e6,
             }

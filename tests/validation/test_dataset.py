@@ -76,3 +76,37 @@ def test_existing_folder_is_refused_and_interrupted_runs_leave_nothing(tmp_path)
 def test_render_cli_reports_bad_input_in_one_line(capsys, tmp_path):
     assert main(["render", "--rig", "nope", "--out", str(tmp_path / "x"), "--quiet"]) == 2
     assert "unknown rig 'nope'" in capsys.readouterr().err
+
+
+def test_calibrate_command_finds_every_dot_and_scores_against_nominal_and_truth(
+    dataset, capsys, tmp_path
+):
+    import json as json_module
+
+    out, _ = dataset
+    args = [
+        "calibrate",
+        "--dataset",
+        str(out),
+        "--methods",
+        "model-free,tsai",
+        "--out",
+        str(tmp_path),
+        "--json",
+        "--quiet",
+    ]
+    assert main(args) == 0
+    report = json_module.loads(capsys.readouterr().out)
+    nominal = report["table1"]["model-free"]["nominal"]
+    # Machined plate (5 µm scatter) and detection noise (~0.01 px): a few µm, far below
+    # one object-side pixel (100 µm); the true-centre reference adds the plate's tilt.
+    assert nominal["coverage"] == 1.0 and nominal["d_um"] < 20
+    assert report["table1"]["model-free"]["true"]["d_um"] > nominal["d_um"]
+    assert report["table1"]["tsai"]["nominal"]["d_um"] > 3 * nominal["d_um"]
+    assert all(v < 2.0 for v in report["max_plane_residual_px"].values())  # paper: < 2 px
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model-free.h5", "tsai.h5"]
+
+
+def test_calibrate_command_on_a_folder_that_is_no_dataset(capsys, tmp_path):
+    assert main(["calibrate", "--dataset", str(tmp_path), "--quiet"]) == 2
+    assert "is not a dataset" in capsys.readouterr().err
