@@ -128,6 +128,21 @@ def _run_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_study(args: argparse.Namespace) -> int:
+    from validation.study_cli import run_study
+
+    json_path, png_path = run_study(
+        args.study,
+        args.rig,
+        Path(args.out),
+        noise_px=args.noise,
+        seed=args.seed,
+        quiet=args.quiet,
+    )
+    print(f"rows written to {json_path}, curves to {png_path}")
+    return 0
+
+
 def _run_scene(args: argparse.Namespace) -> int:
     from simulator.particles import SHEET
     from simulator.scene import save_scene_png
@@ -207,6 +222,23 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--json", action="store_true", help="print one JSON object")
     cal.add_argument("--quiet", action="store_true", help="no progress bar")
     cal.set_defaults(run=_run_calibrate)
+
+    study = sub.add_parser(
+        "study",
+        help="calibration studies: plane count or window obliquity, JSON rows + PNG curves",
+        description="Sweep the number of calibration planes (2-13, spanning the depth) or "
+        "the window obliquity (0-20 degrees, in the camera plane and diagonally, every "
+        "calibration method) on a rig, with synthetic dot observations.",
+    )
+    study.add_argument("study", choices=["planes", "obliquity"])
+    study.add_argument(
+        "--rig", default="paper-stereo", help=f"{', '.join(rig_presets())} or a .toml file"
+    )
+    study.add_argument("--out", default="synptv-study", help="output folder")
+    study.add_argument("--noise", type=float, default=0.05, help="dot-centre noise, px")
+    study.add_argument("--seed", type=int, default=0)
+    study.add_argument("--quiet", action="store_true", help="no progress bar")
+    study.set_defaults(run=_run_study)
 
     scene = sub.add_parser(
         "scene",
