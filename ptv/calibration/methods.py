@@ -8,7 +8,8 @@ object offering the camera protocol (``pixel_to_ray``, ``project``).
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from ptv.calibration.model_free import PlaneObservation, calibrate_model_free
+from ptv.calibration.model_free import calibrate_model_free
+from ptv.calibration.observations import PlaneObservation
 from ptv.calibration.pinhole import calibrate_pinhole
 from ptv.calibration.soloff import calibrate_soloff
 from ptv.calibration.tsai import calibrate_tsai

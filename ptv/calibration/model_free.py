@@ -27,6 +27,7 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 from scipy.spatial import Delaunay
 
+from ptv.calibration.observations import PlaneObservation
 from ptv.calibration.polynomial import Polynomial2D, fit_polynomial2d
 from ptv.rays import Rays
 
@@ -37,25 +38,6 @@ _NEWTON_STEPS = 20
 _NEWTON_TOL = 1e-10
 #: Fractional bits of the hull vertices when rasterising the calibrated area.
 _SUBPIXEL_BITS = 4
-
-
-@dataclass(frozen=True)
-class PlaneObservation:
-    """Identified dots of one calibration plane in one camera.
-
-    Attributes
-    ----------
-    z : float
-        Traverse position Z_j, m.
-    pixels : ndarray, shape (N, 2)
-        Dot centres in the image, px.
-    world_xy : ndarray, shape (N, 2)
-        Their nominal (X, Y) on the plate, m.
-    """
-
-    z: float
-    pixels: np.ndarray
-    world_xy: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)

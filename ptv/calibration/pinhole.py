@@ -34,7 +34,7 @@ import numpy as np
 from scipy.linalg import rq
 from scipy.optimize import least_squares
 
-from ptv.calibration.model_free import PlaneObservation
+from ptv.calibration.observations import PlaneObservation, stack_planes
 from ptv.rays import Rays
 
 log = logging.getLogger(__name__)
@@ -452,22 +452,6 @@ class PinholeCalibration:
 # -- fitting ------------------------------------------------------------------------
 
 
-def _stack(observations: list[PlaneObservation]) -> tuple[np.ndarray, np.ndarray]:
-    objects, pixels = [], []
-    for o in observations:
-        px = np.asarray(o.pixels, dtype=float)
-        xy = np.asarray(o.world_xy, dtype=float)
-        if px.ndim != 2 or px.shape[1] != 2 or xy.shape != px.shape:
-            raise ValueError(
-                f"plane Z = {o.z}: pixels and world_xy must both be (N, 2), "
-                f"got {px.shape} and {xy.shape}"
-            )
-        ok = np.isfinite(px).all(axis=1) & np.isfinite(xy).all(axis=1)
-        objects.append(np.column_stack([xy[ok], np.full(ok.sum(), float(o.z))]))
-        pixels.append(px[ok])
-    return np.concatenate(objects), np.concatenate(pixels)
-
-
 def _params(fx, fy, cx, cy, rvec, tvec, dist=None) -> np.ndarray:
     p = np.zeros(_N_PARAMS)
     p[[_FX, _FY, _CX, _CY]] = fx, fy, cx, cy
@@ -665,7 +649,7 @@ def calibrate_pinhole(
     model = PinholeModel() if model is None else model
     if not observations:
         raise ValueError("need calibration planes, got none")
-    obj, img = _stack(observations)
+    obj, img = stack_planes(observations)
     if len(obj) < 12:
         raise ValueError(f"need at least 12 identified dots, got {len(obj)}")
     if np.ptp(obj[:, 2]) == 0:

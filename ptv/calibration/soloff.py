@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ptv.calibration.model_free import PlaneObservation
+from ptv.calibration.observations import PlaneObservation, stack_planes
 from ptv.rays import Rays
 from ptv.triangulate import triangulate
 
@@ -232,20 +232,7 @@ def calibrate_soloff(
             "Soloff's polynomial is quadratic in Z: it needs at least three calibration "
             f"planes with distinct Z, got {len(distinct)} ({distinct.tolist()})"
         )
-    worlds, pixels = [], []
-    for o in observations:
-        px = np.asarray(o.pixels, dtype=float)
-        xy = np.asarray(o.world_xy, dtype=float)
-        if px.ndim != 2 or px.shape[1] != 2 or xy.shape != px.shape:
-            raise ValueError(
-                f"plane Z = {o.z}: pixels and world_xy must both be (N, 2), "
-                f"got {px.shape} and {xy.shape}"
-            )
-        ok = np.isfinite(px).all(axis=1) & np.isfinite(xy).all(axis=1)
-        worlds.append(np.column_stack([xy[ok], np.full(ok.sum(), float(o.z))]))
-        pixels.append(px[ok])
-    world = np.concatenate(worlds)
-    pixel = np.concatenate(pixels)
+    world, pixel = stack_planes(observations)
     n_terms = len(SOLOFF_EXPONENTS)
     if len(world) < n_terms:
         raise ValueError(f"Soloff's polynomial needs at least {n_terms} dots, got {len(world)}")

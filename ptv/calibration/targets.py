@@ -59,7 +59,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from ptv.calibration.model_free import PlaneObservation
+from ptv.calibration.observations import PlaneObservation
 from ptv.calibration.polynomial import fit_polynomial2d
 
 log = logging.getLogger(__name__)

@@ -44,7 +44,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ptv.calibration.model_free import PlaneObservation
+from ptv.calibration.observations import PlaneObservation, stack_planes
 from ptv.rays import Rays
 
 log = logging.getLogger(__name__)
@@ -512,22 +512,10 @@ def calibrate_tsai(
     -------
     TsaiCalibration
     """
-    if len(observations) == 0:
-        raise ValueError("no calibration planes given")
-    world = []
-    pixels = []
-    for obs in observations:
-        xy = np.asarray(obs.world_xy, dtype=float)
-        px = np.asarray(obs.pixels, dtype=float)
-        if xy.ndim != 2 or xy.shape[1] != 2 or px.shape != xy.shape:
-            raise ValueError(
-                f"plane Z = {obs.z}: pixels {px.shape} and world_xy {xy.shape} must both be (N, 2)"
-            )
-        world.append(np.column_stack([xy, np.full(len(xy), float(obs.z))]))
-        pixels.append(px)
+    world, pixels = stack_planes(observations)
     return fit_tsai(
-        np.concatenate(world),
-        np.concatenate(pixels),
+        world,
+        pixels,
         pixel_pitch=pixel_pitch,
         sensor_size=sensor_size,
         free_principal_point=free_principal_point,
