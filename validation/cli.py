@@ -70,7 +70,7 @@ def _run_flow(args: argparse.Namespace) -> int:
         unsteadiness=args.unsteadiness,
         seed=args.seed,
     )
-    bar = ProgressBar("flow snapshots", enabled=not args.quiet)
+    bar = ProgressBar("flow", enabled=not args.quiet)
     summary = summarize_flow(settings, progress=bar)
     if args.json:
         json.dump(summary, sys.stdout, indent=2, allow_nan=False)

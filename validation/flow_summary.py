@@ -71,7 +71,7 @@ def summarize_flow(settings: FlowSettings, *, progress: Progress | None = None) 
     settings : FlowSettings
         What to sample.
     progress : callable(done, total), optional
-        Called after each snapshot.
+        Called after each snapshot and each batch of pair binning.
 
     Returns
     -------
@@ -85,6 +85,13 @@ def summarize_flow(settings: FlowSettings, *, progress: Progress | None = None) 
     p = settings.parameters
     spectrum = settings.build_spectrum()
     modes = discretise(spectrum, settings.n_modes)
+    n_batches = min(BATCHES, settings.snapshots)
+    total_steps = settings.snapshots + n_batches
+
+    def report(done: int) -> None:
+        if progress is not None:
+            progress(done, total_steps)
+
     sample = follow_snapshots(
         spectrum,
         np.array([0.0]),
@@ -94,7 +101,7 @@ def summarize_flow(settings: FlowSettings, *, progress: Progress | None = None) 
         n_modes=settings.n_modes,
         unsteadiness=settings.unsteadiness,
         rng=settings.seed,
-        progress=progress,
+        progress=lambda done, _total: report(done),
     )
     x, u = sample.positions[:, 0], sample.velocity[:, 0]
     inside = settings.region.contains(x)
@@ -104,10 +111,10 @@ def summarize_flow(settings: FlowSettings, *, progress: Progress | None = None) 
     u_rms_stderr = float(np.std(per_snapshot, ddof=1) / np.sqrt(len(per_snapshot)) / (2 * u_rms))
 
     bins = LogBins(10 * p.eta, p.L_int / 2, settings.bins)
-    batches = [
-        sample_structure_function(x[idx], u[idx], bins, region=settings.region)
-        for idx in np.array_split(np.arange(settings.snapshots), min(BATCHES, settings.snapshots))
-    ]
+    batches = []
+    for n, idx in enumerate(np.array_split(np.arange(settings.snapshots), n_batches)):
+        batches.append(sample_structure_function(x[idx], u[idx], bins, region=settings.region))
+        report(settings.snapshots + n + 1)
     total = batches[0]
     for b in batches[1:]:
         total = total + b
