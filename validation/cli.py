@@ -143,6 +143,24 @@ def _run_study(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_claims(args: argparse.Namespace) -> int:
+    from validation.claims import ClaimContext, run_claims
+
+    ctx = ClaimContext("full" if args.full else "quick", seed=args.seed)
+    bar = ProgressBar("claims", enabled=not args.quiet)
+    results = run_claims(ctx, progress=bar)
+    if args.json:
+        json.dump([r.as_dict() for r in results], sys.stdout, indent=2, allow_nan=False)
+        print()
+    else:
+        for r in results:
+            mark = "PASS" if r.passed else "FAIL"
+            print(f"{mark}  {r.id:42s} {r.value:10.4g}   {r.tolerance}   [{r.source}]")
+        failed = sum(not r.passed for r in results)
+        print(f"{len(results) - failed} passed, {failed} failed")
+    return 0 if all(r.passed for r in results) else 1
+
+
 def _run_scene(args: argparse.Namespace) -> int:
     from simulator.particles import SHEET
     from simulator.scene import save_scene_png
@@ -239,6 +257,20 @@ def build_parser() -> argparse.ArgumentParser:
     study.add_argument("--seed", type=int, default=0)
     study.add_argument("--quiet", action="store_true", help="no progress bar")
     study.set_defaults(run=_run_study)
+
+    claims = sub.add_parser(
+        "claims",
+        help="regress the paper's claims against truth; exit status 1 if one fails",
+        description="Measure every regressable statement of the paper (PHYSICS.md section 9) "
+        "against the simulator's truth and compare it with its tolerance.",
+    )
+    size = claims.add_mutually_exclusive_group()
+    size.add_argument("--quick", action="store_true", help="CI size (default, about a minute)")
+    size.add_argument("--full", action="store_true", help="the sizes the tolerances assume")
+    claims.add_argument("--json", action="store_true", help="print a JSON list of claims")
+    claims.add_argument("--seed", type=int, default=0)
+    claims.add_argument("--quiet", action="store_true", help="no progress bar")
+    claims.set_defaults(run=_run_claims)
 
     scene = sub.add_parser(
         "scene",
