@@ -26,3 +26,15 @@ class CameraModel(Protocol):
     def project(self, points: np.ndarray) -> np.ndarray:
         """Pixels (N, 2) of world points (N, 3) in m; NaN where not imaged."""
         ...
+
+
+def on_image(xy: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """Pixels inside [−½, W−½] × [−½, H−½] (the sensor's area), shape (N,); NaN → False."""
+    width, height = image_size
+    with np.errstate(invalid="ignore"):
+        return (
+            (xy[:, 0] >= -0.5)
+            & (xy[:, 0] <= width - 0.5)
+            & (xy[:, 1] >= -0.5)
+            & (xy[:, 1] <= height - 0.5)
+        )

@@ -35,6 +35,7 @@ from scipy.linalg import rq
 from scipy.optimize import least_squares
 
 from ptv.calibration.observations import PlaneObservation, stack_planes
+from ptv.camera_model import on_image
 from ptv.rays import Rays
 
 log = logging.getLogger(__name__)
@@ -387,16 +388,6 @@ class PinholeCalibration:
         """The free parameters by name (``PARAMETER_NAMES``)."""
         return {PARAMETER_NAMES[i]: float(self.params[i]) for i in self.model.free}
 
-    def _on_image(self, xy: np.ndarray) -> np.ndarray:
-        width, height = self.image_size
-        with np.errstate(invalid="ignore"):
-            return (
-                (xy[:, 0] >= -0.5)
-                & (xy[:, 0] <= width - 0.5)
-                & (xy[:, 1] >= -0.5)
-                & (xy[:, 1] <= height - 0.5)
-            )
-
     def project(self, points: np.ndarray) -> np.ndarray:
         """Pixels (N, 2) of world points (N, 3), m; NaN where not imaged.
 
@@ -409,7 +400,7 @@ class PinholeCalibration:
         finite = np.isfinite(points).all(axis=1)
         with np.errstate(invalid="ignore", over="ignore"):
             xy, valid = project_parameters(self.params, np.where(finite[:, None], points, 0.0))
-        xy[~(finite & valid & self._on_image(xy))] = np.nan
+        xy[~(finite & valid & on_image(xy, self.image_size))] = np.nan
         return xy
 
     def normalized(self, xy: np.ndarray) -> np.ndarray:
@@ -437,7 +428,7 @@ class PinholeCalibration:
         xy = np.asarray(xy, dtype=float)
         if xy.ndim != 2 or xy.shape[1] != 2:
             raise ValueError(f"pixels must have shape (N, 2), got {xy.shape}")
-        ok = np.isfinite(xy).all(axis=1) & self._on_image(xy)
+        ok = np.isfinite(xy).all(axis=1) & on_image(xy, self.image_size)
         xn = self.normalized(np.where(ok[:, None], xy, 0.0))
         ok &= np.isfinite(xn).all(axis=1)
         cam = np.column_stack([xn, np.ones(len(xn))])

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ptv.calibration.observations import PlaneObservation, stack_planes
+from ptv.camera_model import on_image
 from ptv.rays import Rays
 from ptv.triangulate import triangulate
 
@@ -121,16 +122,6 @@ class SoloffCalibration:
         d = soloff_design_derivatives(u)  # (N, 3, 19)
         return np.einsum("njt,ti->nij", d, self.coefficients) / self.scale
 
-    def _on_image(self, xy: np.ndarray) -> np.ndarray:
-        width, height = self.image_size
-        with np.errstate(invalid="ignore"):
-            return (
-                (xy[:, 0] >= -0.5)
-                & (xy[:, 0] <= width - 0.5)
-                & (xy[:, 1] >= -0.5)
-                & (xy[:, 1] <= height - 0.5)
-            )
-
     def project(self, points: np.ndarray) -> np.ndarray:
         """Pixels (N, 2) of world points (N, 3), m; NaN where off the image or not finite."""
         points = np.asarray(points, dtype=float)
@@ -138,7 +129,7 @@ class SoloffCalibration:
             raise ValueError(f"points must have shape (N, 3), got {points.shape}")
         finite = np.isfinite(points).all(axis=1)
         xy = self.evaluate(np.where(finite[:, None], points, self.centre))
-        xy[~(finite & self._on_image(xy))] = np.nan
+        xy[~(finite & on_image(xy, self.image_size))] = np.nan
         return xy
 
     def points_at(self, xy: np.ndarray, z: float) -> np.ndarray:
@@ -187,7 +178,7 @@ class SoloffCalibration:
         xy = np.asarray(xy, dtype=float)
         if xy.ndim != 2 or xy.shape[1] != 2:
             raise ValueError(f"pixels must have shape (N, 2), got {xy.shape}")
-        ok = np.isfinite(xy).all(axis=1) & self._on_image(xy)
+        ok = np.isfinite(xy).all(axis=1) & on_image(xy, self.image_size)
         px = np.where(ok[:, None], xy, 0.0)
         z = np.asarray(self.z_levels, dtype=float)
         pts = np.stack([self.points_at(px, zk) for zk in z])  # (K, N, 2)
