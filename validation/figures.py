@@ -27,6 +27,7 @@ def save_figure(figure: Figure, path: str | os.PathLike, *, dpi: int = 110) -> P
     os.close(handle)
     try:
         figure.savefig(temporary, dpi=dpi, bbox_inches="tight")
+        os.chmod(temporary, 0o644)  # mkstemp makes it private; a figure is for sharing
         os.replace(temporary, path)
     finally:
         plt.close(figure)

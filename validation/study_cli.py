@@ -24,6 +24,7 @@ def _write_json(path: Path, rows: list[dict]) -> None:
     handle, temporary = tempfile.mkstemp(suffix=".json", dir=path.parent, prefix=f".{path.name}.")
     with os.fdopen(handle, "w") as stream:
         json.dump(rows, stream, indent=2)
+    os.chmod(temporary, 0o644)
     os.replace(temporary, path)
 
 

@@ -1,0 +1,368 @@
+"""Read a PTV dataset folder: the experiment description and its particle images.
+
+The layout is the one ``synptv render`` writes, and any real double-frame experiment
+can be put in it (lengths in m, times in s)::
+
+    experiment.json                              camera names and image sizes, Δt values,
+                                                 frame pairs per Δt, bit depth, file layout
+    particles/dt<k>/<camera>/<mmmmmm>_a.tif      frame pair m of the run at Δt_k: frame a
+    particles/dt<k>/<camera>/<mmmmmm>_b.tif      at t, frame b at t + Δt_k
+
+``experiment.json`` keys used here: ``cameras`` ({name: {"image_size": [width,
+height], ...}}), ``dt`` (list of s), ``frames_per_dt`` (an int, or one int per Δt),
+``bit_depth`` (optional; sets the saturation level 2^B − 1 of images stored in wider
+integers) and ``particle_images`` (optional pattern, default
+``particles/dt{k}/{camera}/{m:06d}_{a|b}.tif``). Nothing else of the folder (plate
+images, a ground truth) is read.
+
+:func:`open_dataset` checks the description and that every image file exists, so a
+run fails at once, not after an hour; :meth:`Dataset.read_frame` checks each image's
+shape against the declared size. Bad input raises :class:`DatasetError` (a
+``ValueError``) or ``FileNotFoundError``, naming the file and what was expected.
+"""
+
+import json
+import logging
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import tifffile
+
+__all__ = [
+    "DEFAULT_PARTICLE_IMAGES",
+    "Dataset",
+    "DatasetError",
+    "FramePair",
+    "Snapshot",
+    "cameras_in_order",
+    "open_dataset",
+]
+
+log = logging.getLogger(__name__)
+
+#: File pattern of the particle images when experiment.json does not give one.
+DEFAULT_PARTICLE_IMAGES = "particles/dt{k}/{camera}/{m:06d}_{a|b}.tif"
+
+
+class DatasetError(ValueError):
+    """A dataset folder that cannot be processed (the message names file and value)."""
+
+
+@dataclass(frozen=True, eq=False)
+class FramePair:
+    """The two frames of one camera for one snapshot.
+
+    Attributes
+    ----------
+    camera : str
+        Camera name.
+    a, b : ndarray, shape (H, W)
+        Frame a (time t) and frame b (t + Δt), as stored (DN).
+    path_a, path_b : Path
+        Their files.
+    """
+
+    camera: str
+    a: np.ndarray
+    b: np.ndarray
+    path_a: Path
+    path_b: Path
+
+
+@dataclass(frozen=True, eq=False)
+class Snapshot:
+    """All cameras' frame pairs of snapshot ``m`` of the run at Δt_k.
+
+    Attributes
+    ----------
+    k : int
+        Δt index.
+    dt : float
+        Δt, s.
+    m : int
+        Snapshot (frame pair) number within the run.
+    frames : tuple of FramePair
+        One per camera, in the dataset's camera order.
+    """
+
+    k: int
+    dt: float
+    m: int
+    frames: tuple[FramePair, ...]
+
+
+def _fail(path: Path, message: str) -> DatasetError:
+    return DatasetError(f"{path}: {message}")
+
+
+def _positive_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 1
+
+
+@dataclass(frozen=True, eq=False)
+class Dataset:
+    """A dataset folder's description (built by :func:`open_dataset`).
+
+    Attributes
+    ----------
+    folder : Path
+        The folder.
+    cameras : tuple of str
+        Camera names, in the order of experiment.json.
+    image_shape : dict of str to (int, int)
+        Expected (rows, columns) of each camera's images.
+    dt : ndarray, shape (K,)
+        Time separations, s (K ≥ 2, all > 0 and distinct).
+    frames : tuple of int, length K
+        Frame pairs (snapshots) of the run at each Δt.
+    saturation : float or None
+        Saturation level of the images, DN (2^bit_depth − 1), None if not declared.
+    pattern : str
+        Particle image file pattern, relative to the folder.
+    """
+
+    folder: Path
+    cameras: tuple[str, ...]
+    image_shape: dict[str, tuple[int, int]]
+    dt: np.ndarray
+    frames: tuple[int, ...]
+    saturation: float | None
+    pattern: str
+
+    @property
+    def n_dt(self) -> int:
+        """K, the number of Δt values."""
+        return int(self.dt.size)
+
+    def frame_path(self, k: int, camera: str, m: int, frame: str) -> Path:
+        """File of frame ``frame`` ("a" or "b") of snapshot m, camera, run k."""
+        if frame not in ("a", "b"):
+            raise ValueError(f"frame must be 'a' or 'b', got {frame!r}")
+        name = self.pattern.replace("{a|b}", "{frame}")
+        return self.folder / name.format(k=k, camera=camera, m=m, frame=frame)
+
+    def read_frame(self, k: int, camera: str, m: int, frame: str) -> np.ndarray:
+        """Read one image and check its shape, (H, W) as declared in experiment.json.
+
+        Raises
+        ------
+        FileNotFoundError
+            The file is missing.
+        DatasetError
+            Not readable as an image, not 2-D, or of the wrong size.
+        """
+        path = self.frame_path(k, camera, m, frame)
+        if not path.is_file():
+            raise FileNotFoundError(f"particle image {path} is missing")
+        try:
+            image = tifffile.imread(path)
+        except Exception as err:  # tifffile raises many kinds on a corrupt file
+            raise _fail(path, f"not readable as a TIFF image ({err})") from None
+        expected = self.image_shape[camera]
+        if image.ndim != 2:
+            raise _fail(path, f"expected a 2-D grey image of shape {expected}, got {image.shape}")
+        if image.shape != expected:
+            raise _fail(
+                path,
+                f"image of the wrong size: {image.shape[1]} × {image.shape[0]} px, but "
+                f"experiment.json gives {expected[1]} × {expected[0]} px for camera {camera!r}",
+            )
+        return image
+
+    def snapshot(self, k: int, m: int, cameras: Sequence[str] | None = None) -> Snapshot:
+        """Read snapshot m of the run at Δt_k (frames a and b of each camera)."""
+        if not 0 <= k < self.n_dt:
+            raise IndexError(f"Δt index {k} out of range 0 … {self.n_dt - 1}")
+        if not 0 <= m < self.frames[k]:
+            raise IndexError(f"snapshot {m} out of range 0 … {self.frames[k] - 1} at Δt_{k}")
+        names = self.cameras if cameras is None else tuple(cameras)
+        pairs = tuple(
+            FramePair(
+                camera=c,
+                a=self.read_frame(k, c, m, "a"),
+                b=self.read_frame(k, c, m, "b"),
+                path_a=self.frame_path(k, c, m, "a"),
+                path_b=self.frame_path(k, c, m, "b"),
+            )
+            for c in names
+        )
+        return Snapshot(k=k, dt=float(self.dt[k]), m=m, frames=pairs)
+
+    def snapshots(
+        self, k: int, *, limit: int | None = None, cameras: Sequence[str] | None = None
+    ) -> Iterator[Snapshot]:
+        """Snapshots of the run at Δt_k in order (the first ``limit`` if given)."""
+        n = self.frames[k] if limit is None else min(limit, self.frames[k])
+        for m in range(n):
+            yield self.snapshot(k, m, cameras)
+
+    def runs(
+        self, *, limit: int | None = None, cameras: Sequence[str] | None = None
+    ) -> Iterator[Iterator[Snapshot]]:
+        """One snapshot iterator per Δt, in the order of ``dt``."""
+        for k in range(self.n_dt):
+            yield self.snapshots(k, limit=limit, cameras=cameras)
+
+
+def _read_description(folder: Path) -> dict:
+    path = folder / "experiment.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{folder} is not a dataset folder: {path.name} is missing")
+    try:
+        spec = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise _fail(path, f"not readable as JSON ({err})") from None
+    if not isinstance(spec, dict):
+        raise _fail(path, f"expected a JSON object, got {type(spec).__name__}")
+    return spec
+
+
+def _cameras(spec: dict, path: Path) -> dict[str, tuple[int, int]]:
+    cams = spec.get("cameras")
+    if not isinstance(cams, dict) or not cams:
+        raise _fail(path, "'cameras' must be a non-empty object {name: {image_size: [w, h]}}")
+    shapes = {}
+    for name, entry in cams.items():
+        size = entry.get("image_size") if isinstance(entry, dict) else None
+        if not (isinstance(size, list) and len(size) == 2 and all(_positive_int(v) for v in size)):
+            raise _fail(
+                path, f"camera {name!r}: image_size must be [width, height] in px, got {size!r}"
+            )
+        shapes[str(name)] = (int(size[1]), int(size[0]))
+    if len(shapes) < 2:
+        raise _fail(path, f"3-D PTV needs at least two cameras, got {list(shapes)}")
+    return shapes
+
+
+def _dt(spec: dict, path: Path) -> np.ndarray:
+    raw = spec.get("dt")
+    if not isinstance(raw, list) or not raw:
+        raise _fail(path, f"'dt' must be a list of time separations in s, got {raw!r}")
+    try:
+        dt = np.asarray(raw, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise _fail(path, f"'dt' must hold numbers, got {raw!r}") from None
+    if dt.ndim != 1 or not np.all(np.isfinite(dt)) or np.any(dt <= 0):
+        raise _fail(path, f"'dt' values must be finite and > 0 s, got {raw!r}")
+    if np.unique(dt).size != dt.size:
+        raise _fail(path, f"'dt' values must be distinct, got {raw!r}")
+    if dt.size < 2:
+        raise _fail(
+            path,
+            f"a single Δt ({dt[0]:.6g} s): the multi-Δt method needs at least two Δt values",
+        )
+    return dt
+
+
+def _frames(spec: dict, path: Path, n_dt: int) -> tuple[int, ...]:
+    raw = spec.get("frames_per_dt")
+    if _positive_int(raw):
+        return (int(raw),) * n_dt
+    if isinstance(raw, list) and len(raw) == n_dt and all(_positive_int(v) for v in raw):
+        return tuple(int(v) for v in raw)
+    raise _fail(
+        path,
+        f"'frames_per_dt' must be an integer >= 1 or a list of {n_dt} of them, got {raw!r}",
+    )
+
+
+def _saturation(spec: dict, path: Path) -> float | None:
+    bits = spec.get("bit_depth")
+    if bits is None:
+        return None
+    if not (_positive_int(bits) and bits <= 32):
+        raise _fail(path, f"'bit_depth' must be an integer in 1 … 32, got {bits!r}")
+    return float(2**bits - 1)
+
+
+def open_dataset(folder: str | Path, *, check_files: bool = True) -> Dataset:
+    """Read and check a dataset folder's experiment.json.
+
+    Parameters
+    ----------
+    folder : path-like
+        The dataset folder.
+    check_files : bool
+        Check that every particle image file exists (cheap: no image is read).
+
+    Returns
+    -------
+    Dataset
+
+    Raises
+    ------
+    FileNotFoundError
+        The folder, its experiment.json or a particle image is missing.
+    DatasetError
+        A malformed description: fewer than two cameras, a bad image size, a single Δt
+        ("the multi-Δt method needs at least two Δt values"), bad frame counts.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"dataset folder {folder} does not exist")
+    spec = _read_description(folder)
+    path = folder / "experiment.json"
+    shapes = _cameras(spec, path)
+    dt = _dt(spec, path)
+    frames = _frames(spec, path, dt.size)
+    pattern = spec.get("particle_images", DEFAULT_PARTICLE_IMAGES)
+    if not isinstance(pattern, str) or "{a|b}" not in pattern:
+        raise _fail(path, f"'particle_images' must be a pattern with '{{a|b}}', got {pattern!r}")
+    dataset = Dataset(
+        folder=folder,
+        cameras=tuple(shapes),
+        image_shape=shapes,
+        dt=dt,
+        frames=frames,
+        saturation=_saturation(spec, path),
+        pattern=pattern,
+    )
+    try:
+        dataset.frame_path(0, dataset.cameras[0], 0, "a")
+    except (KeyError, IndexError, ValueError) as err:
+        raise _fail(path, f"bad 'particle_images' pattern {pattern!r} ({err})") from None
+    if check_files:
+        missing = [
+            dataset.frame_path(k, c, m, f)
+            for k in range(dt.size)
+            for c in dataset.cameras
+            for m in range(frames[k])
+            for f in "ab"
+            if not dataset.frame_path(k, c, m, f).is_file()
+        ]
+        if missing:
+            more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+            raise FileNotFoundError(f"particle image {missing[0]} is missing{more}")
+    log.info(
+        "dataset %s: cameras %s, %d Δt, %s frame pairs",
+        folder,
+        ", ".join(dataset.cameras),
+        dt.size,
+        frames,
+    )
+    return dataset
+
+
+def cameras_in_order(dataset: Dataset, calibrations: Mapping[str, object]) -> list[object]:
+    """The calibrations in the dataset's camera order; they must name the same cameras.
+
+    Raises
+    ------
+    DatasetError
+        "cameras don't match the calibration", naming the cameras missing on either side.
+    """
+    have, want = set(calibrations), set(dataset.cameras)
+    if have != want:
+        parts = []
+        if want - have:
+            parts.append(f"not calibrated: {', '.join(sorted(want - have))}")
+        if have - want:
+            parts.append(f"calibrated but not in the dataset: {', '.join(sorted(have - want))}")
+        raise DatasetError(
+            f"cameras don't match the calibration: the dataset {dataset.folder} has "
+            f"{', '.join(dataset.cameras)}, the calibration has "
+            f"{', '.join(calibrations)} ({'; '.join(parts)})"
+        )
+    return [calibrations[c] for c in dataset.cameras]

@@ -1,0 +1,352 @@
+"""Results of :func:`ptv.pipeline.run_pipeline` on disk: HDF5 arrays and a JSON summary.
+
+``results.h5`` (format ``synptv-ptv-results``, version :data:`FORMAT_VERSION`; every
+dataset has a ``units`` attribute)::
+
+    /                         attrs: format, format_version, dataset, calibration,
+                              cameras, settings (JSON)
+    /particles/dt<k>          attrs: dt (s), link_radius (m)
+        positions (N, 3) m            X(t) of every link (whole matching volume)
+        displacements (N, 3) m        ΔX = X(t + Δt) − X(t)
+        in_analysis (N,) bool         X(t) inside the analysis volume
+        outlier (N,) bool             failed the normalised median test (not in statistics)
+        offsets (M + 1,)              rows offsets[i]:offsets[i+1] are snapshot snapshot_ids[i]
+        snapshot_ids (M,)             snapshots kept
+        processed (S,)                snapshots processed (kept or skipped)
+        detections (S, 2, C)          per snapshot, frame (a, b) and camera
+        matches (S, 2)                per snapshot and frame
+        links (S,)                    per snapshot
+    /statistics               attrs: errors, method, kolmogorov_c2, analysis_volume
+        dt (K,) s, dt_index (K,)      Δt the statistics use
+        r (B,) m, r_edges (B + 1,) m
+        s2, se_s2 (B,) m²/s²          noise-free S2 (multi-Δt fit)
+        noise, se_noise (B,) m²       c2 = N(r)
+        chi2_dof (B,), fitted (B,) bool
+        raw_s2, se_raw_s2 (B, K) m²/s²  ⟨q⟩_k/Δt_k²
+        q (B, K) m²                   ⟨q⟩_k
+        n_pairs (B, K)
+        epsilon, se_epsilon (B,) m²/s³             (S2/C2)^{3/2}/r
+        epsilon_paper_caption (B,) m²/s³           S2^{3/2}/r (no C2)
+        plateau                      attrs: epsilon, se_epsilon, epsilon_paper_caption,
+                                     r_min, r_max, method, n_bins (absent if none)
+        subsets/<name>               used (K,), s2, se_s2, noise, epsilon (B,); plateau attrs
+        mean_displacement            dt (K,), mean, se (K, 3) m, count (K,);
+                                     velocity, se_velocity (3,) m/s; offset, se_offset,
+                                     se_offset_scaled (× Birge ratio) (3,) m; chi2_dof (3,)
+        eulerian                     cell_centres (G, 3) m, valid (G,), variance (G, 3) m²/s²,
+                                     noise (G, 3) m², mean_velocity (G, 3) m/s,
+                                     offset (G, 3) m; attrs u_prime, se_u_prime (m/s),
+                                     position_noise (3,) m
+
+``summary.json``: :func:`summary` (SI units; NaN written as null).
+
+Files are written under a temporary name in the target folder and renamed.
+"""
+
+import json
+import logging
+import os
+import uuid
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from ptv.pipeline import PtvResult, link_radius
+from ptv.stats.dissipation import Plateau
+
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "save_results", "summary"]
+
+log = logging.getLogger(__name__)
+
+FORMAT_NAME = "synptv-ptv-results"
+FORMAT_VERSION = 1
+
+
+def _num(value) -> float | None:
+    """A JSON-safe float: None for NaN or inf."""
+    if value is None:
+        return None
+    v = float(value)
+    return v if np.isfinite(v) else None
+
+
+def _list(values) -> list:
+    return [_num(v) for v in np.asarray(values, dtype=np.float64).ravel()]
+
+
+def _plateau_dict(plateau: Plateau | None) -> dict | None:
+    if plateau is None:
+        return None
+    return {
+        "epsilon": _num(plateau.epsilon),
+        "se_epsilon": _num(plateau.se_epsilon),
+        "epsilon_paper_caption": _num(plateau.epsilon_paper_caption),
+        "method": plateau.method,
+        "r_min": plateau.r_min,
+        "r_max": plateau.r_max,
+        "n_bins": plateau.n_bins,
+    }
+
+
+def _settings_dict(result: PtvResult) -> dict:
+    s = result.settings
+    return {
+        "volume": [list(v) for v in s.volume],
+        "tolerance": s.tolerance,
+        "max_speed": s.max_speed,
+        "position_noise": s.position_noise,
+        "analysis_volume": [list(v) for v in s.analysis_volume],
+        "r_min": s.r_min,
+        "r_max": s.r_max,
+        "n_bins": s.n_bins,
+        "plateau": list(s.plateau),
+        "plateau_method": s.plateau_method,
+        "kolmogorov_c2": s.kolmogorov_c2,
+        "n_boot": s.n_boot,
+        "eulerian_cells": list(s.eulerian_cells),
+        "min_cell_count": s.min_cell_count,
+        "threshold": s.threshold,
+        "outlier_threshold": s.outlier_threshold,
+        "outlier_neighbours": s.outlier_neighbours,
+        "snapshots": s.snapshots,
+        "seed": s.seed,
+    }
+
+
+def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
+    """The headline numbers of a run as a JSON-ready dict (SI units, None for NaN).
+
+    Keys: ``dataset``, ``calibration``, ``cameras``, ``settings``, ``dt``, ``counts``
+    (per Δt: snapshots processed, kept and skipped, detections per camera and frame,
+    matches per frame, links, links in the analysis volume, link radius), ``u_prime``,
+    ``epsilon`` (plateau of (S2/C2)^{3/2}/r and of the paper's S2^{3/2}/r), ``subsets``
+    (their plateau ε and its ratio to the all-Δt value), ``mean_displacement`` (the
+    linearity check), ``noise`` (median c2 over fitted bins, σ_b per component from the
+    Eulerian fit), ``structure_function`` (r, S2, its error, c2, fitted bins).
+    """
+    st = result.statistics
+    counts = []
+    for run in result.runs:
+        counts.append(
+            {
+                "k": run.k,
+                "dt": run.dt,
+                "snapshots_processed": len(run.processed),
+                "snapshots_kept": len(run.snapshot_ids),
+                "snapshots_skipped": [int(m) for m in run.skipped],
+                "detections": {
+                    cam: {
+                        "a": int(run.detections[:, 0, c].sum()),
+                        "b": int(run.detections[:, 1, c].sum()),
+                    }
+                    for c, cam in enumerate(result.cameras)
+                },
+                "matches": {"a": int(run.matches[:, 0].sum()), "b": int(run.matches[:, 1].sum())},
+                "links": int(run.links.sum()),
+                "outliers": int(run.outlier.sum()),
+                "links_in_analysis_volume": int(run.in_analysis.sum()),
+                "links_used": int(run.used.sum()),
+                "link_radius": link_radius(run.dt, result.settings),
+            }
+        )
+    eps_all = st.plateau.epsilon if st.plateau is not None else np.nan
+    subsets = {}
+    for name, sub in st.subsets.items():
+        entry = {"dt": [float(v) for v in st.dt[sub.used]], "plateau": _plateau_dict(sub.plateau)}
+        if sub.plateau is not None and np.isfinite(eps_all):
+            entry["epsilon_ratio_to_all"] = _num(sub.plateau.epsilon / eps_all)
+        subsets[name] = entry
+    md = st.mean_displacement
+    sf = st.structure
+    noise = sf.noise[sf.fitted]
+    up = st.u_prime
+    return {
+        "format": FORMAT_NAME,
+        "format_version": FORMAT_VERSION,
+        "dataset": str(result.dataset.folder),
+        "calibration": calibration,
+        "cameras": list(result.cameras),
+        "settings": _settings_dict(result),
+        "dt": [float(v) for v in result.dataset.dt],
+        "statistics_dt": [float(v) for v in st.dt],
+        "errors": st.errors,
+        "counts": counts,
+        "u_prime": None
+        if up is None
+        else {
+            "value": _num(up.value),
+            "se": _num(up.se),
+            "per_component": _list(up.per_component),
+            "n_cells": up.n_cells,
+        },
+        "epsilon": {
+            "plateau": _plateau_dict(st.plateau),
+            "kolmogorov_c2": st.profile.kolmogorov_c2,
+            "note": "epsilon = (S2/C2)^(3/2)/r; epsilon_paper_caption = S2^(3/2)/r "
+            "(the paper's Fig. 6 caption, no C2): C2^(3/2) times larger",
+        },
+        "subsets": subsets,
+        "mean_displacement": {
+            "dt": _list(md.dt),
+            "mean": [_list(row) for row in md.mean],
+            "se": [_list(row) for row in md.se],
+            "velocity": _list(md.fit.c1),
+            "se_velocity": _list(md.fit.se_c1),
+            "offset": _list(md.fit.c2),
+            "se_offset": _list(md.fit.se_c2),
+            "se_offset_scaled": _list(md.se_offset_scaled),
+            "chi2_dof": _list(md.fit.chi2_dof),
+        },
+        "noise": {
+            "c2_median": _num(np.median(noise)) if noise.size else None,
+            "c2_fitted_bins": int(noise.size),
+            "position_noise_eulerian": _list(st.position_noise),
+        },
+        "structure_function": {
+            "r": _list(sf.r),
+            "s2": _list(sf.s2),
+            "se_s2": _list(sf.se_s2),
+            "noise": _list(sf.noise),
+            "fitted": [bool(v) for v in sf.fitted],
+            "method": sf.method,
+        },
+    }
+
+
+def _tmp(folder: Path, name: str) -> Path:
+    """A fresh temporary name beside the target (created with the usual permissions)."""
+    return folder / f".{name}.{os.getpid()}.{uuid.uuid4().hex[:12]}.partial"
+
+
+def _put(group: h5py.Group, name: str, data, units: str | None = None) -> None:
+    ds = group.create_dataset(name, data=np.asarray(data))
+    if units is not None:
+        ds.attrs["units"] = units
+
+
+def _put_plateau(group: h5py.Group, plateau: Plateau | None) -> None:
+    if plateau is None:
+        return
+    g = group.create_group("plateau")
+    for key, value in _plateau_dict(plateau).items():
+        g.attrs[key] = np.nan if value is None else value
+    g.attrs["units"] = "epsilon: m^2/s^3; r_min, r_max: m"
+
+
+def _write_h5(path: Path, result: PtvResult, calibration: str | None) -> None:
+    st = result.statistics
+    sf = st.structure
+    with h5py.File(path, "w") as f:
+        f.attrs["format"] = FORMAT_NAME
+        f.attrs["format_version"] = FORMAT_VERSION
+        f.attrs["dataset"] = str(result.dataset.folder)
+        f.attrs["calibration"] = calibration or ""
+        f.attrs["cameras"] = json.dumps(list(result.cameras))
+        f.attrs["settings"] = json.dumps(_settings_dict(result))
+        for run in result.runs:
+            g = f.create_group(f"particles/dt{run.k}")
+            g.attrs["dt"] = run.dt
+            g.attrs["link_radius"] = link_radius(run.dt, result.settings)
+            _put(g, "positions", run.positions, "m")
+            _put(g, "displacements", run.displacements, "m")
+            _put(g, "in_analysis", run.in_analysis)
+            _put(g, "outlier", run.outlier)
+            _put(g, "offsets", run.offsets, "row index")
+            _put(g, "snapshot_ids", run.snapshot_ids)
+            _put(g, "processed", run.processed)
+            _put(g, "detections", run.detections, "count (snapshot, frame a/b, camera)")
+            _put(g, "matches", run.matches, "count (snapshot, frame a/b)")
+            _put(g, "links", run.links, "count")
+        s = f.create_group("statistics")
+        s.attrs["errors"] = st.errors
+        s.attrs["method"] = sf.method
+        s.attrs["kolmogorov_c2"] = st.profile.kolmogorov_c2
+        s.attrs["analysis_volume"] = np.asarray(result.settings.analysis_volume)
+        _put(s, "dt", st.dt, "s")
+        _put(s, "dt_index", st.dt_index)
+        _put(s, "n_snapshots", st.n_snapshots)
+        _put(s, "r", sf.r, "m")
+        _put(s, "r_edges", st.bins.edges, "m")
+        _put(s, "s2", sf.s2, "m^2/s^2")
+        _put(s, "se_s2", sf.se_s2, "m^2/s^2")
+        _put(s, "noise", sf.noise, "m^2")
+        _put(s, "se_noise", sf.se_noise, "m^2")
+        _put(s, "chi2_dof", sf.chi2_dof)
+        _put(s, "fitted", sf.fitted)
+        _put(s, "raw_s2", sf.raw_s2, "m^2/s^2")
+        _put(s, "se_raw_s2", sf.se_raw_s2, "m^2/s^2")
+        _put(s, "q", sf.raw_s2 * st.dt**2, "m^2")
+        _put(s, "n_pairs", sf.n_pairs, "pairs")
+        _put(s, "epsilon", st.profile.epsilon, "m^2/s^3")
+        _put(s, "se_epsilon", st.profile.se_epsilon, "m^2/s^3")
+        _put(s, "epsilon_paper_caption", st.profile.epsilon_paper_caption, "m^2/s^3")
+        _put_plateau(s, st.plateau)
+        for name, sub in st.subsets.items():
+            g = s.create_group(f"subsets/{name}")
+            _put(g, "used", sub.used)
+            _put(g, "s2", sub.structure.s2, "m^2/s^2")
+            _put(g, "se_s2", sub.structure.se_s2, "m^2/s^2")
+            _put(g, "noise", sub.structure.noise, "m^2")
+            _put(g, "epsilon", sub.profile.epsilon, "m^2/s^3")
+            _put_plateau(g, sub.plateau)
+        md = st.mean_displacement
+        g = s.create_group("mean_displacement")
+        _put(g, "dt", md.dt, "s")
+        _put(g, "mean", md.mean, "m")
+        _put(g, "se", md.se, "m")
+        _put(g, "count", md.count, "links")
+        _put(g, "velocity", md.fit.c1, "m/s")
+        _put(g, "se_velocity", md.fit.se_c1, "m/s")
+        _put(g, "offset", md.fit.c2, "m")
+        _put(g, "se_offset", md.fit.se_c2, "m")
+        _put(g, "se_offset_scaled", md.se_offset_scaled, "m")
+        _put(g, "chi2_dof", md.fit.chi2_dof)
+        g = s.create_group("eulerian")
+        _put(g, "cell_centres", st.grid.centres, "m")
+        _put(g, "valid", st.eulerian.valid)
+        _put(g, "variance", st.eulerian.variance, "m^2/s^2")
+        _put(g, "noise", st.eulerian.noise, "m^2")
+        _put(g, "mean_velocity", st.eulerian.mean_velocity, "m/s")
+        _put(g, "offset", st.eulerian.offset, "m")
+        up = st.u_prime
+        g.attrs["u_prime"] = np.nan if up is None else up.value
+        g.attrs["se_u_prime"] = np.nan if up is None else up.se
+        g.attrs["position_noise"] = st.position_noise
+        g.attrs["units"] = "u_prime, se_u_prime: m/s; position_noise: m"
+
+
+def save_results(
+    result: PtvResult, folder: str | os.PathLike, *, calibration: str | None = None
+) -> tuple[Path, Path]:
+    """Write ``results.h5`` and ``summary.json`` into ``folder`` (created if needed).
+
+    Parameters
+    ----------
+    result : PtvResult
+        What :func:`ptv.pipeline.run_pipeline` returned.
+    folder : path-like
+        Output folder.
+    calibration : str, optional
+        The calibration file used, recorded in both files.
+
+    Returns
+    -------
+    (Path, Path)
+        The two files.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    h5_path, json_path = folder / "results.h5", folder / "summary.json"
+    text = json.dumps(summary(result, calibration=calibration), indent=2, allow_nan=False)
+    tmp_h5, tmp_json = _tmp(folder, h5_path.name), _tmp(folder, json_path.name)
+    try:
+        _write_h5(tmp_h5, result, calibration)
+        tmp_json.write_text(text + "\n")
+        os.replace(tmp_h5, h5_path)
+        os.replace(tmp_json, json_path)
+    finally:
+        tmp_h5.unlink(missing_ok=True)
+        tmp_json.unlink(missing_ok=True)
+    log.info("results written to %s and %s", h5_path, json_path)
+    return h5_path, json_path

@@ -1,0 +1,87 @@
+"""``synptv ptv``: results, summary and figures from a dataset folder; bad input."""
+
+import json
+
+import h5py
+import matplotlib.image
+import pytest
+
+from ptv.calibration.io import load_calibrations, save_calibrations
+from simulator.presets import flow_preset
+from simulator.rigs import load_rig
+from validation.calibrate_dataset import calibrate_dataset
+from validation.cli import main
+from validation.dataset import RenderSettings, write_dataset
+from validation.ptv_figures import FIGURE_FILES
+
+SETTINGS = RenderSettings(frames=2, planes=3, particles=600, n_modes=80, seed=5)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("cli-ptv") / "ds"
+    write_dataset(folder, load_rig("paper-stereo"), flow_preset("lem-10hz"), SETTINGS)
+    cal = calibrate_dataset(folder, methods=("model-free",))
+    return folder, cal.files["model-free"]
+
+
+def test_ptv_command_writes_results_summary_and_figures(dataset, tmp_path, capsys):
+    folder, calibration = dataset
+    out = tmp_path / "out"
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration)]
+    code = main([*argv, "--out", str(out), "--max-speed", "1.2", "--quiet"])
+    printed = capsys.readouterr()
+    assert code == 0, printed.err
+    assert "epsilon plateau" in printed.out and "u' (Eulerian variance fit)" in printed.out
+    assert printed.err == ""  # --quiet: no progress bar
+    names = {p.name for p in out.iterdir()}
+    assert names == {"results.h5", "summary.json", *FIGURE_FILES.values()}
+    for name in FIGURE_FILES.values():
+        image = matplotlib.image.imread(out / name)
+        assert image.ndim == 3 and image.shape[0] > 300 and image.shape[1] > 400
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["settings"]["max_speed"] == 1.2
+    assert summary["dataset"] == str(folder) and summary["calibration"] == str(calibration)
+    assert [c["snapshots_kept"] for c in summary["counts"]] == [2] * 5
+    assert summary["epsilon"]["plateau"]["epsilon"] > 0
+    assert summary["counts"][4]["link_radius"] == pytest.approx(1.2 * 5.093e-4 + 1.5e-4, rel=1e-3)
+    with h5py.File(out / "results.h5") as f:
+        assert f["statistics/s2"].shape == (24,)
+        assert f["particles/dt0/offsets"].shape == (3,)
+
+
+def test_ptv_command_processes_the_first_snapshots_only(dataset, tmp_path, capsys):
+    folder, calibration = dataset
+    out = tmp_path / "one"
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration)]
+    assert main([*argv, "--out", str(out), "--snapshots", "1", "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert [c["snapshots_processed"] for c in summary["counts"]] == [1] * 5
+    assert summary["errors"] == "pairs"  # one snapshot per Δt: no bootstrap
+    capsys.readouterr()
+
+
+def test_ptv_command_reports_bad_input_in_one_line(dataset, tmp_path, capsys):
+    folder, calibration = dataset
+    out = str(tmp_path / "bad")
+    code = main(
+        ["ptv", "--dataset", str(tmp_path / "nowhere"), "--calibration", "x.h5", "--out", out]
+    )
+    err = capsys.readouterr().err
+    assert (
+        code == 2
+        and err.startswith("synptv ptv: error: dataset folder")
+        and "does not exist" in err
+    )
+    calibrations = load_calibrations(calibration)
+    other = save_calibrations(
+        tmp_path / "other.h5", {"cam1": calibrations["cam1"], "left": calibrations["cam2"]}
+    )
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(other), "--out", out, "--quiet"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "cameras don't match the calibration" in err and len(err.strip().splitlines()) == 1
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration), "--out", out]
+    assert main([*argv, "--max-speed", "-1", "--quiet"]) == 2
+    assert "max_speed must be a finite number > 0" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()

@@ -1,0 +1,301 @@
+"""Figures of a PTV run (``synptv ptv``): the paper's Fig. 5a, 5b, 6a and 6b.
+
+Each function takes the :class:`ptv.pipeline.PtvResult` and returns a matplotlib
+Figure; :func:`save_ptv_figures` writes the four PNGs with
+:func:`validation.figures.save_figure`. Separations are shown in mm (η is not known
+on real data), displacements in µm, Δt in ms; S2 in m²/s² and ε in m²/s³.
+"""
+
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
+
+from ptv.pipeline import PtvResult
+from validation.figures import save_figure
+
+__all__ = [
+    "FIGURE_FILES",
+    "epsilon_figure",
+    "q_versus_dt2_figure",
+    "raw_structure_figure",
+    "save_ptv_figures",
+    "structure_figure",
+]
+
+#: File names written by :func:`save_ptv_figures`.
+FIGURE_FILES = {
+    "fig5a": "fig5a_raw_s2.png",
+    "fig5b": "fig5b_q_vs_dt2.png",
+    "fig6a": "fig6a_s2.png",
+    "fig6b": "fig6b_epsilon.png",
+}
+
+Reference = tuple[np.ndarray, np.ndarray, str]
+
+
+def _colours(n: int) -> list:
+    return [plt.get_cmap("viridis")(v) for v in np.linspace(0.0, 0.85, n)]
+
+
+def _plain(value: float, _position=None) -> str:
+    return f"{value:g}"
+
+
+def _log_axis(axis, limits) -> None:
+    """Label a log axis with plain numbers: 1-2-3-4-5-6-8 steps within about a decade,
+    1-2-5 up to three decades, decades beyond."""
+    lo, hi = sorted(float(v) for v in limits)
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
+        return
+    decades = np.log10(hi / lo)
+    steps = (1, 2, 3, 4, 5, 6, 8) if decades <= 1.2 else (1, 2, 5) if decades <= 3 else (1,)
+    exps = np.arange(np.floor(np.log10(lo)), np.ceil(np.log10(hi)) + 1)
+    ticks = np.array([m * 10.0**e for e in exps for m in steps])
+    ticks = ticks[(ticks >= lo) & (ticks <= hi)]
+    if ticks.size < 2:
+        return
+    axis.set_major_locator(FixedLocator(ticks))
+    axis.set_major_formatter(FuncFormatter(_plain))
+    axis.set_minor_formatter(NullFormatter())
+
+
+def _loglog(ax) -> None:
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    _log_axis(ax.xaxis, ax.get_xlim())
+    _log_axis(ax.yaxis, ax.get_ylim())
+
+
+def _fitted(result: PtvResult) -> np.ndarray:
+    sf = result.statistics.structure
+    return sf.fitted & np.isfinite(sf.s2) & (sf.s2 > 0)
+
+
+def _r_mm(result: PtvResult) -> np.ndarray:
+    st = result.statistics
+    r = st.structure.r
+    return np.where(np.isfinite(r), r, st.bins.centres) * 1e3
+
+
+def raw_structure_figure(result: PtvResult) -> Figure:
+    """Fig. 5a: raw ⟨(δΔX·e)²⟩/Δt² for every Δt against r, with the multi-Δt S2.
+
+    Small separations show the noise: the raw estimate at the smallest Δt lies highest.
+    """
+    st = result.statistics
+    sf = st.structure
+    r = _r_mm(result)
+    figure, ax = plt.subplots(figsize=(6.0, 4.6), layout="constrained")
+    for k, (dt, colour) in enumerate(zip(st.dt, _colours(st.dt.size), strict=True)):
+        y = sf.raw_s2[:, k]
+        ok = np.isfinite(y) & (y > 0) & (sf.n_pairs[:, k] >= 20)
+        ax.plot(
+            r[ok], y[ok], "o-", ms=3.5, lw=1.0, color=colour, label=f"raw, Δt = {dt * 1e3:.3f} ms"
+        )
+    fit = _fitted(result)
+    ax.errorbar(
+        r[fit],
+        sf.s2[fit],
+        yerr=sf.se_s2[fit],
+        fmt="s-",
+        ms=4,
+        lw=1.6,
+        color="black",
+        capsize=2,
+        label="multi-Δt fit S2 = c1",
+    )
+    _loglog(ax)
+    ax.set_xlabel("r (mm)")
+    ax.set_ylabel("⟨(δΔX·e)²⟩ / Δt²  (m²/s²)")
+    ax.set_title("Raw S2 of the displacements per Δt (Fig. 5a)", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    return figure
+
+
+def _pick_bins(result: PtvResult, n: int = 6) -> np.ndarray:
+    fit = np.flatnonzero(_fitted(result))
+    if fit.size <= n:
+        return fit
+    r = _r_mm(result)[fit]
+    targets = np.geomspace(r.min(), r.max(), n)
+    picked = [fit[int(np.argmin(np.abs(np.log(r / t))))] for t in targets]
+    return np.unique(picked)
+
+
+def q_versus_dt2_figure(result: PtvResult, *, n_separations: int = 6) -> Figure:
+    """Fig. 5b: ⟨q⟩ against Δt² at a few separations, with the fitted lines c1Δt² + c2.
+
+    Left, the paper's view: ⟨q⟩ and the lines (slope: the noise-free S2). Right, a zoom
+    on the two smallest Δt, where the intercepts c2 (the noise term) can be seen even
+    when the noise is small.
+    """
+    st = result.statistics
+    sf = st.structure
+    r = _r_mm(result)
+    dt2 = st.dt**2
+    x_ms2 = dt2 * 1e6
+    line = np.linspace(0.0, x_ms2.max() * 1.05, 50)
+    figure, (ax, ax_res) = plt.subplots(
+        1, 2, figsize=(11.0, 4.6), layout="constrained", gridspec_kw={"width_ratios": [1.2, 1.0]}
+    )
+    bins = _pick_bins(result, n_separations)
+    for b, colour in zip(bins, _colours(len(bins)), strict=True):
+        q = sf.raw_s2[b] * dt2 * 1e12  # µm²
+        se = sf.se_raw_s2[b] * dt2 * 1e12
+        c2, se_c2 = sf.noise[b] * 1e12, sf.se_noise[b] * 1e12
+        ax.errorbar(x_ms2, q, yerr=se, fmt="o", ms=4, color=colour, capsize=2)
+        ax.plot(
+            line,
+            sf.s2[b] * line * 1e6 + c2,
+            "-",
+            color=colour,
+            lw=1.2,
+            label=f"r = {r[b]:.2f} mm: c2 = {c2:.0f} ± {se_c2:.0f} µm²",
+        )
+        ax_res.errorbar(x_ms2, q, yerr=se, fmt="o", ms=4, color=colour, capsize=2)
+        ax_res.plot(line, sf.s2[b] * line * 1e6 + c2, "-", color=colour, lw=1.2)
+        ax_res.plot(0.0, c2, "D", ms=6, color=colour, clip_on=False, zorder=5)
+    for a in (ax, ax_res):
+        a.axhline(0.0, color="0.5", lw=0.8)
+        a.set_xlabel("Δt² (ms²)")
+        a.grid(True, alpha=0.3)
+    ax.set_xlim(0.0, line[-1])
+    ax.set_ylabel("⟨(δΔX·e)²⟩  (µm²)")
+    ax.set_title("⟨q⟩ = c1 Δt² + c2 at six separations (Fig. 5b)", fontsize=10)
+    ax.legend(fontsize=7.5, loc="upper left")
+    # Zoom on the two smallest Δt, where the intercepts show.
+    x_zoom = 1.25 * np.sort(x_ms2)[min(1, x_ms2.size - 1)]
+    near = x_ms2 <= x_zoom
+    if len(bins):
+        q_near = sf.raw_s2[bins][:, near] * dt2[near] * 1e12
+        c2_all = sf.noise[bins] * 1e12
+        top = np.nanmax(np.r_[q_near.ravel(), c2_all]) * 1.15
+        bottom = min(0.0, np.nanmin(c2_all) * 1.3)
+        if np.isfinite(top) and np.isfinite(bottom) and top > bottom:
+            ax_res.set_ylim(bottom, top)
+    ax_res.set_xlim(0.0, x_zoom)
+    ax_res.set_ylabel("⟨(δΔX·e)²⟩  (µm²)")
+    ax_res.set_title("zoom on the smallest Δt: the intercepts c2 (noise term, ◆)", fontsize=10)
+    return figure
+
+
+def structure_figure(result: PtvResult, *, reference: Reference | None = None) -> Figure:
+    """Fig. 6a: the noise-free S2(r) with bootstrap errors and a r^{2/3} guide.
+
+    ``reference`` = (r in m, S2 in m²/s², label) adds a curve (e.g. a ground truth).
+    """
+    sf = result.statistics.structure
+    r = _r_mm(result)
+    fit = _fitted(result)
+    figure, ax = plt.subplots(figsize=(6.0, 4.6), layout="constrained")
+    ax.errorbar(
+        r[fit],
+        sf.s2[fit],
+        yerr=sf.se_s2[fit],
+        fmt="o",
+        ms=4,
+        color="C0",
+        capsize=2,
+        label="S2 = c1 (multi-Δt fit), ±1 s.e.",
+    )
+    if reference is not None:
+        rr, s2, label = reference
+        ok = np.isfinite(s2) & (s2 > 0)
+        ax.plot(np.asarray(rr)[ok] * 1e3, np.asarray(s2)[ok], "-", color="C3", lw=1.2, label=label)
+    if fit.any():
+        # Guide through the geometric middle of the fitted points.
+        r0 = np.exp(np.mean(np.log(r[fit])))
+        s0 = np.exp(np.mean(np.log(sf.s2[fit])))
+        guide = np.geomspace(r[fit].min(), r[fit].max(), 20)
+        ax.plot(guide, 0.7 * s0 * (guide / r0) ** (2 / 3), "k--", lw=1.0, label="slope 2/3 (guide)")
+    _loglog(ax)
+    ax.set_xlabel("r (mm)")
+    ax.set_ylabel("S2 (m²/s²)")
+    ax.set_title("Noise-free longitudinal structure function (Fig. 6a)", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    return figure
+
+
+def epsilon_figure(result: PtvResult, *, reference: float | None = None) -> Figure:
+    """Fig. 6b: ε(r) = (S2/C2)^{3/2}/r and the paper's S2^{3/2}/r, with the plateau.
+
+    The plateau range is shaded; the band is the plateau ε ± 1 s.e. ``reference`` adds a
+    horizontal line (e.g. a known ε).
+    """
+    st = result.statistics
+    prof = st.profile
+    r = _r_mm(result)
+    ok = np.isfinite(prof.epsilon)
+    c2 = prof.kolmogorov_c2
+    figure, ax = plt.subplots(figsize=(6.0, 4.6), layout="constrained")
+    ax.errorbar(
+        r[ok],
+        prof.epsilon[ok],
+        yerr=prof.se_epsilon[ok],
+        fmt="o-",
+        ms=4,
+        lw=1.0,
+        color="C0",
+        capsize=2,
+        label=f"(S2/C2)^(3/2)/r, C2 = {c2:g}",
+    )
+    ax.plot(
+        r[ok],
+        prof.epsilon_paper_caption[ok],
+        "s--",
+        ms=3.5,
+        lw=1.0,
+        color="C1",
+        label=f"S2^(3/2)/r (paper's caption, no C2: ×{c2**1.5:.2f})",
+    )
+    lo, hi = (v * 1e3 for v in result.settings.plateau)
+    ax.axvspan(lo, hi, color="0.93", zorder=0, label="plateau range")
+    p = st.plateau
+    if p is not None and np.isfinite(p.epsilon) and np.isfinite(p.se_epsilon):
+        ax.fill_between(
+            [lo, hi],
+            p.epsilon - p.se_epsilon,
+            p.epsilon + p.se_epsilon,
+            color="C0",
+            alpha=0.25,
+            lw=0,
+            label=f"plateau ε = {p.epsilon:.3g} ± {p.se_epsilon:.2g} m²/s³ ({p.method})",
+        )
+        ax.plot([lo, hi], [p.epsilon, p.epsilon], color="C0", lw=1.0)
+    if reference is not None:
+        ax.axhline(reference, color="C3", lw=1.2, ls=":", label=f"reference ε = {reference:.3g}")
+    _loglog(ax)
+    ax.set_xlabel("r (mm)")
+    ax.set_ylabel("ε(r) (m²/s³)")
+    ax.set_title("Dissipation rate from the noise-free S2 (Fig. 6b)", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
+    return figure
+
+
+def save_ptv_figures(
+    result: PtvResult,
+    folder: str | os.PathLike,
+    *,
+    reference_s2: Reference | None = None,
+    reference_epsilon: float | None = None,
+) -> dict[str, Path]:
+    """Write the four PNGs of :data:`FIGURE_FILES` into ``folder``; returns their paths."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    figures = {
+        "fig5a": raw_structure_figure(result),
+        "fig5b": q_versus_dt2_figure(result),
+        "fig6a": structure_figure(result, reference=reference_s2),
+        "fig6b": epsilon_figure(result, reference=reference_epsilon),
+    }
+    return {key: save_figure(fig, folder / FIGURE_FILES[key]) for key, fig in figures.items()}
