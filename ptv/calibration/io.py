@@ -8,7 +8,7 @@ Layout (format ``synptv-calibration``, version :data:`FORMAT_VERSION`)::
 ``model-free`` (:class:`~ptv.calibration.model_free.ModelFreeCalibration`)::
 
     attrs    image_size (2,), z_ref
-    datasets grid_x, grid_y, line_parameters (4, ny, nx), line_rms (ny, nx)
+    datasets grid_x, grid_y, line_parameters (4 or 6, ny, nx), line_rms (ny, nx)
     planes/<k>            attrs z; datasets residual_px, residual_m, hull_points (N, 2)
     planes/<k>/to_world   attrs degree; datasets centre, scale, coefficients
     planes/<k>/to_pixel   (the same)
@@ -166,7 +166,7 @@ def _read_model_free(group: h5py.Group) -> ModelFreeCalibration:
         z_ref=float(group.attrs["z_ref"]),
         grid_x=grid_x,
         grid_y=grid_y,
-        line_parameters=_array(group, "line_parameters", shape=(4, *shape)),
+        line_parameters=_line_parameters(group, shape),
         line_rms=_array(group, "line_rms", shape=shape),
     )
 
@@ -253,6 +253,14 @@ register_codec(ModelFreeCalibration, "model-free", _write_model_free, _read_mode
 register_codec(TsaiCalibration, "tsai", _write_tsai, _read_tsai)
 register_codec(PinholeCalibration, "opencv-pinhole", _write_pinhole, _read_pinhole)
 register_codec(SoloffCalibration, "soloff", _write_soloff, _read_soloff)
+
+
+def _line_parameters(group: h5py.Group, shape: tuple) -> np.ndarray:
+    """Ray coefficients: 4 (straight) or 6 (curved) rows over the grid."""
+    params = _array(group, "line_parameters", ndim=3)
+    if params.shape[0] not in (4, 6) or params.shape[1:] != tuple(shape):
+        raise ValueError(f"line_parameters has shape {params.shape}, expected (4 or 6, {shape})")
+    return params
 
 
 def _array(

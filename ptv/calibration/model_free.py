@@ -110,10 +110,11 @@ class ModelFreeCalibration:
         Z̄, the mean of the plane positions, m: ray origins lie on Z = Z̄.
     grid_x, grid_y : ndarray
         Pixel grid of the line fits, px.
-    line_parameters : ndarray, shape (4, ny, nx)
-        X₀ (m), Y₀ (m), a, b on the grid.
+    line_parameters : ndarray, shape (2 (q + 1), ny, nx)
+        Coefficients of X and Y as polynomials of degree q in (Z − Z̄) on the grid:
+        X₀, Y₀ (m), a, b (straight rays, q = 1), then a₂, b₂ (1/m, curved rays, q = 2).
     line_rms : ndarray, shape (ny, nx)
-        RMS distance of the plane points from the fitted line, m (ray curvature, noise).
+        RMS distance of the plane points from the fitted ray, m (curvature, noise).
     """
 
     image_size: tuple[int, int]
@@ -149,13 +150,36 @@ class ModelFreeCalibration:
         out[inside] = self._coverage[row[inside].astype(int), col[inside].astype(int)]
         return out
 
+    @property
+    def ray_degree(self) -> int:
+        """q: 1 for straight rays, 2 for rays curved quadratically in Z."""
+        return len(self.line_parameters) // 2 - 1
+
     def line_at(self, xy: np.ndarray, *, dx: int = 0, dy: int = 0) -> np.ndarray:
-        """X₀, Y₀, a, b (or their pixel derivatives) at pixels xy (N, 2); shape (N, 4)."""
+        """Ray coefficients (or their pixel derivatives) at pixels xy (N, 2); (N, 2 (q + 1))."""
         xy = np.asarray(xy, dtype=float)
         return np.stack([s.ev(xy[:, 1], xy[:, 0], dx=dy, dy=dx) for s in self._splines], axis=1)
 
+    def _along(self, coefficients: np.ndarray, dz: np.ndarray) -> np.ndarray:
+        """Σ_n c_n dz^n for the X and Y coefficient pairs, shape (N, 2)."""
+        powers = dz[:, None] ** np.arange(self.ray_degree + 1)
+        return np.einsum("nkc,nk->nc", coefficients.reshape(len(dz), -1, 2), powers)
+
+    def position_at(self, xy: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """Where the (possibly curved) ray of each pixel crosses depth z: (N, 3), m."""
+        xy = np.asarray(xy, dtype=float)
+        z = np.broadcast_to(np.asarray(z, dtype=float), (len(xy),))
+        ok = self.covered(xy)
+        out = np.column_stack([self._along(self.line_at(xy), z - self.z_ref), z])
+        out[~ok] = np.nan
+        return out
+
     def pixel_to_ray(self, xy: np.ndarray) -> Rays:
-        """Rays in the water of pixels xy (N, 2); NaN rows outside the calibrated area."""
+        """Rays in the water of pixels xy (N, 2); NaN rows outside the calibrated area.
+
+        For curved rays this is the tangent at Z = Z̄; :meth:`position_at` follows the
+        curve exactly.
+        """
         xy = np.asarray(xy, dtype=float)
         if xy.ndim != 2 or xy.shape[1] != 2:
             raise ValueError(f"pixels must have shape (N, 2), got {xy.shape}")
@@ -184,17 +208,11 @@ class ModelFreeCalibration:
                 xy[sel] = plane.to_pixel(p[sel, :2])
         dz = p[:, 2] - self.z_ref
         for _ in range(_NEWTON_STEPS):
-            line = self.line_at(xy)
-            residual = np.column_stack(
-                [line[:, 0] + line[:, 2] * dz - p[:, 0], line[:, 1] + line[:, 3] * dz - p[:, 1]]
+            residual = self._along(self.line_at(xy), dz) - p[:, :2]
+            jac = np.stack(
+                [self._along(self.line_at(xy, dx=1), dz), self._along(self.line_at(xy, dy=1), dz)],
+                axis=-1,
             )
-            d_dx = self.line_at(xy, dx=1)
-            d_dy = self.line_at(xy, dy=1)
-            jac = np.empty((len(p), 2, 2))
-            jac[:, 0, 0] = d_dx[:, 0] + d_dx[:, 2] * dz
-            jac[:, 1, 0] = d_dx[:, 1] + d_dx[:, 3] * dz
-            jac[:, 0, 1] = d_dy[:, 0] + d_dy[:, 2] * dz
-            jac[:, 1, 1] = d_dy[:, 1] + d_dy[:, 3] * dz
             step = np.linalg.solve(jac, residual[..., None])[..., 0]
             xy -= step
             if np.nanmax(np.abs(step), initial=0.0) < _NEWTON_TOL:
@@ -210,6 +228,7 @@ def calibrate_model_free(
     *,
     degree: int = 3,
     grid_step: int = 16,
+    curved: bool = False,
 ) -> ModelFreeCalibration:
     """Build the pixel → line calibration of one camera from its plane observations.
 
@@ -223,6 +242,8 @@ def calibrate_model_free(
         Degree of the plane transforms T_j (1 to 3; the paper uses 3).
     grid_step : int
         Spacing of the pixel grid on which lines are fitted, px.
+    curved : bool
+        Fit rays quadratic in Z (stratified media, index gradients); needs ≥ 3 planes.
 
     Returns
     -------
@@ -233,6 +254,8 @@ def calibrate_model_free(
     z = np.array([o.z for o in observations], dtype=float)
     if len(np.unique(z)) != len(z) or not np.isfinite(z).all():
         raise ValueError(f"calibration planes need distinct finite Z, got {z.tolist()}")
+    if curved and len(z) < 3:
+        raise ValueError(f"curved rays need at least three calibration planes, got {len(z)}")
     width, height = image_size
     if width < 2 * grid_step or height < 2 * grid_step:
         raise ValueError(f"image size {image_size} too small for grid step {grid_step}")
@@ -250,15 +273,14 @@ def calibrate_model_free(
     pixels = np.column_stack([gx.ravel(), gy.ravel()])
     world = np.stack([plane.to_world(pixels) for plane in planes])  # (N_Z, G, 2)
     z_ref = float(z.mean())
-    dz = z - z_ref
-    slope = np.einsum("j,jgc->gc", dz, world) / np.sum(dz**2)
-    intercept = world.mean(axis=0)
-    fitted = intercept[None] + dz[:, None, None] * slope[None]
+    # Regress X and Y on Z (exact) per grid pixel: X = Σ_n c_n (Z − Z̄)^n, n ≤ q.
+    powers = np.vander(z - z_ref, 3 if curved else 2, increasing=True)  # (N_Z, q + 1)
+    coefficients = np.linalg.lstsq(powers, world.reshape(len(z), -1), rcond=None)[0]
+    fitted = (powers @ coefficients).reshape(world.shape)
     rms = np.sqrt(np.mean(np.sum((world - fitted) ** 2, axis=-1), axis=0))
     shape = gx.shape
-    params = np.stack([intercept[:, 0], intercept[:, 1], slope[:, 0], slope[:, 1]]).reshape(
-        4, *shape
-    )
+    # (q + 1, G, 2) → rows X₀, Y₀, a, b[, a₂, b₂]
+    params = coefficients.reshape(len(powers[0]), -1, 2).transpose(0, 2, 1).reshape(-1, *shape)
     return ModelFreeCalibration(
         image_size=(int(width), int(height)),
         planes=planes,
