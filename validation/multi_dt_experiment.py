@@ -21,6 +21,10 @@ from simulator.presets import FlowPreset
 from simulator.spectra import PopeSpectrum
 from simulator.truth import longitudinal_structure_function
 
+#: Random Fourier modes of a correlated noise field (redrawn every frame, so its
+#: covariance is exact on average; 64 cosines make each value close to Gaussian).
+_NOISE_MODES = 64
+
 
 @dataclass(frozen=True)
 class Measurement:
@@ -32,10 +36,29 @@ class Measurement:
         Standard deviation of the position noise per component, m.
     scale_error : float
         Uniform calibration scale error s (X → (1 + s) X).
+    correlation_length : float or None
+        ℓ of spatially correlated noise (None: independent per particle), m.
     """
 
     noise: tuple[float, float, float] = (15e-6, 15e-6, 15e-6)
     scale_error: float = 0.0
+    correlation_length: float | None = None
+
+    def draw(self, positions: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Position noise at positions (P, 3), m: white, or a Gaussian random field.
+
+        With a correlation length ℓ the noise of each component is a random Fourier field
+        with covariance σ² exp(−r²/(2ℓ²)) in space (PHYSICS.md §4: N(r) = 4σ²(1 − ρ(r))),
+        drawn afresh for every frame (white in time).
+        """
+        sigma = np.asarray(self.noise, dtype=float)
+        if self.correlation_length is None:
+            return rng.normal(0.0, 1.0, positions.shape) * sigma
+        modes = _NOISE_MODES
+        k = rng.normal(0.0, 1.0 / self.correlation_length, (3, 3 * modes))  # per component
+        phase = rng.uniform(0.0, 2 * np.pi, 3 * modes)
+        field = np.cos(positions @ k + phase).reshape(len(positions), 3, modes).sum(axis=-1)
+        return field * np.sqrt(2.0 / modes) * sigma
 
 
 @dataclass(frozen=True)
@@ -131,14 +154,13 @@ def analyse(
     rng = np.random.default_rng(rng)
     p = preset.parameters
     log_bins = LogBins(10 * p.eta, p.L_int / 2, bins)
-    sigma = np.asarray(measurement.noise, dtype=float)
     gain = 1.0 + measurement.scale_error
     runs, truth = [], None
     mean_shift, se_shift = [], []
     for run in sample.runs:
         pairs = []
         for x, u in zip(run.positions, run.velocity[:, 0], strict=True):
-            measured = gain * x + rng.normal(0.0, 1.0, x.shape) * sigma
+            measured = gain * x + np.stack([measurement.draw(frame, rng) for frame in x])
             inside = region.contains(measured[0])
             start, delta = measured[0][inside], (measured[1] - measured[0])[inside]
             pairs.append((start, delta))
