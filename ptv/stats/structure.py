@@ -28,7 +28,7 @@ from ptv.stats.multidt import (
     select_dt,
     usable_bootstrap_bins,
 )
-from ptv.stats.pairs import LogBins, pair_sums
+from ptv.stats.pairs import LogBins, PairSums, pair_sums
 from ptv.stats.snapshots import SnapshotSums
 
 __all__ = [
@@ -94,6 +94,17 @@ class StructureFunction:
     s2_boot: np.ndarray | None = None
 
 
+def _snapshot_sums(x, d, bins: LogBins, *, shape: str, where: str) -> PairSums:
+    """Pair sums of one snapshot; errors name the snapshot (and the expected shape)."""
+    d = np.asarray(d)
+    if d.ndim != shape.count(",") + 1:
+        raise ValueError(f"{where}: displacements must have shape {shape}, got {d.shape}")
+    try:
+        return pair_sums(x, d, bins)
+    except ValueError as err:
+        raise ValueError(f"{where}: {err}") from err
+
+
 def time_resolved_sums(
     snapshots: Iterable[tuple[np.ndarray, np.ndarray]], bins: LogBins
 ) -> SnapshotSums:
@@ -113,17 +124,10 @@ def time_resolved_sums(
     SnapshotSums
         M snapshots, one stratum.
     """
-    sums = []
-    for m, (x, d) in enumerate(snapshots):
-        d = np.asarray(d)
-        if d.ndim != 3:
-            raise ValueError(
-                f"snapshot {m}: displacements must have shape (P, K, 3), got {d.shape}"
-            )
-        try:
-            sums.append(pair_sums(x, d, bins))
-        except ValueError as err:
-            raise ValueError(f"snapshot {m}: {err}") from err
+    sums = [
+        _snapshot_sums(x, d, bins, shape="(P, K, 3)", where=f"snapshot {m}")
+        for m, (x, d) in enumerate(snapshots)
+    ]
     if not sums:
         raise ValueError("no snapshots given")
     return SnapshotSums.from_time_resolved(sums)
@@ -148,20 +152,13 @@ def double_frame_sums(
     SnapshotSums
         Column k from run k; one stratum per run.
     """
-    out = []
-    for k, run in enumerate(runs):
-        sums = []
-        for m, (x, d) in enumerate(run):
-            d = np.asarray(d)
-            if d.ndim != 2:
-                raise ValueError(
-                    f"run {k}, snapshot {m}: displacements must have shape (P, 3), got {d.shape}"
-                )
-            try:
-                sums.append(pair_sums(x, d, bins))
-            except ValueError as err:
-                raise ValueError(f"run {k}, snapshot {m}: {err}") from err
-        out.append(sums)
+    out = [
+        [
+            _snapshot_sums(x, d, bins, shape="(P, 3)", where=f"run {k}, snapshot {m}")
+            for m, (x, d) in enumerate(run)
+        ]
+        for k, run in enumerate(runs)
+    ]
     return SnapshotSums.from_double_frame(out)
 
 

@@ -10,23 +10,17 @@ from ptv.calibration.polynomial import fit_polynomial2d
 from ptv.triangulate import triangulate
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions
+from validation.calibration_accuracy import synthetic_plane_dots
 
 DESIGN = PlateDesign()
 Z = traverse_positions()
 
 
 def observations(camera, plate, z, *, noise=0.0, rng=None):
-    rng = np.random.default_rng(rng)
-    out = []
-    for j in range(len(z)):
-        px = camera.project(plate.dot_centres(j))
-        ok = np.isfinite(px).all(axis=1)
-        out.append(
-            PlaneObservation(
-                z[j], px[ok] + rng.normal(0, noise, (ok.sum(), 2)), DESIGN.nominal_xy[ok]
-            )
-        )
-    return out
+    """The camera's plane observations: exact dot projections plus Gaussian noise (px)."""
+    assert np.array_equal(z, plate.z_nominal)
+    dots = synthetic_plane_dots([camera], plate, noise_px=noise, rng=rng)[0]
+    return [d.observation() for d in dots]
 
 
 @pytest.fixture(scope="module")

@@ -13,9 +13,9 @@ from ptv.calibration.pinhole import (
     calibrate_pinhole,
     project_parameters,
 )
-from ptv.triangulate import triangulate
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions
+from validation.calibration_accuracy import synthetic_plane_dots, table1_errors, true_positions
 
 DESIGN = PlateDesign()
 Z = traverse_positions()
@@ -175,38 +175,23 @@ def test_bad_input_is_a_clear_error():
 # -- the simulated rigs: the Table 1 metric against the model-free calibration -------
 
 
-def observations(camera, plate, *, noise, rng):
-    rng = np.random.default_rng(rng)
-    out = []
-    for j in range(len(Z)):
-        px = camera.project(plate.dot_centres(j))
-        ok = np.isfinite(px).all(axis=1)
-        out.append(
-            PlaneObservation(
-                Z[j], px[ok] + rng.normal(0, noise, (ok.sum(), 2)), DESIGN.nominal_xy[ok]
-            )
-        )
-    return out
-
-
-def table1(cals, rig, obs, plate):
+def table1(cals, dots, plate):
     """d_X, d_Y, d_Z, d (m): every noisy dot triangulated from both cameras (PHYSICS §7)."""
-    delta = []
-    for j in range(len(Z)):
-        truth = plate.dot_centres(j)
-        seen = [np.isfinite(c.project(truth)).all(axis=1) for c in rig.cameras]
-        both = seen[0] & seen[1]
-        pixels = [o[j].pixels[both[s]] for o, s in zip(obs, seen, strict=True)]
-        delta.append(triangulate(cals, pixels).points - truth[both])
-    delta = np.concatenate(delta)
-    assert np.isfinite(delta).all()
-    return np.r_[np.abs(delta).mean(axis=0), np.linalg.norm(delta, axis=1).mean()]
+    errors = table1_errors(cals, dots, DESIGN.indices, true_positions(plate))
+    assert errors.coverage == 1.0
+    return np.r_[errors.components, errors.d]
+
+
+def noisy_dots(rig, plate):
+    """0.05 px dot-centre noise; the per-camera observations and the identified dots."""
+    dots = synthetic_plane_dots(rig.cameras, plate, noise_px=0.05, rng=0)
+    return [[d.observation() for d in cam] for cam in dots], dots
 
 
 def pinhole_vs_model_free(rig_name):
     rig = load_rig(rig_name)
     plate = build_plate(DESIGN, Z, rng=0)
-    obs = [observations(c, plate, noise=0.05, rng=i) for i, c in enumerate(rig.cameras)]
+    obs, dots = noisy_dots(rig, plate)
     guesses = [c.lens.focal_length / c.lens.pixel_pitch for c in rig.cameras]
     free = [
         calibrate_model_free(o, c.lens.sensor_size) for o, c in zip(obs, rig.cameras, strict=True)
@@ -215,7 +200,7 @@ def pinhole_vs_model_free(rig_name):
         calibrate_pinhole(o, c.lens.sensor_size, focal_px=f)
         for o, c, f in zip(obs, rig.cameras, guesses, strict=True)
     ]
-    return table1(pin, rig, obs, plate) / table1(free, rig, obs, plate), pin
+    return table1(pin, dots, plate) / table1(free, dots, plate), pin
 
 
 def test_conventional_rig_pinhole_matches_model_free():
@@ -242,7 +227,7 @@ def test_paper_stereo_tilted_model_closes_the_gap():
     # window here (measured: d ratio 1.009). About 15 s per camera.
     rig = load_rig("paper-stereo")
     plate = build_plate(DESIGN, Z, rng=0)
-    obs = [observations(c, plate, noise=0.05, rng=i) for i, c in enumerate(rig.cameras)]
+    obs, dots = noisy_dots(rig, plate)
     model = PinholeModel(("k1", "k2", "p1", "p2"), tilted=True)
     pin = [
         calibrate_pinhole(o, c.lens.sensor_size, model=model, focal_px=9091.0)
@@ -251,5 +236,5 @@ def test_paper_stereo_tilted_model_closes_the_gap():
     free = [
         calibrate_model_free(o, c.lens.sensor_size) for o, c in zip(obs, rig.cameras, strict=True)
     ]
-    ratio = table1(pin, rig, obs, plate) / table1(free, rig, obs, plate)
+    ratio = table1(pin, dots, plate) / table1(free, dots, plate)
     assert np.all(ratio < 1.1), ratio

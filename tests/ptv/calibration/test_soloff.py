@@ -10,6 +10,7 @@ from ptv.calibration.soloff import calibrate_soloff, reconstruct
 from ptv.triangulate import triangulate
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions
+from validation.calibration_accuracy import synthetic_plane_dots
 
 DESIGN = PlateDesign()
 Z = traverse_positions()
@@ -130,17 +131,9 @@ def test_off_image_is_nan(synthetic):
 
 
 def observations(camera, plate, *, noise=0.0, rng=None):
-    rng = np.random.default_rng(rng)
-    out = []
-    for j in range(len(Z)):
-        px = camera.project(plate.dot_centres(j))
-        ok = np.isfinite(px).all(axis=1)
-        out.append(
-            PlaneObservation(
-                Z[j], px[ok] + rng.normal(0, noise, (ok.sum(), 2)), DESIGN.nominal_xy[ok]
-            )
-        )
-    return out
+    """The camera's plane observations: exact dot projections plus Gaussian noise (px)."""
+    dots = synthetic_plane_dots([camera], plate, noise_px=noise, rng=rng)[0]
+    return [d.observation() for d in dots]
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from ptv.calibration.model_free import PlaneObservation, calibrate_model_free
+from ptv.calibration.model_free import calibrate_model_free
 from ptv.calibration.tsai import (
     TsaiCalibration,
     _internal_origin,
@@ -18,9 +18,9 @@ from ptv.calibration.tsai import (
     distortion_scale,
     fit_tsai,
 )
-from ptv.triangulate import triangulate
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions
+from validation.calibration_accuracy import synthetic_plane_dots, table1_errors, true_positions
 
 PITCH = 5.5e-6
 SENSOR = (2048, 1088)
@@ -222,43 +222,23 @@ def test_bad_input_is_an_error_naming_the_problem():
 
 
 # -- the paper's comparison on the simulated rigs ------------------------------------------
-def observations(camera, plate, *, noise, rng):
-    rng = np.random.default_rng(rng)
-    out = []
-    for j in range(len(Z)):
-        px = camera.project(plate.dot_centres(j))
-        ok = np.isfinite(px).all(axis=1)
-        noisy = px[ok] + rng.normal(0, noise, (ok.sum(), 2))
-        out.append(PlaneObservation(Z[j], noisy, DESIGN.nominal_xy[ok]))
-    return out
-
-
-def table1(rig, plate, obs, calibrations):
-    """(d_X, d_Y, d_Z) and d of every dot seen by both cameras, triangulated from its
-    noisy pixels, against the true dot centres, m."""
-    deltas = []
-    for j in range(len(Z)):
-        truth = plate.dot_centres(j)
-        seen = [np.isfinite(c.project(truth)).all(axis=1) for c in rig.cameras]
-        both = seen[0] & seen[1]
-        pixels = [o[j].pixels[both[s]] for o, s in zip(obs, seen, strict=True)]
-        deltas.append(triangulate(calibrations, pixels).points - truth[both])
-    delta = np.concatenate(deltas)
-    assert np.isfinite(delta).all()
-    return np.abs(delta).mean(axis=0), np.linalg.norm(delta, axis=1).mean()
+def table1(calibrations, dots, plate):
+    """(d_X, d_Y, d_Z) and d of every dot seen by both cameras, against its true centre, m."""
+    errors = table1_errors(calibrations, dots, DESIGN.indices, true_positions(plate))
+    assert errors.coverage == 1.0
+    return errors.components, errors.d
 
 
 def compare(rig_name, *, noise=0.05, seed=0):
     """Table 1 errors of model-free and Tsai (fixed and free centre) on one noisy traverse."""
     rig = load_rig(rig_name)
     plate = build_plate(DESIGN, Z, rng=seed)
-    obs = [
-        observations(c, plate, noise=noise, rng=10 * seed + i) for i, c in enumerate(rig.cameras)
-    ]
+    dots = synthetic_plane_dots(rig.cameras, plate, noise_px=noise, rng=10 * seed)
+    obs = [[d.observation() for d in cam] for cam in dots]
     model_free = [
         calibrate_model_free(o, c.lens.sensor_size) for o, c in zip(obs, rig.cameras, strict=True)
     ]
-    out = {"model-free": table1(rig, plate, obs, model_free)}
+    out = {"model-free": table1(model_free, dots, plate)}
     for free in (False, True):
         tsai = [
             calibrate_tsai(
@@ -269,7 +249,7 @@ def compare(rig_name, *, noise=0.05, seed=0):
             )
             for o, c in zip(obs, rig.cameras, strict=True)
         ]
-        out["tsai-free-centre" if free else "tsai"] = table1(rig, plate, obs, tsai)
+        out["tsai-free-centre" if free else "tsai"] = table1(tsai, dots, plate)
         out[("rms", free)] = [t.reprojection_rms for t in tsai]
     return out
 
