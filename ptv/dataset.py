@@ -11,7 +11,10 @@ can be put in it (lengths in m, times in s)::
 ``experiment.json`` keys used here: ``cameras`` ({name: {"image_size": [width,
 height], ...}}), ``dt`` (list of s), ``frames_per_dt`` (an int, or one int per Δt),
 ``bit_depth`` (optional; sets the saturation level 2^B − 1 of images stored in wider
-integers) and ``particle_images`` (optional pattern, default
+integers), ``shared_first_frame`` (optional, default false: true when snapshot m of
+every Δt starts from the same frame a, as when a time-resolved recording is cut into
+pairs; the statistics then follow the same particles over every Δt) and
+``particle_images`` (optional pattern, default
 ``particles/dt{k}/{camera}/{m:06d}_{a|b}.tif``). Nothing else of the folder (plate
 images, a ground truth) is read.
 
@@ -121,6 +124,8 @@ class Dataset:
         Saturation level of the images, DN (2^bit_depth − 1), None if not declared.
     pattern : str
         Particle image file pattern, relative to the folder.
+    shared_first_frame : bool
+        Snapshot m of every Δt shares its frame a (same particles at t).
     """
 
     folder: Path
@@ -130,6 +135,7 @@ class Dataset:
     frames: tuple[int, ...]
     saturation: float | None
     pattern: str
+    shared_first_frame: bool = False
 
     @property
     def n_dt(self) -> int:
@@ -310,6 +316,11 @@ def open_dataset(folder: str | Path, *, check_files: bool = True) -> Dataset:
     pattern = spec.get("particle_images", DEFAULT_PARTICLE_IMAGES)
     if not isinstance(pattern, str) or "{a|b}" not in pattern:
         raise _fail(path, f"'particle_images' must be a pattern with '{{a|b}}', got {pattern!r}")
+    shared = spec.get("shared_first_frame", False)
+    if not isinstance(shared, bool):
+        raise _fail(path, f"'shared_first_frame' must be true or false, got {shared!r}")
+    if shared and len(set(frames)) != 1:
+        raise _fail(path, f"a shared first frame needs the same frame count per Δt, got {frames}")
     dataset = Dataset(
         folder=folder,
         cameras=tuple(shapes),
@@ -318,6 +329,7 @@ def open_dataset(folder: str | Path, *, check_files: bool = True) -> Dataset:
         frames=frames,
         saturation=_saturation(spec, path),
         pattern=pattern,
+        shared_first_frame=shared,
     )
     try:
         dataset.frame_path(0, dataset.cameras[0], 0, "a")

@@ -73,8 +73,13 @@ from ptv.stats.dissipation import (
 from ptv.stats.eulerian import EulerianFit, Grid, UPrime, eulerian_fit, eulerian_moments, u_prime
 from ptv.stats.multidt import LineFit, largest_dt, smallest_and_largest_dt, wls_line
 from ptv.stats.pairs import LogBins
-from ptv.stats.structure import StructureFunction, double_frame_sums, structure_function
-from ptv.track import link, search_radius
+from ptv.stats.structure import (
+    StructureFunction,
+    double_frame_sums,
+    structure_function,
+    time_resolved_sums,
+)
+from ptv.track import link, search_radius, trajectory_residuals
 
 __all__ = [
     "ANALYSIS_VOLUME",
@@ -93,6 +98,7 @@ __all__ = [
     "measure_snapshot",
     "median_test_outliers",
     "run_pipeline",
+    "shared_snapshots",
 ]
 
 log = logging.getLogger(__name__)
@@ -168,6 +174,11 @@ class PipelineSettings:
         keeps every link).
     outlier_neighbours : int
         Neighbours of the normalised median test (default 8).
+    trajectory_threshold : float or None
+        With a shared first frame and K ≥ 4 Δt: particles whose displacements stray
+        from a smooth path in Δt by more than this many times the median residual of
+        all particles (:func:`ptv.track.trajectory_residuals`) are mislinked at some
+        Δt and left out of S2 (default 5; None keeps them).
     snapshots : int or None
         Process only the first N snapshots of every Δt (None: all).
     seed : int
@@ -191,6 +202,7 @@ class PipelineSettings:
     threshold: float = 6.0
     outlier_threshold: float | None = 4.0
     outlier_neighbours: int = 8
+    trajectory_threshold: float | None = 5.0
     snapshots: int | None = None
     seed: int = 0
 
@@ -215,6 +227,12 @@ class PipelineSettings:
         if self.outlier_threshold is not None:
             object.__setattr__(
                 self, "outlier_threshold", _positive("outlier_threshold", self.outlier_threshold)
+            )
+        if self.trajectory_threshold is not None:
+            object.__setattr__(
+                self,
+                "trajectory_threshold",
+                _positive("trajectory_threshold", self.trajectory_threshold),
             )
         if not isinstance(self.outlier_neighbours, int) or self.outlier_neighbours < 2:
             raise ValueError(
@@ -755,7 +773,59 @@ def _eulerian(runs: Sequence[RunParticles], dt: np.ndarray, settings: PipelineSe
     return grid, fit, up, sigma_b
 
 
-def compute_statistics(runs: Sequence[RunParticles], settings: PipelineSettings) -> PtvStatistics:
+def shared_snapshots(runs: Sequence[RunParticles]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The particles used at every Δt of runs that share their first frames.
+
+    With a shared frame a, a particle has the same measured X(t) in every run, so the
+    runs' used links are joined on X(t) (bit for bit), snapshot by snapshot.
+
+    Parameters
+    ----------
+    runs : sequence of K RunParticles
+        Runs whose snapshot m shares frame a.
+
+    Returns
+    -------
+    list of (ndarray (P, 3), ndarray (P, K, 3))
+        Per snapshot kept in every run: X(t), m, and ΔX at each Δt, m.
+    """
+    per_run = [
+        dict(zip(run.snapshot_ids.tolist(), run.snapshot_arrays(), strict=True)) for run in runs
+    ]
+    common = sorted(set.intersection(*(set(d) for d in per_run)))
+    out = []
+    for m in common:
+        arrays = [d[m] for d in per_run]
+        index = [{row.tobytes(): i for i, row in enumerate(x)} for x, _ in arrays]
+        keys = [key for key in index[0] if all(key in ix for ix in index[1:])]
+        rows = [[ix[key] for key in keys] for ix in index]
+        x = arrays[0][0][rows[0]].reshape(-1, 3)
+        d = np.stack([a[1][r].reshape(-1, 3) for a, r in zip(arrays, rows, strict=True)], axis=1)
+        out.append((x, d))
+    return out
+
+
+def _consistent(joined, dt: np.ndarray, settings: PipelineSettings):
+    """Drop the joined particles whose trajectory residual is an outlier."""
+    residuals = [trajectory_residuals(dt, d) for _, d in joined]
+    limit = settings.trajectory_threshold * np.median(np.concatenate(residuals))
+    kept = [(x[r <= limit], d[r <= limit]) for (x, d), r in zip(joined, residuals, strict=True)]
+    dropped = sum(len(x) for x, _ in joined) - sum(len(x) for x, _ in kept)
+    log.info(
+        "%d particle(s) dropped: trajectory residual above %.3g µm (%g × the median)",
+        dropped,
+        limit * 1e6,
+        settings.trajectory_threshold,
+    )
+    return kept
+
+
+def compute_statistics(
+    runs: Sequence[RunParticles],
+    settings: PipelineSettings,
+    *,
+    shared_first_frame: bool = False,
+) -> PtvStatistics:
     """Multi-Δt statistics of the links in the analysis volume.
 
     Parameters
@@ -764,6 +834,11 @@ def compute_statistics(runs: Sequence[RunParticles], settings: PipelineSettings)
         One per Δt (runs without links are dropped with a warning).
     settings : PipelineSettings
         Bins, plateau range, C2, bootstrap, Eulerian cells.
+    shared_first_frame : bool
+        The runs share their first frames (:attr:`ptv.dataset.Dataset.shared_first_frame`):
+        S2 then uses the particles linked at every Δt, with snapshots resampled jointly
+        over all Δt (:func:`shared_snapshots`, :func:`ptv.stats.structure.time_resolved_sums`);
+        otherwise every run's links, each run resampled on its own.
 
     Returns
     -------
@@ -794,9 +869,23 @@ def compute_statistics(runs: Sequence[RunParticles], settings: PipelineSettings)
         )
     dt = np.array([r.dt for r in usable])
     bins = settings.bins
-    per_run = [r.snapshot_arrays() for r in usable]
-    sums = double_frame_sums(per_run, bins)
-    n_snap = np.array([len(p) for p in per_run], dtype=np.int64)
+    if shared_first_frame:
+        joined = shared_snapshots(usable)
+        if not joined:
+            raise ValueError("no snapshot has particles linked at every Δt")
+        log.info(
+            "shared first frame: %d particles linked at every Δt in %d snapshots",
+            sum(len(x) for x, _ in joined),
+            len(joined),
+        )
+        if settings.trajectory_threshold is not None and len(usable) >= 4:
+            joined = _consistent(joined, np.array([r.dt for r in usable]), settings)
+        sums = time_resolved_sums(joined, bins)
+        n_snap = np.full(len(usable), len(joined), dtype=np.int64)
+    else:
+        per_run = [r.snapshot_arrays() for r in usable]
+        sums = double_frame_sums(per_run, bins)
+        n_snap = np.array([len(p) for p in per_run], dtype=np.int64)
     errors = "bootstrap"
     if n_snap.min() < 2:
         log.warning(
@@ -941,7 +1030,7 @@ def run_pipeline(
             int(run.used.sum()),
             len(run.skipped),
         )
-    statistics = compute_statistics(runs, settings)
+    statistics = compute_statistics(runs, settings, shared_first_frame=dataset.shared_first_frame)
     tick()
     return PtvResult(
         dataset=dataset,

@@ -109,6 +109,7 @@ def _settings_dict(result: PtvResult) -> dict:
         "threshold": s.threshold,
         "outlier_threshold": s.outlier_threshold,
         "outlier_neighbours": s.outlier_neighbours,
+        "trajectory_threshold": s.trajectory_threshold,
         "snapshots": s.snapshots,
         "seed": s.seed,
     }
@@ -123,7 +124,8 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     ``epsilon`` (plateau of (S2/C2)^{3/2}/r and of the paper's S2^{3/2}/r), ``subsets``
     (their plateau ε and its ratio to the all-Δt value), ``mean_displacement`` (the
     linearity check), ``noise`` (median c2 over fitted bins, σ_b per component from the
-    Eulerian fit), ``structure_function`` (r, S2, its error, c2, fitted bins).
+    Eulerian fit), ``structure_function`` (r, S2, its error, c2 and its error, the raw
+    ⟨q⟩/Δt² per Δt (K lists of B), χ²/dof, fitted bins).
     """
     st = result.statistics
     counts = []
@@ -208,6 +210,9 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
             "s2": _list(sf.s2),
             "se_s2": _list(sf.se_s2),
             "noise": _list(sf.noise),
+            "se_noise": _list(sf.se_noise),
+            "raw_s2": [_list(row) for row in sf.raw_s2.T],
+            "chi2_dof": _list(sf.chi2_dof),
             "fitted": [bool(v) for v in sf.fitted],
             "method": sf.method,
         },

@@ -104,7 +104,7 @@ class ParticleSnapshots:
 
 @dataclass(frozen=True)
 class DoubleFrameSample:
-    """Double-frame recordings: one independent experiment per Δt.
+    """Double-frame recordings: a pair of frames per snapshot and Δt.
 
     Attributes
     ----------
@@ -112,10 +112,15 @@ class DoubleFrameSample:
         Frame separations Δt_k, s.
     runs : tuple of K ParticleSnapshots
         runs[k] holds M snapshots at times (0, Δt_k).
+    shared_first_frame : bool
+        True when snapshot m of every run is the same particles in the same flow at
+        t (:func:`shared_start`); False for one independent experiment per Δt
+        (:func:`double_frame`).
     """
 
     dt: np.ndarray
     runs: tuple[ParticleSnapshots, ...]
+    shared_first_frame: bool = False
 
 
 @dataclass(frozen=True)
@@ -337,6 +342,62 @@ def double_frame(
         for d, child in zip(dt, children, strict=True)
     )
     return DoubleFrameSample(dt=dt, runs=runs)
+
+
+def shared_start(
+    spectrum: Spectrum,
+    dt: np.ndarray,
+    *,
+    particles: int,
+    snapshots: int,
+    region: Box = SHEET,
+    n_modes: int = 200,
+    unsteadiness: float = DEFAULT_UNSTEADINESS,
+    rng: np.random.Generator | int | None = None,
+    progress: Progress | None = None,
+) -> DoubleFrameSample:
+    """Frame pairs at every Δt from the same M snapshots: frame a is shared.
+
+    What a time-resolved recording gives when the second frame is taken Δt_k after a
+    common first one (the paper's acquisition): all Δt see the same particles in the
+    same flow, so the sampling noise of the statistics is common to every Δt and
+    cancels in the multi-Δt fit.
+
+    Parameters
+    ----------
+    dt : array_like, shape (K,)
+        Frame separations, s, > 0, strictly increasing.
+    Other parameters as in :func:`follow_snapshots`.
+
+    Returns
+    -------
+    DoubleFrameSample
+        With ``shared_first_frame`` True.
+    """
+    dt = _check_positive("dt", dt)
+    if np.any(np.diff(dt) <= 0):
+        raise ValueError(f"dt must increase strictly for a shared first frame, got {dt}")
+    sample = follow_snapshots(
+        spectrum,
+        np.concatenate([[0.0], dt]),
+        particles=particles,
+        snapshots=snapshots,
+        region=region,
+        n_modes=n_modes,
+        unsteadiness=unsteadiness,
+        rng=rng,
+        progress=progress,
+    )
+    runs = tuple(
+        ParticleSnapshots(
+            np.array([0.0, d]),
+            sample.positions[:, [0, k + 1]],
+            sample.velocity[:, [0, k + 1]],
+            sample.acceleration[:, [0, k + 1]],
+        )
+        for k, d in enumerate(dt)
+    )
+    return DoubleFrameSample(dt=dt, runs=runs, shared_first_frame=True)
 
 
 def time_resolved(
