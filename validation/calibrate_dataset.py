@@ -40,12 +40,16 @@ class DatasetCalibration:
         d_um, coverage ("true" only when truth.h5 exists).
     files : dict
         ``{method: path}`` of the written calibration files.
+    errors : dict
+        ``{method: {"nominal": PositionErrors, "true": PositionErrors}}``, the per-dot
+        errors behind ``table1``.
     """
 
     dots: list
     max_plane_residual_px: dict
     table1: dict
     files: dict
+    errors: dict
 
 
 def _read_experiment(folder: Path) -> dict:
@@ -116,7 +120,7 @@ def calibrate_dataset(
     references = {"nominal": nominal_positions(design, z), "true": _true_positions(folder)}
     out = Path(out) if out is not None else folder / "calibrations"
     out.mkdir(parents=True, exist_ok=True)
-    table1, files, residuals = {}, {}, {}
+    table1, files, residuals, errors = {}, {}, {}, {}
     for method in methods:
         calibrations = {}
         for name, camera_dots in zip(cameras, dots, strict=True):
@@ -131,12 +135,13 @@ def calibrate_dataset(
             if progress is not None:
                 progress(done, total)
         models = list(calibrations.values())
-        table1[method] = {
-            name: table1_errors(models, dots, design.indices, expected).summary()
+        errors[method] = {
+            name: table1_errors(models, dots, design.indices, expected)
             for name, expected in references.items()
             if expected is not None
         }
+        table1[method] = {name: e.summary() for name, e in errors[method].items()}
         files[method] = str(
             save_calibrations(out / f"{method}.h5", calibrations, metadata={"dataset": str(folder)})
         )
-    return DatasetCalibration(dots, residuals, table1, files)
+    return DatasetCalibration(dots, residuals, table1, files, errors)

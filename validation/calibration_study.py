@@ -100,6 +100,53 @@ def compare_methods(
     return out
 
 
+def plane_count_errors(
+    rig: Rig,
+    plate: PhysicalPlate,
+    dots: Sequence[Sequence[PlaneDots]],
+    count: int,
+    *,
+    method: str = "model-free",
+    rng: np.random.Generator | int | None = None,
+) -> dict[str, float]:
+    """Errors of a calibration from ``count`` planes spanning the depth, on both metrics.
+
+    Returns
+    -------
+    dict
+        ``planes``, ``table1_d_um`` (on the dots of every plane) and ``model_d_um``
+        (at random points), µm.
+    """
+    expected = nominal_positions(plate.design, plate.z_nominal)
+    calibrations = calibrate_cameras(
+        method, rig, dots, planes=plane_subset(len(plate.poses), count)
+    )
+    return {
+        "planes": count,
+        "table1_d_um": table1_errors(calibrations, dots, plate.design.indices, expected).d * 1e6,
+        "model_d_um": model_errors(calibrations, rig.cameras, MODEL_VOLUME, rng=rng).d * 1e6,
+    }
+
+
+def relative_to_most_planes(rows: Sequence[dict[str, float]]) -> list[dict[str, float]]:
+    """Rows of :func:`plane_count_errors` with their ratios to the largest plane count.
+
+    Returns
+    -------
+    list of dict
+        Copies of ``rows`` with ``table1_ratio`` and ``model_ratio`` added.
+    """
+    reference = max(rows, key=lambda row: row["planes"])
+    return [
+        {
+            **row,
+            "table1_ratio": row["table1_d_um"] / reference["table1_d_um"],
+            "model_ratio": row["model_d_um"] / reference["model_d_um"],
+        }
+        for row in rows
+    ]
+
+
 def plane_count_study(
     rig: Rig,
     plate: PhysicalPlate,
@@ -118,28 +165,12 @@ def plane_count_study(
         Per count: ``planes``, ``table1_d_um``, ``model_d_um`` and their ratios to the
         largest count (``table1_ratio``, ``model_ratio``).
     """
-    total = len(plate.poses)
-    expected = nominal_positions(plate.design, plate.z_nominal)
     rows = []
     for n, count in enumerate(counts):
-        subset = plane_subset(total, count)
-        calibrations = calibrate_cameras(method, rig, dots, planes=subset)
-        rows.append(
-            {
-                "planes": count,
-                "table1_d_um": table1_errors(calibrations, dots, plate.design.indices, expected).d
-                * 1e6,
-                "model_d_um": model_errors(calibrations, rig.cameras, MODEL_VOLUME, rng=rng).d
-                * 1e6,
-            }
-        )
+        rows.append(plane_count_errors(rig, plate, dots, count, method=method, rng=rng))
         if progress is not None:
             progress(n + 1, len(counts))
-    reference = max(rows, key=lambda row: row["planes"])
-    for row in rows:
-        row["table1_ratio"] = row["table1_d_um"] / reference["table1_d_um"]
-        row["model_ratio"] = row["model_d_um"] / reference["model_d_um"]
-    return rows
+    return relative_to_most_planes(rows)
 
 
 def with_obliquity(spec: dict, obliquity_deg: float, direction_deg: float) -> dict:
@@ -150,6 +181,59 @@ def with_obliquity(spec: dict, obliquity_deg: float, direction_deg: float) -> di
             camera["window"]["obliquity_deg"] = float(obliquity_deg)
             camera["window"]["obliquity_direction_deg"] = float(direction_deg)
     return spec
+
+
+def obliquity_rows(
+    spec: dict,
+    plate: PhysicalPlate,
+    obliquity_deg: float,
+    direction_deg: float,
+    *,
+    methods: Sequence[str] = tuple(CALIBRATION_METHODS),
+    noise_px: float = 0.05,
+    rng: np.random.Generator | int | None = None,
+) -> list[dict[str, float]]:
+    """Every method's errors with the windows of a rig tilted as given.
+
+    Parameters
+    ----------
+    spec : dict
+        A rig description (e.g. ``paper-stereo``'s); its windows are re-tilted.
+    plate : PhysicalPlate
+        The plate and its traverse.
+    obliquity_deg, direction_deg : float
+        Window obliquity and its direction (0: in the camera plane, 45: diagonal), °.
+    methods : sequence of str
+        Calibration methods.
+    noise_px : float
+        Dot-centre noise, px.
+    rng : numpy.random.Generator, int or None
+        Noise and test points.
+
+    Returns
+    -------
+    list of dict
+        One row per method: Table 1 and model errors and the Table 1 ratio to the
+        model-free method (to the first method when model-free is not among them).
+    """
+    rng = np.random.default_rng(rng)
+    rig = rig_from_dict(
+        with_obliquity(spec, obliquity_deg, direction_deg), source="obliquity study"
+    )
+    dots = synthetic_plane_dots(rig.cameras, plate, noise_px=noise_px, rng=rng)
+    result = compare_methods(rig, plate, dots, methods=methods, rng=rng)
+    reference = result.get("model-free", next(iter(result.values())))["table1"]["d_um"]
+    return [
+        {
+            "direction_deg": direction_deg,
+            "obliquity_deg": obliquity_deg,
+            "method": method,
+            **{f"table1_{k}": v for k, v in metrics["table1"].items()},
+            **{f"model_{k}": v for k, v in metrics["model"].items()},
+            "ratio_to_model_free": metrics["table1"]["d_um"] / reference,
+        }
+        for method, metrics in result.items()
+    ]
 
 
 def obliquity_study(
@@ -180,29 +264,16 @@ def obliquity_study(
     Returns
     -------
     list of dict
-        One row per (direction, angle, method): Table 1 and model errors and the Table 1
-        ratio to the model-free method.
+        One row per (direction, angle, method), as :func:`obliquity_rows`.
     """
     rng = np.random.default_rng(rng)
     plate = build_plate(PlateDesign(), traverse_positions(), imperfections=Imperfections(), rng=rng)
     rows = []
     points = [(d, a) for d in directions_deg for a in angles_deg]
     for n, (direction, angle) in enumerate(points):
-        rig = rig_from_dict(with_obliquity(spec, angle, direction), source="obliquity study")
-        dots = synthetic_plane_dots(rig.cameras, plate, noise_px=noise_px, rng=rng)
-        result = compare_methods(rig, plate, dots, methods=methods, rng=rng)
-        reference = result.get("model-free", next(iter(result.values())))["table1"]["d_um"]
-        for method, metrics in result.items():
-            rows.append(
-                {
-                    "direction_deg": direction,
-                    "obliquity_deg": angle,
-                    "method": method,
-                    **{f"table1_{k}": v for k, v in metrics["table1"].items()},
-                    **{f"model_{k}": v for k, v in metrics["model"].items()},
-                    "ratio_to_model_free": metrics["table1"]["d_um"] / reference,
-                }
-            )
+        rows += obliquity_rows(
+            spec, plate, angle, direction, methods=methods, noise_px=noise_px, rng=rng
+        )
         if progress is not None:
             progress(n + 1, len(points))
     return rows

@@ -18,6 +18,7 @@ from simulator.spectra import SPECTRA
 from simulator.turbulence import NU_WATER, TurbulenceParameters
 from validation.flow_summary import FlowSettings, summarize_flow
 from validation.progress import ProgressBar
+from validation.study_cli import add_study_parser
 
 
 class UsageError(ValueError):
@@ -128,18 +129,28 @@ def _run_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_study(args: argparse.Namespace) -> int:
-    from validation.study_cli import run_study
+def _run_experiment(args: argparse.Namespace) -> int:
+    from validation.experiment import run_stages
+    from validation.report import write_report
+    from validation.scenario import load_scenario
 
-    json_path, png_path = run_study(
-        args.study,
-        args.rig,
-        Path(args.out),
-        noise_px=args.noise,
-        seed=args.seed,
-        quiet=args.quiet,
-    )
-    print(f"rows written to {json_path}, curves to {png_path}")
+    scenario = load_scenario(args.scenario)
+    if args.seed is not None:
+        scenario = scenario.with_seed(args.seed)
+    out = Path(args.out if args.out is not None else f"synptv-{scenario.name}")
+
+    def bar(stage: str) -> ProgressBar:
+        return ProgressBar(stage, enabled=not args.quiet)
+
+    stages = run_stages(scenario, out, progress=bar)
+    html_path, json_path = write_report(scenario, stages, out)
+    results = json.loads(json_path.read_text())
+    for check in results["must_hold"]:
+        mark = "PASS" if check["passed"] else "FAIL"
+        value = "" if check["value"] is None else f"{check['value']:.4g}"
+        print(f"{mark}  {check['id']:48s} {value:>10s}   {check['tolerance']}")
+    print(f"report written to {html_path}")
+    print(f"every figure in {json_path}")
     return 0
 
 
@@ -242,6 +253,25 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = parser.add_subparsers(dest="command", required=True)
 
+    run = sub.add_parser(
+        "run",
+        help="a whole virtual experiment: simulate, render, calibrate, PTV, report vs truth",
+        description="Run a scenario end to end: simulate the flow and render the plate and "
+        "particle images, calibrate with every method, run 3D-PTV with the model-free and "
+        "Tsai calibrations (and the true cameras, for the error budget), compare S2, epsilon "
+        "and u' with the truth and write report.html and results.json. Finished stages are "
+        "reused when their inputs are unchanged.",
+    )
+    run.add_argument(
+        "--scenario",
+        default="default",
+        help="a preset (default, paper-8hz, paper-10hz, paper-12hz) or a scenario .toml file",
+    )
+    run.add_argument("--out", help="output folder (default ./synptv-<scenario>)")
+    run.add_argument("--seed", type=int, help="override the scenario's seed")
+    run.add_argument("--quiet", action="store_true", help="no progress bars")
+    run.set_defaults(run=_run_experiment)
+
     flow = sub.add_parser(
         "flow",
         help="build a KS flow, sample particles, print prescribed and realized statistics",
@@ -303,22 +333,7 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--quiet", action="store_true", help="no progress bar")
     cal.set_defaults(run=_run_calibrate)
 
-    study = sub.add_parser(
-        "study",
-        help="calibration studies: plane count or window obliquity, JSON rows + PNG curves",
-        description="Sweep the number of calibration planes (2-13, spanning the depth) or "
-        "the window obliquity (0-20 degrees, in the camera plane and diagonally, every "
-        "calibration method) on a rig, with synthetic dot observations.",
-    )
-    study.add_argument("study", choices=["planes", "obliquity"])
-    study.add_argument(
-        "--rig", default="paper-stereo", help=f"{', '.join(rig_presets())} or a .toml file"
-    )
-    study.add_argument("--out", default="synptv-study", help="output folder")
-    study.add_argument("--noise", type=float, default=0.05, help="dot-centre noise, px")
-    study.add_argument("--seed", type=int, default=0)
-    study.add_argument("--quiet", action="store_true", help="no progress bar")
-    study.set_defaults(run=_run_study)
+    add_study_parser(sub)
 
     claims = sub.add_parser(
         "claims",

@@ -7,7 +7,9 @@ Layout of a dataset folder (all lengths in m, times in s)::
                                           positions Z_j, the Δt values, the file layout
     calibration/<camera>/plane_<jj>.tif   16-bit plate image at traverse position j
     particles/dt<k>/<camera>/<mmmmmm>_a.tif   frame pair m of the double-frame run at Δt_k:
-    particles/dt<k>/<camera>/<mmmmmm>_b.tif   frame a at t, frame b at t + Δt_k
+    particles/dt<k>/<camera>/<mmmmmm>_b.tif   frame a at t, frame b at t + Δt_k (with
+                                          ``shared_first_frame``, frame a of snapshot m
+                                          is the same image for every k)
     truth.h5                              the simulator's ground truth (ptv never reads it)
 
 ``truth.h5`` holds ``/cameras/<camera>`` (attributes: pupil centre, rotation, lens and
@@ -35,7 +37,7 @@ import numpy as np
 import tifffile
 
 from simulator.flow import DEFAULT_UNSTEADINESS
-from simulator.particles import double_frame
+from simulator.particles import double_frame, shared_start
 from simulator.presets import FlowPreset
 from simulator.render.camera_frames import ParticleLighting, record_particles
 from simulator.render.plate import render_plate
@@ -75,6 +77,11 @@ class RenderSettings:
         Tracer size and laser sheet.
     sensor : Sensor
         Camera noise model, shared by particle and plate images.
+    shared_first_frame : bool
+        True (default): every Δt from the same snapshots, frame a shared
+        (:func:`simulator.particles.shared_start`, the paper's time-resolved
+        acquisition); False: one independent experiment per Δt
+        (:func:`simulator.particles.double_frame`).
     seed : int
         Seed of every random choice.
     """
@@ -89,6 +96,7 @@ class RenderSettings:
     n_modes: int = 200
     lighting: ParticleLighting = field(default_factory=ParticleLighting)
     sensor: Sensor = field(default_factory=Sensor)
+    shared_first_frame: bool = True
     seed: int = 0
 
 
@@ -150,31 +158,47 @@ def _write_plates(staging: Path, truth: h5py.File, rig: Rig, plate, settings, ti
 
 
 def _write_particles(staging: Path, truth: h5py.File, rig: Rig, sample, settings, tick) -> None:
-    """Particle frame pairs per Δt and camera, and the particles' truth."""
+    """Particle frame pairs per Δt and camera, and the particles' truth.
+
+    With a shared first frame, frame a of snapshot m is recorded once per camera (one
+    exposure, one noise draw) and written for every Δt.
+    """
     rng = np.random.default_rng(settings.seed + 2)
+    groups = []
     for k, (dt, run) in enumerate(zip(sample.dt, sample.runs, strict=True)):
         group = truth.create_group(f"particles/dt{k}")
         group.attrs["dt"] = dt
         group.create_dataset("positions", data=run.positions, compression="gzip")
         group.create_dataset("velocity", data=run.velocity[:, 0], compression="gzip")
-        for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
-            xy = np.empty((*run.positions.shape[:3], 2))
-            visible = np.empty(run.positions.shape[:3], dtype=bool)
-            for m in range(settings.frames):
+        groups.append(group)
+
+    def record(camera, points):
+        return record_particles(
+            camera, points, lighting=settings.lighting, sensor=settings.sensor, rng=rng
+        )
+
+    for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
+        shape = sample.runs[0].positions.shape[:3]
+        xy = [np.empty((*shape, 2)) for _ in sample.runs]
+        visible = [np.empty(shape, dtype=bool) for _ in sample.runs]
+        for m in range(settings.frames):
+            shared = None
+            if sample.shared_first_frame:
+                shared = record(camera, sample.runs[0].positions[m, 0])
+                tick()
+            for k, run in enumerate(sample.runs):
                 for f, label in enumerate("ab"):
-                    frame = record_particles(
-                        camera,
-                        run.positions[m, f],
-                        lighting=settings.lighting,
-                        sensor=settings.sensor,
-                        rng=rng,
-                    )
+                    if f == 0 and shared is not None:
+                        frame = shared
+                    else:
+                        frame = record(camera, run.positions[m, f])
+                        tick()
                     path = staging / "particles" / f"dt{k}" / name / f"{m:06d}_{label}.tif"
                     _write_tiff(path, frame.image)
-                    xy[m, f], visible[m, f] = frame.xy, frame.visible
-                    tick()
-            group.create_dataset(f"{name}/xy", data=xy, compression="gzip")
-            group.create_dataset(f"{name}/visible", data=visible, compression="gzip")
+                    xy[k][m, f], visible[k][m, f] = frame.xy, frame.visible
+        for k, group in enumerate(groups):
+            group.create_dataset(f"{name}/xy", data=xy[k], compression="gzip")
+            group.create_dataset(f"{name}/visible", data=visible[k], compression="gzip")
 
 
 def _experiment_description(rig: Rig, plate, dt: np.ndarray, settings: RenderSettings) -> dict:
@@ -196,7 +220,10 @@ def _experiment_description(rig: Rig, plate, dt: np.ndarray, settings: RenderSet
         "calibration_images": "calibration/{camera}/plane_{j:02d}.tif",
         "dt": [float(d) for d in dt],
         "frames_per_dt": settings.frames,
-        "acquisition": "double frame: one independent run per dt",
+        "acquisition": "double frame: frame a shared by every dt"
+        if settings.shared_first_frame
+        else "double frame: one independent run per dt",
+        "shared_first_frame": settings.shared_first_frame,
         "particle_images": "particles/dt{k}/{camera}/{m:06d}_{a|b}.tif",
         "bit_depth": settings.sensor.bit_depth,
     }
@@ -237,8 +264,10 @@ def write_dataset(
         raise ValueError(f"unknown spectrum {settings.spectrum!r}; known: {', '.join(SPECTRA)}")
     out.parent.mkdir(parents=True, exist_ok=True)
     cameras = len(rig.cameras)
-    snapshots = len(preset.dt) * settings.frames
-    total = snapshots * (1 + 2 * cameras) + settings.planes * cameras
+    runs = len(preset.dt)
+    images = (runs + 1 if settings.shared_first_frame else 2 * runs) * settings.frames * cameras
+    simulated = settings.frames * (1 if settings.shared_first_frame else runs)
+    total = simulated + images + settings.planes * cameras
     done = [0]
 
     def tick() -> None:
@@ -252,7 +281,8 @@ def write_dataset(
         imperfections=settings.imperfections,
         rng=settings.seed,
     )
-    sample = double_frame(
+    simulate = shared_start if settings.shared_first_frame else double_frame
+    sample = simulate(
         SPECTRA[settings.spectrum](preset.parameters),
         preset.dt,
         particles=settings.particles,

@@ -8,18 +8,20 @@ and every figure is compared with the sample truth of the same pairs (exact velo
 at t) and with the exact D_LL of the spectrum.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
 from ptv.stats.multidt import wls_line
 from ptv.stats.pairs import LogBins, PairSums, pair_sums
+from ptv.stats.snapshots import SnapshotSums
 from ptv.stats.structure import StructureFunction, double_frame_sums, structure_function
 from simulator.particles import ANALYSIS_VOLUME, Box, DoubleFrameSample, double_frame
 from simulator.presets import FlowPreset
-from simulator.spectra import PopeSpectrum
+from simulator.spectra import C_KOLMOGOROV, KolmogorovBandSpectrum, PopeSpectrum, Spectrum
 from simulator.truth import longitudinal_structure_function
+from simulator.turbulence import TurbulenceParameters
 
 #: Random Fourier modes of a correlated noise field (redrawn every frame, so its
 #: covariance is exact on average; 64 cosines make each value close to Gaussian).
@@ -84,6 +86,8 @@ class MultiDtResult:
         so they are not independent samples).
     inertial : ndarray of bool, shape (B,)
         Bins inside the inertial range used for the plateau.
+    sums : SnapshotSums
+        Per-snapshot pair sums of the measured displacements (q in m²), for refits.
     """
 
     fit: StructureFunction
@@ -94,6 +98,40 @@ class MultiDtResult:
     epsilon_subsets: dict
     mean_offset_pull: np.ndarray
     inertial: np.ndarray
+    sums: SnapshotSums
+
+
+def band_limited_spectrum(
+    parameters: TurbulenceParameters, *, cutoff: float = 2 * np.pi
+) -> KolmogorovBandSpectrum:
+    """Band-limited K41 spectrum E = C_K ε^{2/3} k^{-5/3} cut off at k_N ≈ cutoff/η.
+
+    A sharp cut-off dissipates ε = 2ν∫k²E dk only at k_Nη = (2/(3C_K))^{3/4} ≈ 0.544
+    (``SPECTRA["k41-band"]``), which leaves no K41 range: the local slope of D_LL over
+    20η–0.2L_int is 0.70–0.96. Cut at k_N = 2π/η (PHYSICS.md §1.2(a), option 1: ε is the
+    inertial-range flux, η the label 2π/k_N, and 2ν∫k²E dk = 26ε) the band spans
+    k_N/k₁ ≈ 2200–3400, D_LL/(εr)^{2/3} peaks at 1.91 and the local slope is 0.65–0.71
+    over that range (§1.2(b)). The result is the ``KolmogorovBandSpectrum`` of a fluid
+    of viscosity ν' = ν (2/(3C_K)) cutoff^{-4/3}, whose dissipation-matched cut-off falls
+    at cutoff/η (up to the small k₁ term of its dissipation integral). Its own
+    ``parameters`` carry ν', hence η and τ_η of ν': take η, τ_η and the Δt set from the
+    ``parameters`` passed in.
+
+    Parameters
+    ----------
+    parameters : TurbulenceParameters
+        u' (m/s), ε (m²/s³) and the ν (m²/s) that defines η.
+    cutoff : float
+        k_Nη, > 0.
+
+    Returns
+    -------
+    KolmogorovBandSpectrum
+    """
+    if not (np.isfinite(cutoff) and cutoff > 0):
+        raise ValueError(f"cutoff k_N·eta must be finite and > 0, got {cutoff!r}")
+    nu = parameters.nu * 2.0 / (3.0 * C_KOLMOGOROV) * cutoff ** (-4.0 / 3.0)
+    return KolmogorovBandSpectrum(replace(parameters, nu=nu))
 
 
 def simulate(
@@ -102,11 +140,16 @@ def simulate(
     particles: int,
     snapshots: int,
     region: Box = ANALYSIS_VOLUME,
+    spectrum: Spectrum | None = None,
     rng: np.random.Generator | int | None = None,
 ) -> DoubleFrameSample:
-    """Exact double-frame runs of the preset's flow (Pope spectrum) at its Δt set."""
+    """Exact double-frame runs of the preset's flow at its Δt set.
+
+    ``spectrum`` is the flow's spectrum (default: the Pope spectrum of the preset's
+    parameters); pass the same one to :func:`analyse`.
+    """
     return double_frame(
-        PopeSpectrum(preset.parameters),
+        PopeSpectrum(preset.parameters) if spectrum is None else spectrum,
         preset.dt,
         particles=particles,
         snapshots=snapshots,
@@ -124,6 +167,7 @@ def analyse(
     bins: int = 16,
     inertial_range: tuple[float, float] = (2e-3, 20e-3),
     kolmogorov_c2: float = 2.0,
+    spectrum: Spectrum | None = None,
     rng: np.random.Generator | int | None = None,
 ) -> MultiDtResult:
     """Measure the sample, fit the multi-Δt statistics and put them beside the truth.
@@ -144,6 +188,9 @@ def analyse(
         Separations (m) over which the ε plateau is taken.
     kolmogorov_c2 : float
         C₂ of the estimator ε = (S2/C₂)^{3/2}/r.
+    spectrum : PopeSpectrum, KolmogorovBandSpectrum or None
+        The spectrum the sample was simulated with, for the exact D_LL (None: the Pope
+        spectrum of ``preset``).
     rng : numpy.random.Generator, int or None
         Noise draws and bootstrap.
 
@@ -173,7 +220,7 @@ def analyse(
     snapshot_sums = double_frame_sums(runs, log_bins)
     fit = structure_function(snapshot_sums, sample.dt, rng=rng)
     r = np.where(np.isfinite(fit.r), fit.r, log_bins.centres)
-    exact = longitudinal_structure_function(PopeSpectrum(p), r)
+    exact = longitudinal_structure_function(PopeSpectrum(p) if spectrum is None else spectrum, r)
     inertial = (r >= inertial_range[0]) & (r <= inertial_range[1]) & fit.fitted
 
     def plateau(s2: np.ndarray) -> float:
@@ -196,6 +243,36 @@ def analyse(
         epsilon_subsets=subsets,
         mean_offset_pull=mean.c2 / mean.se_c2,
         inertial=inertial,
+        sums=snapshot_sums,
+    )
+
+
+def add_dt3_term(sums: SnapshotSums, dt: np.ndarray, beta: float) -> SnapshotSums:
+    """Add β Δt_k³ to the q of every pair at Δt_k: a Δt³ term injected analytically.
+
+    The expansion ⟨q⟩ = N + S2Δt² + ⟨δv_∥δa_∥⟩Δt³ + … (PHYSICS.md §4) has a Δt³ term
+    that KS lacks (no energy flux, §1.3). Each q → q + βΔt_k³, so Σq gains βΔt_k³·n and
+    Σq² gains 2βΔt_k³Σq + (βΔt_k³)²n: every per-snapshot mean, hence ⟨q⟩_k and each
+    bootstrap replicate, shifts by exactly βΔt_k³ and its scatter is unchanged.
+
+    Parameters
+    ----------
+    sums : SnapshotSums
+        Pair sums of the displacements, q in m².
+    dt : ndarray, shape (K,)
+        Δt of the sums' columns, s.
+    beta : float
+        β, m²/s³.
+
+    Returns
+    -------
+    SnapshotSums
+    """
+    shift = beta * np.asarray(dt, dtype=float) ** 3
+    return replace(
+        sums,
+        sum_q=sums.sum_q + shift * sums.count,
+        sum_q2=sums.sum_q2 + 2 * shift * sums.sum_q + shift**2 * sums.count,
     )
 
 

@@ -1,7 +1,11 @@
 """Claims: JSON form, and claims fail when what they guard is broken."""
 
+import copy
 import json
 
+import pytest
+
+from simulator.spectra import C_KOLMOGOROV
 from validation.claims import CLAIMS, ClaimContext, run_claims
 
 
@@ -19,6 +23,8 @@ def test_claim_ids_required_by_the_validation_suite_exist():
         "stats.raw_s2_biased",
         "stats.dt_subsets",
         "stats.calibration_bias_not_removed",
+        "stats.two_thirds_scaling",
+        "stats.dt3_negligible",
     } <= ids
 
 
@@ -46,3 +52,31 @@ def test_switching_refraction_off_breaks_the_scheimpflug_claim():
         ClaimContext("quick", refraction=False), ids=["calib.model_free_beats_tsai_scheimpflug"]
     )
     assert not result.passed and result.value < 3
+
+
+@pytest.fixture(scope="module")
+def quick() -> ClaimContext:
+    """A quick context whose band-limited run (the costly part) the tests below share."""
+    return ClaimContext("quick")
+
+
+def test_two_thirds_scaling_and_dt3_claims_pass_at_quick_size(quick):
+    results = run_claims(quick, ids=["stats.two_thirds_scaling", "stats.dt3_negligible"])
+    assert [r.passed for r in results] == [True, True]
+
+
+def test_the_dissipation_matched_band_has_no_two_thirds_range():
+    # Cut at k_N·η = 0.544 (SPECTRA's "k41-band") D_LL is still steep at 20η: slope ≈ 0.79.
+    dissipation_matched = (2 / (3 * C_KOLMOGOROV)) ** 0.75
+    (result,) = run_claims(
+        ClaimContext("quick", band_cutoff=dissipation_matched), ids=["stats.two_thirds_scaling"]
+    )
+    assert not result.passed and result.value > 2 / 3 + 0.07
+
+
+def test_a_ten_times_larger_dt3_term_is_not_negligible(quick):
+    broken = copy.copy(quick)  # shares the simulated runs already computed
+    broken.dt3_coefficient = 10 * quick.dt3_coefficient
+    broken.__dict__.pop("dt3_fits", None)  # refit with the larger β (a cached_property)
+    (result,) = run_claims(broken, ids=["stats.dt3_negligible"])
+    assert not result.passed and result.value > 10  # max |bias| in %, ≈ 15

@@ -1,19 +1,103 @@
-"""``synptv study``: rows and curves written; bad input in one line."""
+"""``synptv study``: sweeps on Dask that save each point, resume, and report bad input."""
 
+import csv
 import json
 
+import pytest
+from distributed import LocalCluster
+
+from validation.calibration_study import relative_to_most_planes
 from validation.cli import main
+from validation.scenario import load_scenario
+from validation.study_calibration import planes_sweep
+from validation.study_cli import run_study
 
 
-def test_plane_study_writes_rows_and_curves(tmp_path, capsys):
-    assert main(["study", "planes", "--out", str(tmp_path), "--quiet"]) == 0
-    rows = json.loads((tmp_path / "planes.json").read_text())
+class Stop(Exception):
+    """Raised by the test hook to interrupt a study."""
+
+
+def test_plane_study_writes_points_table_csv_and_figure(tmp_path, capsys):
+    args = ["study", "planes", "--scenario", "default", "--out", str(tmp_path), "--quiet"]
+    assert main([*args, "--workers", "2"]) == 0
+    folder = tmp_path / "planes"
+    rows = json.loads((folder / "planes.json").read_text())
     assert [r["planes"] for r in rows] == [2, 3, 5, 7, 9, 13]
     assert rows[-1]["table1_ratio"] == 1.0 and rows[-1]["model_ratio"] == 1.0
-    assert (tmp_path / "planes.png").stat().st_size > 10_000
-    assert "curves to" in capsys.readouterr().out
+    with open(folder / "planes.csv") as stream:
+        table = list(csv.DictReader(stream))
+    assert [int(r["planes"]) for r in table] == [2, 3, 5, 7, 9, 13]
+    assert (folder / "planes.png").stat().st_size > 10_000
+    point = json.loads((folder / "points" / "planes-07.json").read_text())
+    assert point["inputs"]["study"] == "planes" and point["inputs"]["scenario"] == "default"
+    assert point["inputs"]["settings"] == json.loads(json.dumps(load_scenario("default").as_dict()))
+    assert point["inputs"]["point"] == {"planes": 7}
+    assert "6 points computed, 0 reused" in capsys.readouterr().out
+    assert main(args) == 0  # nothing left to compute: no cluster, same table
+    assert "0 points computed, 6 reused" in capsys.readouterr().out
+    assert json.loads((folder / "planes.json").read_text()) == rows
 
 
-def test_study_on_an_unknown_rig(tmp_path, capsys):
-    assert main(["study", "planes", "--rig", "nope", "--out", str(tmp_path), "--quiet"]) == 2
+def test_an_interrupted_study_resumes_without_recomputing_finished_points(tmp_path):
+    saved = []
+
+    def stop_after_two(point_id):
+        saved.append(point_id)
+        if len(saved) == 2:
+            raise Stop
+
+    with pytest.raises(Stop):
+        run_study("planes", "default", tmp_path, workers=2, quiet=True, on_saved=stop_after_two)
+    points = tmp_path / "planes" / "points"
+    assert sorted(p.stem for p in points.glob("*.json")) == sorted(saved)
+    assert not list(points.glob(".*"))  # no temporary file left behind
+    stamps = {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in points.glob("*.json")}
+
+    files = run_study("planes", "default", tmp_path, workers=2, quiet=True)
+    assert set(files.reused) == set(saved)
+    assert len(files.computed) == 4 and not set(files.computed) & set(saved)
+    for path, stamp in stamps.items():
+        assert (path.stat().st_mtime_ns, path.read_bytes()) == stamp
+
+    # The resumed table is what one uninterrupted run in this process gives.
+    sweep = planes_sweep(load_scenario("default"), noise_px=0.05)
+    direct = [sweep.task(sweep.settings, sweep.options, p.params)["rows"][0] for p in sweep.points]
+    table = json.loads(files.table.read_text())
+    for row, expected in zip(table, relative_to_most_planes(direct), strict=True):
+        assert row == pytest.approx(expected, rel=1e-9)
+
+
+def test_a_study_runs_on_an_existing_scheduler(tmp_path, capsys):
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+    ) as cluster:
+        args = ["study", "planes", "--scheduler", cluster.scheduler_address]
+        assert main([*args, "--out", str(tmp_path), "--quiet"]) == 0
+    assert "6 points computed" in capsys.readouterr().out
+    assert len(list((tmp_path / "planes" / "points").glob("*.json"))) == 6
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["nope"], "unknown study 'nope'; known: planes, obliquity, dt, noise, seeding"),
+        (["dt", "--scenario", "nope"], "unknown scenario 'nope'"),
+        (["dt", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "not both"),
+        (["dt", "--workers", "0"], "--workers must be >= 1"),
+        (["dt", "--snapshots", "1"], "--snapshots must be >= 2"),
+        (["planes", "--noise", "-1"], "must be >= 0 px"),
+    ],
+)
+def test_bad_input_is_reported_in_one_line(tmp_path, capsys, extra, message):
+    assert main(["study", *extra, "--out", str(tmp_path), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+    assert not list(tmp_path.iterdir())  # nothing written
+
+
+def test_a_scenario_with_an_unknown_rig(tmp_path, capsys):
+    scenario = tmp_path / "odd.toml"
+    scenario.write_text('name = "odd"\n[rig]\nname = "nope"\n')
+    args = ["study", "planes", "--scenario", str(scenario), "--out", str(tmp_path / "out")]
+    assert main([*args, "--quiet"]) == 2
     assert "unknown rig" in capsys.readouterr().err

@@ -1,0 +1,231 @@
+"""A PTV run's statistics against the truth: the checks of ``synptv run``.
+
+Inputs are the JSON files the stages wrote (``truth/truth.json``, each
+``ptv/<variant>/summary.json``, ``ptv/detection/detection.json``), so a report can be
+rebuilt from a finished run without recomputing anything.
+
+Checks on one variant (tolerances from the issue and PHYSICS.md §9):
+
+- ``c1``: max |c1/S2_sample − 1| over the fitted bins with c1_r_min_eta·η ≤ r ≤
+  c1_r_max_l_int·L_int, L_int = u'³/ε: ≤ 5 %;
+- ``epsilon``: plateau ε against the same estimator on the exact D_LL: within 5 %;
+  the estimator's own gap to the input ε (finite-Reynolds plateau deficit) beside it;
+- ``c2``: c2 > 0 in every fitted bin of the check range, and its median ratio to the
+  white-noise prediction 2 Σ_i σ_ΔX,i² ⟨r̂_i²⟩(r) (σ_ΔX: the displacement noise measured
+  on the detection rung; ⟨r̂_i²⟩: direction moments of the pairs in the analysis box);
+- ``raw_s2``: raw ⟨q⟩/Δt² at the smallest Δt over the sample truth at the bin nearest
+  10η: > 2;
+- ``mean_linear``: the line ⟨ΔX⟩ = αΔt + β0 has |β0| < 2σ(β0) for every component;
+- ``subsets``: plateau ε of the 3-largest-Δt and the smallest-and-largest fits over the
+  all-Δt value (the paper: −5 % and +2 %; |Δ| < 10 % and < 5 %, PHYSICS.md §9 #13).
+"""
+
+import numpy as np
+
+from ptv.stats.pairs import LogBins
+
+#: Tolerances of the checks.
+C1_TOLERANCE = 0.05
+EPSILON_TOLERANCE = 0.05
+RAW_S2_MIN_RATIO = 2.0
+SUBSET_TOLERANCES = {"3 largest dt": 0.10, "smallest and largest dt": 0.05}
+
+
+def _array(values) -> np.ndarray:
+    return np.array([np.nan if v is None else v for v in values], dtype=float)
+
+
+def direction_moments(bins: LogBins, box_size, *, points: int = 3000, rng: int = 0) -> np.ndarray:
+    """⟨r̂_i²⟩ of the pairs of uniform points in a box, per separation bin.
+
+    Parameters
+    ----------
+    bins : LogBins
+        Separation bins.
+    box_size : sequence of 3 floats
+        The analysis box, m.
+    points : int
+        Monte Carlo points (pairs: points²/2).
+    rng : int
+        Seed.
+
+    Returns
+    -------
+    ndarray, shape (B, 3)
+        Mean squared direction cosines (rows sum to 1; NaN in empty bins).
+    """
+    x = np.random.default_rng(rng).uniform(-0.5, 0.5, (points, 3)) * np.asarray(box_size)
+    sums = np.zeros((bins.n_bins, 3))
+    count = np.zeros(bins.n_bins)
+    edges = bins.edges
+    for i in range(points - 1):
+        d = x[i + 1 :] - x[i]
+        r = np.linalg.norm(d, axis=1)
+        b = np.searchsorted(edges, r) - 1
+        ok = (b >= 0) & (b < bins.n_bins)
+        for i_comp in range(3):
+            cos2 = (d[ok, i_comp] / r[ok]) ** 2
+            sums[:, i_comp] += np.bincount(b[ok], weights=cos2, minlength=bins.n_bins)
+        count += np.bincount(b[ok], minlength=bins.n_bins)
+    with np.errstate(invalid="ignore"):
+        return sums / count[:, None]
+
+
+def _in_range(r, fitted, lo, hi) -> np.ndarray:
+    return fitted & np.isfinite(r) & (r >= lo) & (r <= hi)
+
+
+def compare_variant(
+    summary: dict,
+    truth: dict,
+    *,
+    check_range: tuple[float, float],
+    predicted_c2: np.ndarray | None,
+) -> dict:
+    """The checks (module docstring) of one variant's ``summary.json`` against truth.
+
+    Parameters
+    ----------
+    summary : dict
+        ``summary.json`` of a PTV stage.
+    truth : dict
+        ``truth.json``.
+    check_range : (float, float)
+        r range of the c1 and c2 checks, m.
+    predicted_c2 : ndarray, shape (B,), optional
+        White-noise prediction of c2, m².
+
+    Returns
+    -------
+    dict
+        One entry per check with its values, tolerance and ``passed``; plus the c1/S2
+        ratio per bin.
+    """
+    sf = summary["structure_function"]
+    r = _array(sf["r"])
+    s2 = _array(sf["s2"])
+    se = _array(sf["se_s2"])
+    c2 = _array(sf["noise"])
+    fitted = np.array(sf["fitted"], dtype=bool)
+    truth_s2 = _array(truth["s2_sample"])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = s2 / truth_s2
+    lo, hi = check_range
+    sel = _in_range(r, fitted, lo, hi)
+    out: dict = {"c1_over_truth": [None if not np.isfinite(v) else float(v) for v in ratio]}
+    dev = np.abs(ratio[sel] - 1)
+    out["c1"] = {
+        "r_range_m": [lo, hi],
+        "bins": int(sel.sum()),
+        "max_abs_deviation": float(dev.max()) if dev.size else None,
+        "mean_deviation": float(np.mean(ratio[sel] - 1)) if dev.size else None,
+        "max_deviation_in_se": float(np.max(np.abs(s2[sel] - truth_s2[sel]) / se[sel]))
+        if dev.size
+        else None,
+        "tolerance": C1_TOLERANCE,
+        "passed": bool(dev.size and dev.max() <= C1_TOLERANCE),
+    }
+    plateau = summary["epsilon"]["plateau"]
+    eps = plateau["epsilon"] if plateau else None
+    reference = truth["epsilon_exact_d_ll"]
+    out["epsilon"] = {
+        "value": eps,
+        "se": plateau["se_epsilon"] if plateau else None,
+        "estimator_on_exact_d_ll": reference,
+        "relative_to_exact_d_ll": None if eps is None else eps / reference - 1,
+        "estimator_on_sample_truth": truth["epsilon_sample_truth"],
+        "input": truth["epsilon_input"],
+        "plateau_deficit_of_estimator": reference / truth["epsilon_input"] - 1,
+        "tolerance": EPSILON_TOLERANCE,
+        "passed": eps is not None and abs(eps / reference - 1) <= EPSILON_TOLERANCE,
+    }
+    c2_sel = c2[sel]
+    entry = {
+        "bins": int(sel.sum()),
+        "negative_bins": int(np.sum(c2_sel <= 0)),
+        "median_m2": float(np.median(c2_sel)) if c2_sel.size else None,
+        "passed": bool(c2_sel.size and np.all(c2_sel > 0)),
+    }
+    if predicted_c2 is not None and c2_sel.size:
+        entry["median_over_prediction"] = float(np.median(c2_sel / predicted_c2[sel]))
+        entry["prediction_m2"] = [float(v) for v in predicted_c2[sel]]
+    out["c2"] = entry
+    raw = np.array([_array(row) for row in sf["raw_s2"]])  # (K, B)
+    eta = truth["parameters"]["eta"]
+    ok = np.isfinite(raw[0]) & np.isfinite(truth_s2) & np.isfinite(r)
+    if ok.any():
+        b = np.flatnonzero(ok)[np.argmin(np.abs(np.log(r[ok] / (10 * eta))))]
+        value = raw[0, b] / truth_s2[b]
+        out["raw_s2"] = {
+            "r_m": float(r[b]),
+            "r_over_eta": float(r[b] / eta),
+            "ratio_smallest_dt": float(value),
+            "ratio_largest_dt": float(raw[-1, b] / truth_s2[b]),
+            "minimum": RAW_S2_MIN_RATIO,
+            "passed": bool(value > RAW_S2_MIN_RATIO),
+        }
+    md = summary["mean_displacement"]
+    offset, se_offset = _array(md["offset"]), _array(md["se_offset_scaled"])
+    out["mean_linear"] = {
+        "offset_m": offset.tolist(),
+        "se_offset_m": se_offset.tolist(),
+        "velocity_m_s": md["velocity"],
+        "passed": bool(np.all(np.abs(offset) < 2 * se_offset)),
+    }
+    subsets = {}
+    for name, tol in SUBSET_TOLERANCES.items():
+        sub = summary["subsets"].get(name)
+        if sub is None or sub.get("epsilon_ratio_to_all") is None:
+            continue
+        change = sub["epsilon_ratio_to_all"] - 1
+        subsets[name] = {
+            "change": change,
+            "tolerance": tol,
+            "passed": abs(change) < tol,
+        }
+    out["subsets"] = subsets
+    return out
+
+
+def predicted_noise(detection: dict, bins: LogBins, box_size) -> np.ndarray:
+    """White-noise c2(r) = 2 Σ_i σ_ΔX,i² ⟨r̂_i²⟩(r) from the measured displacement noise, m²."""
+    sigma = np.asarray(detection["displacement_noise_m"])
+    return 2.0 * direction_moments(bins, box_size) @ sigma**2
+
+
+def error_budget(comparisons: dict, order) -> list[dict]:
+    """Rows of the error budget: each rung's c1 and ε error and what it adds.
+
+    Parameters
+    ----------
+    comparisons : dict
+        ``{variant: compare_variant(...)}``.
+    order : sequence of (variant, what it adds)
+        The rungs from the exact trajectories to the calibrated PTV runs; each rung is
+        compared with the rung named in its ``base`` (the previous one by default).
+
+    Returns
+    -------
+    list of dict
+    """
+    rows = []
+    for variant, adds, base in order:
+        c = comparisons[variant]
+        mean_c1 = c["c1"]["mean_deviation"]
+        eps = c["epsilon"]["relative_to_exact_d_ll"]
+        row = {
+            "variant": variant,
+            "adds": adds,
+            "c1_mean_deviation": mean_c1,
+            "c1_max_abs_deviation": c["c1"]["max_abs_deviation"],
+            "epsilon_relative": eps,
+        }
+        if base is not None:
+            b = comparisons[base]
+            row["base"] = base
+            row["c1_added"] = None if mean_c1 is None else mean_c1 - b["c1"]["mean_deviation"]
+            row["epsilon_added"] = (
+                None if eps is None else eps - b["epsilon"]["relative_to_exact_d_ll"]
+            )
+        rows.append(row)
+    return rows

@@ -1,0 +1,311 @@
+"""``synptv run``: a whole virtual experiment, from the flow to a report against truth.
+
+Stages (each a folder of ``out``, reused when its inputs are unchanged, see
+:mod:`validation.stages`):
+
+``dataset/``            simulate and render (:func:`validation.dataset.write_dataset`)
+``truth/``              sample-truth S2, exact D_LL, reference ε (:mod:`validation.flow_truth`)
+``calibrations/``       every calibration method from the plate images, Table 1, Fig. 3
+``ptv/<variant>/``      statistics of each rung of the error budget:
+                        ``exact`` true trajectories; ``detection`` detected centres,
+                        truth-paired, true cameras; ``true-cameras`` the PTV stack with
+                        the true cameras; then the PTV stack with each calibration
+``report.html``, ``results.json``, ``figures/``   the comparison with truth
+
+Each PTV folder holds ``results.h5`` and ``summary.json`` (:mod:`ptv.results`) and the
+paper's Fig. 5a/b and 6a/b with the truth overlaid.
+"""
+
+import json
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ptv.calibration.io import load_calibrations
+from ptv.dataset import open_dataset
+from ptv.detect.peaklocking import peak_locking
+from ptv.pipeline import PipelineSettings, PtvResult, compute_statistics, run_pipeline
+from ptv.results import save_results
+from simulator.presets import flow_preset
+from simulator.render.camera_frames import ParticleLighting, local_magnification
+from simulator.rigs import Rig, load_rig
+from simulator.target import REALISTIC, Imperfections
+from validation.calibrate_dataset import calibrate_dataset
+from validation.dataset import FORMAT_VERSION, RenderSettings, write_dataset
+from validation.figures import error_maps, save_figure
+from validation.flow_truth import flow_truth
+from validation.matching_quality import score_matching
+from validation.ptv_figures import save_ptv_figures
+from validation.report_figures import peak_locking_figure
+from validation.scenario import Scenario
+from validation.stages import StageOutcome, run_stage
+from validation.truth_runs import detected_runs, exact_runs, read_truth
+
+log = logging.getLogger(__name__)
+
+#: Rungs of the error budget that use the truth (before the calibrated PTV runs).
+REFERENCE_VARIANTS = ("exact", "detection", "true-cameras")
+
+ProgressFactory = Callable[[str], Callable[[int, int], None]]
+
+
+def render_settings(scenario: Scenario) -> RenderSettings:
+    """What :func:`validation.dataset.write_dataset` draws for a scenario."""
+    cal, particles = scenario.calibration, scenario.particles
+    return RenderSettings(
+        frames=particles.frames,
+        planes=cal.planes,
+        imperfections=REALISTIC if cal.plate == "realistic" else Imperfections(),
+        plate_brightness=cal.brightness,
+        particles=particles.count,
+        spectrum=scenario.flow.spectrum,
+        n_modes=scenario.flow.modes,
+        lighting=ParticleLighting(
+            particle_diameter=particles.diameter, electrons_at_reference=particles.electrons
+        ),
+        sensor=scenario.sensor,
+        shared_first_frame=particles.shared_first_frame,
+        seed=scenario.seed,
+    )
+
+
+def pipeline_settings(scenario: Scenario) -> PipelineSettings:
+    """The PTV options of a scenario (analysis box centred on the origin)."""
+    p = scenario.ptv
+    half = np.asarray(p.analysis_volume) / 2
+    return PipelineSettings(
+        analysis_volume=(-half, half),
+        r_min=p.r_range[0],
+        r_max=p.r_range[1],
+        n_bins=p.bins,
+        plateau=p.plateau,
+        kolmogorov_c2=p.kolmogorov_c2,
+        max_speed=p.max_speed,
+        tolerance=p.tolerance,
+        n_boot=p.n_boot,
+        seed=scenario.seed,
+    )
+
+
+def object_pixel(rig: Rig) -> float:
+    """Mean object-side pixel of the rig's cameras at the origin, m (one voxel)."""
+    origin = np.zeros((1, 3))
+    return float(
+        np.mean([c.lens.pixel_pitch / local_magnification(c, origin)[0] for c in rig.cameras])
+    )
+
+
+@dataclass(frozen=True)
+class ExperimentStages:
+    """The stage folders of a run and how long each took (0 when reused)."""
+
+    dataset: StageOutcome
+    truth: StageOutcome
+    calibrations: StageOutcome
+    ptv: dict
+    seconds: dict
+
+
+def _write_json(path: Path, data) -> None:
+    path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
+
+
+def _ptv_figures(result: PtvResult, folder: Path, truth: dict) -> None:
+    r = np.array([np.nan if v is None else v for v in truth["r"]])
+    s2 = np.array([np.nan if v is None else v for v in truth["s2_sample"]])
+    save_ptv_figures(
+        result,
+        folder,
+        reference_s2=(r, s2, "sample truth (exact velocities)"),
+        reference_epsilon=truth["epsilon_exact_d_ll"],
+    )
+
+
+def _save_ptv(result: PtvResult, folder: Path, truth: dict, calibration: str) -> None:
+    save_results(result, folder, calibration=calibration)
+    _ptv_figures(result, folder, truth)
+
+
+def run_stages(
+    scenario: Scenario, out: Path, *, progress: ProgressFactory | None = None
+) -> ExperimentStages:
+    """Run (or reuse) every stage of a scenario under ``out``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        What to simulate and measure.
+    out : Path
+        Output folder (created).
+    progress : callable(stage name) -> callable(done, total), optional
+        A progress callback per stage.
+
+    Returns
+    -------
+    ExperimentStages
+    """
+
+    def bar(name: str):
+        return progress(name) if progress is not None else None
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    rig = load_rig(scenario.rig.name)
+    preset = flow_preset(scenario.flow.preset)
+    settings = pipeline_settings(scenario)
+    seconds = {}
+
+    def timed(name, folder, inputs, build) -> StageOutcome:
+        start = time.perf_counter()
+        outcome = run_stage(folder, inputs, build, name=name)
+        seconds[name] = 0.0 if outcome.reused else time.perf_counter() - start
+        log.info("stage %s %s", name, "reused" if outcome.reused else "built")
+        return outcome
+
+    render_inputs = {
+        "format_version": FORMAT_VERSION,
+        "seed": scenario.seed,
+        "flow": scenario.as_dict()["flow"],
+        "rig": rig.spec,
+        "calibration": {
+            k: v for k, v in scenario.as_dict()["calibration"].items() if k != "methods"
+        },
+        "particles": scenario.as_dict()["particles"],
+        "sensor": scenario.as_dict()["sensor"],
+    }
+    dataset = timed(
+        "render",
+        out / "dataset",
+        render_inputs,
+        lambda target: write_dataset(
+            target, rig, preset, render_settings(scenario), progress=bar("render")
+        ),
+    )
+    settings_inputs = {
+        "ptv": scenario.as_dict()["ptv"],
+        "seed": scenario.seed,
+    }
+    truth_rig, truth_runs = read_truth(dataset.folder)
+    data = open_dataset(dataset.folder)
+    # With a shared first frame every run holds the same particles at t.
+    sampled = truth_runs[:1] if data.shared_first_frame else truth_runs
+
+    def build_truth(target: Path) -> None:
+        target.mkdir()
+        reference = flow_truth(sampled, preset.parameters, scenario.flow.spectrum, settings)
+        _write_json(target / "truth.json", reference.as_dict())
+
+    truth = timed("truth", out / "truth", {"dataset": dataset.key, **settings_inputs}, build_truth)
+    truth_dict = json.loads((truth.folder / "truth.json").read_text())
+
+    def build_calibrations(target: Path) -> None:
+        result = calibrate_dataset(
+            dataset.folder,
+            methods=scenario.calibration.methods,
+            out=target,
+            progress=bar("calibrate"),
+        )
+        _write_json(
+            target / "table1.json",
+            {"table1": result.table1, "max_plane_residual_px": result.max_plane_residual_px},
+        )
+        maps = {m: e["nominal"] for m, e in result.errors.items()}
+        title = "Triangulated dots against their nominal positions (the paper's Fig. 3)"
+        save_figure(
+            error_maps(maps, title=title),
+            target / "fig3_error_maps.png",
+        )
+
+    calibrations = timed(
+        "calibrate",
+        out / "calibrations",
+        {"dataset": dataset.key, "methods": list(scenario.calibration.methods)},
+        build_calibrations,
+    )
+    voxel = object_pixel(truth_rig)
+    cameras_true = dict(zip(truth_rig.camera_names, truth_rig.cameras, strict=True))
+    ptv = {}
+    for variant in (*REFERENCE_VARIANTS, *scenario.ptv.methods):
+        inputs = {"dataset": dataset.key, "variant": variant, **settings_inputs}
+        if variant not in REFERENCE_VARIANTS:
+            inputs["calibration"] = calibrations.key
+
+        def build(target: Path, variant=variant) -> None:
+            target.mkdir()
+            tick = bar(f"ptv {variant}")
+            if variant == "exact":
+                runs = exact_runs(truth_runs, settings)
+                result = PtvResult(
+                    data,
+                    data.cameras,
+                    settings,
+                    runs,
+                    compute_statistics(runs, settings, shared_first_frame=data.shared_first_frame),
+                )
+                _save_ptv(result, target, truth_dict, "none: true trajectories")
+                return
+            if variant == "detection":
+                count = [0]
+                total = sum(data.frames)
+
+                def step() -> None:
+                    count[0] += 1
+                    if tick is not None:
+                        tick(count[0], total)
+
+                cams = [cameras_true[name] for name in data.cameras]
+                runs, quality = detected_runs(data, truth_runs, cams, settings, tick=step)
+                result = PtvResult(
+                    data,
+                    data.cameras,
+                    settings,
+                    runs,
+                    compute_statistics(runs, settings, shared_first_frame=data.shared_first_frame),
+                )
+                _save_ptv(result, target, truth_dict, "true cameras, truth-paired detections")
+                _save_detection(quality, target)
+                return
+            if variant == "true-cameras":
+                cams, label = cameras_true, "true cameras"
+            else:
+                path = calibrations.folder / f"{variant}.h5"
+                cams, label = load_calibrations(path), str(path)
+            result = run_pipeline(data, cams, settings, progress=tick)
+            _save_ptv(result, target, truth_dict, label)
+            ordered = [cams[name] for name in data.cameras]
+            quality = score_matching(data, truth_runs, ordered, settings, voxel=voxel)
+            _write_json(target / "matching.json", quality.as_dict())
+
+        ptv[variant] = timed(f"ptv {variant}", out / "ptv" / variant, inputs, build)
+    return ExperimentStages(dataset, truth, calibrations, ptv, seconds)
+
+
+def _save_detection(quality, folder: Path) -> None:
+    """detection.json and the fractional-position histograms (peak-locking diagnostic)."""
+    locking = {name: peak_locking(xy) for name, xy in quality.fractional.items()}
+    _write_json(
+        folder / "detection.json",
+        {
+            "cameras": list(quality.cameras),
+            "rms_error_px": quality.rms_error_px.tolist(),
+            "found": quality.found.tolist(),
+            "spurious": quality.spurious.tolist(),
+            "position_noise_m": quality.position_noise.tolist(),
+            "displacement_noise_m": quality.displacement_noise.tolist(),
+            "peak_locking": {
+                name: {
+                    "amplitude_px": pl.amplitude.tolist(),
+                    "p_chi2": pl.p_chi2.tolist(),
+                    "locked": pl.locked(),
+                    "counts": pl.counts.tolist(),
+                    "edges": pl.edges.tolist(),
+                }
+                for name, pl in locking.items()
+            },
+        },
+    )
+    save_figure(peak_locking_figure(locking), folder / "peak_locking.png")

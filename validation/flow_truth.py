@@ -1,0 +1,137 @@
+"""What the statistics of a rendered dataset should recover: sample truth and exact D_LL.
+
+- the sample-truth S2(r): the exact velocities at t of the particles in the analysis
+  volume, over all snapshots of all Δt runs, in the PTV run's separation bins;
+- the exact D_LL(r) of the spectrum at the same separations;
+- the plateau ε of the same estimator (ε(r) = (S2/C2)^{3/2}/r averaged over the
+  plateau range) applied to both, beside the input ε: the estimator on the exact D_LL
+  is what the PTV plateau ε should match, and its gap to the input ε is the
+  finite-Reynolds plateau deficit.
+"""
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ptv.pipeline import PipelineSettings
+from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
+from simulator.particles import Box
+from simulator.spectra import SPECTRA
+from simulator.truth import longitudinal_structure_function
+from simulator.turbulence import TurbulenceParameters
+from validation.sample_truth import sample_structure_function
+from validation.truth_runs import TruthRun
+
+
+@dataclass(frozen=True)
+class FlowTruth:
+    """Reference statistics in the PTV run's separation bins.
+
+    Attributes
+    ----------
+    r : ndarray, shape (B,)
+        Mean separation of the sample pairs per bin, m (NaN where empty).
+    s2_sample : ndarray, shape (B,)
+        Sample-truth S2, m²/s².
+    se_s2_sample : ndarray, shape (B,)
+        Its standard error over the snapshots, m²/s².
+    s2_exact : ndarray, shape (B,)
+        Exact D_LL of the spectrum at ``r``, m²/s².
+    epsilon_input : float
+        The prescribed ε, m²/s³.
+    epsilon_exact : float
+        Plateau estimator on the exact D_LL, m²/s³.
+    epsilon_sample : float
+        Plateau estimator on the sample truth, m²/s³.
+    u_rms_sample : float
+        RMS velocity component of the particles in the analysis volume at t, m/s.
+    parameters : dict
+        u', ε, ν and the derived η, τ_η, R_λ, L_int.
+    """
+
+    r: np.ndarray
+    s2_sample: np.ndarray
+    se_s2_sample: np.ndarray
+    s2_exact: np.ndarray
+    epsilon_input: float
+    epsilon_exact: float
+    epsilon_sample: float
+    u_rms_sample: float
+    parameters: dict
+
+    def as_dict(self) -> dict:
+        """JSON-able form (NaN → None)."""
+
+        def listed(a):
+            return [None if not np.isfinite(v) else float(v) for v in a]
+
+        return {
+            "r": listed(self.r),
+            "s2_sample": listed(self.s2_sample),
+            "se_s2_sample": listed(self.se_s2_sample),
+            "s2_exact": listed(self.s2_exact),
+            "epsilon_input": self.epsilon_input,
+            "epsilon_exact_d_ll": self.epsilon_exact,
+            "epsilon_sample_truth": self.epsilon_sample,
+            "plateau_deficit": self.epsilon_exact / self.epsilon_input - 1.0,
+            "u_rms_sample": self.u_rms_sample,
+            "parameters": self.parameters,
+        }
+
+
+def _plateau(r, s2, settings: PipelineSettings) -> float:
+    profile = dissipation_profile(r, s2, kolmogorov_c2=settings.kolmogorov_c2)
+    return plateau_epsilon(
+        profile,
+        r_min=settings.plateau[0],
+        r_max=settings.plateau[1],
+        method=settings.plateau_method,  # type: ignore[arg-type]
+    ).epsilon
+
+
+def flow_truth(
+    truth: Sequence[TruthRun],
+    parameters: TurbulenceParameters,
+    spectrum: str,
+    settings: PipelineSettings,
+) -> FlowTruth:
+    """Sample truth and exact D_LL in the bins of ``settings`` (module docstring)."""
+    lower, upper = (np.asarray(v) for v in settings.analysis_volume)
+    region = Box(tuple(upper - lower), tuple((upper + lower) / 2))
+    per_snapshot = [
+        sample_structure_function(x[None], u[None], settings.bins, region=region)
+        for run in truth
+        for x, u in zip(run.positions[:, 0], run.velocity, strict=True)
+    ]
+    sums = per_snapshot[0]
+    for s in per_snapshot[1:]:
+        sums = sums + s
+    means = np.array([s.mean[:, 0] for s in per_snapshot])
+    weights = np.array([s.count for s in per_snapshot], dtype=float)
+    r, s2 = sums.mean_separation, sums.mean[:, 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # cluster standard error of the pair-weighted mean, snapshots as clusters
+        dev = np.where(weights > 0, weights * (np.nan_to_num(means) - s2), 0.0)
+        m = (weights > 0).sum(axis=0)
+        se = np.sqrt(m / np.maximum(m - 1, 1) * np.sum(dev**2, axis=0)) / weights.sum(axis=0)
+    ok = np.isfinite(r)
+    exact = np.full_like(r, np.nan)
+    exact[ok] = longitudinal_structure_function(SPECTRA[spectrum](parameters), r[ok])
+    inside = [
+        u[region.contains(x)]
+        for run in truth
+        for x, u in zip(run.positions[:, 0], run.velocity, strict=True)
+    ]
+    velocities = np.concatenate(inside)
+    return FlowTruth(
+        r=r,
+        s2_sample=s2,
+        se_s2_sample=se,
+        s2_exact=exact,
+        epsilon_input=parameters.epsilon,
+        epsilon_exact=_plateau(r[ok], exact[ok], settings),
+        epsilon_sample=_plateau(r[ok], s2[ok], settings),
+        u_rms_sample=float(np.sqrt(np.mean(velocities**2))),
+        parameters=parameters.as_dict(),
+    )

@@ -1,0 +1,377 @@
+"""The report of ``synptv run``: ``results.json`` and ``report.html`` from the stage folders.
+
+Everything is read from the JSON files the stages wrote, so the report of a finished
+run can be rebuilt alone. ``results.json`` holds every number of the report and
+nothing that depends on where or when the run happened (no paths, no timings: those go
+to ``run_log.json``), so the same scenario and seed give the same file.
+"""
+
+import html
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from simulator.turbulence import TurbulenceParameters
+from validation.comparison import compare_variant, error_budget, predicted_noise
+from validation.experiment import REFERENCE_VARIANTS, ExperimentStages, pipeline_settings
+from validation.figures import save_figure
+from validation.report_figures import budget_figure
+from validation.scenario import Scenario
+
+#: What each rung of the error budget adds, and the rung it is compared with.
+_RUNGS = {
+    "exact": ("the multi-Δt method itself (finite Δt, sampling)", None),
+    "detection": ("detection (sub-pixel centres, missed particles)", "exact"),
+    "true-cameras": ("stereo matching and linking", "detection"),
+}
+
+
+def _read(path: Path) -> dict:
+    return json.loads(Path(path).read_text())
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    handle, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    with os.fdopen(handle, "w") as stream:
+        stream.write(text)
+    os.chmod(tmp, 0o644)
+    os.replace(tmp, path)
+
+
+def _table3(summary: dict, truth: dict) -> list[dict]:
+    """Table 3 recovered (u' from the Eulerian fit, ε from the plateau) against the truth."""
+    p = truth["parameters"]
+    up = summary["u_prime"]["value"] if summary["u_prime"] else None
+    plateau = summary["epsilon"]["plateau"]
+    eps = plateau["epsilon"] if plateau else None
+    rows = [
+        ("u' (m/s)", up, p["u_rms"], truth["u_rms_sample"]),
+        ("ε (m²/s³)", eps, p["epsilon"], truth["epsilon_exact_d_ll"]),
+    ]
+    if up is not None and eps is not None:
+        rec = TurbulenceParameters(u_rms=up, epsilon=eps, nu=p["nu"]).as_dict()
+        rows += [
+            ("η (µm)", rec["eta"] * 1e6, p["eta"] * 1e6, None),
+            ("τ_η (ms)", rec["tau_eta"] * 1e3, p["tau_eta"] * 1e3, None),
+            ("R_λ", rec["R_lambda"], p["R_lambda"], None),
+            ("L_int = u'³/ε (cm)", rec["L_int"] * 100, p["L_int"] * 100, None),
+        ]
+    return [{"quantity": q, "recovered": v, "input": t, "reference": ref} for q, v, t, ref in rows]
+
+
+def _must_hold(comparisons: dict, detection: dict, matching: dict, main: str) -> list[dict]:
+    """The headline checks with value, tolerance and pass/fail."""
+    c = comparisons[main]
+    rms = float(np.max(detection["rms_error_px"]))
+    # Flat histogram: the sinusoidal bias amplitude of the peak-locking test is a tenth
+    # of the 0.1 px error budget or less (density within 1 ± 2π·0.01 ≈ ±6 %).
+    amplitude = float(
+        np.max(np.abs([v["amplitude_px"] for v in detection["peak_locking"].values()]))
+    )
+    m = matching[main]
+    rows = [
+        ("detection.rms_error_px", rms, "≤ 0.1 px", rms <= 0.1),
+        (
+            "detection.peak_locking_amplitude_px",
+            amplitude,
+            "|a| ≤ 0.01 px (a tenth of the error budget)",
+            amplitude <= 0.01,
+        ),
+        (f"matching.yield ({main})", m["yield"], "≥ 0.90", m["yield"] >= 0.90),
+        (
+            f"matching.ghost_fraction ({main})",
+            m["ghost_fraction"],
+            "≤ 0.05",
+            m["ghost_fraction"] <= 0.05,
+        ),
+        (
+            f"stats.c1_matches_truth ({main})",
+            c["c1"]["max_abs_deviation"],
+            f"≤ {c['c1']['tolerance']:.0%} over {c['c1']['r_range_m'][0] * 1e3:.2g}–"
+            f"{c['c1']['r_range_m'][1] * 1e3:.3g} mm",
+            c["c1"]["passed"],
+        ),
+        (
+            f"stats.epsilon_recovered ({main})",
+            c["epsilon"]["relative_to_exact_d_ll"],
+            "within ±5 % of the estimator on the exact D_LL",
+            c["epsilon"]["passed"],
+        ),
+        (
+            f"stats.c2_positive ({main})",
+            c["c2"]["negative_bins"],
+            "0 bins with c2 ≤ 0",
+            c["c2"]["passed"],
+        ),
+    ]
+    if "raw_s2" in c:
+        rows.append(
+            (
+                f"stats.raw_s2_biased ({main})",
+                c["raw_s2"]["ratio_smallest_dt"],
+                "> 2 at ≈10η",
+                c["raw_s2"]["passed"],
+            )
+        )
+    rows.append(
+        (f"stats.mean_linear_in_dt ({main})", None, "|β0| < 2σ", c["mean_linear"]["passed"])
+    )
+    for name, sub in c["subsets"].items():
+        rows.append(
+            (
+                f"stats.dt_subsets: {name} ({main})",
+                sub["change"],
+                f"|Δε| < {sub['tolerance']:.0%}",
+                sub["passed"],
+            )
+        )
+    return [{"id": i, "value": v, "tolerance": t, "passed": bool(ok)} for i, v, t, ok in rows]
+
+
+def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> dict:
+    """Compare every PTV variant with the truth and write the figures of the report.
+
+    Returns
+    -------
+    dict
+        The content of ``results.json``.
+    """
+    settings = pipeline_settings(scenario)
+    truth = _read(stages.truth.folder / "truth.json")
+    detection = _read(stages.ptv["detection"].folder / "detection.json")
+    p = truth["parameters"]
+    check_range = (
+        scenario.checks.c1_r_min_eta * p["eta"],
+        scenario.checks.c1_r_max_l_int * p["L_int"],
+    )
+    c2_pred = predicted_noise(detection, settings.bins, scenario.ptv.analysis_volume)
+    summaries, comparisons, matching = {}, {}, {}
+    for variant, stage in stages.ptv.items():
+        summary = _read(stage.folder / "summary.json")
+        summary.pop("dataset", None)
+        summary["calibration"] = variant
+        summaries[variant] = summary
+        comparisons[variant] = compare_variant(
+            summary, truth, check_range=check_range, predicted_c2=c2_pred
+        )
+        if (stage.folder / "matching.json").is_file():
+            matching[variant] = _read(stage.folder / "matching.json")
+    order = [(v, *_RUNGS[v]) for v in REFERENCE_VARIANTS]
+    order += [(m, f"calibration ({m})", "true-cameras") for m in scenario.ptv.methods]
+    main = scenario.ptv.methods[0]
+    figures = out / "figures"
+    figures.mkdir(exist_ok=True)
+    r = np.array([np.nan if v is None else v for v in truth["r"]])
+    ratios = {
+        v: np.array([np.nan if x is None else x for x in c["c1_over_truth"]])
+        for v, c in comparisons.items()
+    }
+    save_figure(budget_figure(r, ratios, check_range), figures / "error_budget.png")
+    calibration = _read(stages.calibrations.folder / "table1.json")
+    return {
+        "scenario": scenario.as_dict(),
+        "flow": p,
+        "truth": truth,
+        "calibration": calibration,
+        "detection": detection,
+        "matching": matching,
+        "ptv": {v: {"summary": summaries[v], "checks": comparisons[v]} for v in summaries},
+        "table3": _table3(summaries[main], truth),
+        "error_budget": error_budget(comparisons, order),
+        "must_hold": _must_hold(comparisons, detection, matching, main),
+    }
+
+
+def _fmt(value, digits: int = 4) -> str:
+    if value is None:
+        return "–"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int | np.integer):
+        return str(value)
+    return f"{value:.{digits}g}"
+
+
+def _table(header, rows) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows
+    )
+    return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def _img(path: str, caption: str) -> str:
+    return (
+        f'<figure><img src="{html.escape(path)}" alt="{html.escape(caption)}">'
+        f"<figcaption>{html.escape(caption)}</figcaption></figure>"
+    )
+
+
+def render_html(results: dict, scenario: Scenario) -> str:
+    """The report page (figures referenced by relative paths under the run folder)."""
+    main = scenario.ptv.methods[0]
+    parts = [
+        "<!doctype html><html><head><meta charset='utf-8'>",
+        f"<title>synptv run: {html.escape(scenario.name)}</title>",
+        "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;}"
+        "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;"
+        "padding:3px 8px;text-align:right}th{background:#eee}img{max-width:100%}"
+        ".fail{color:#b00;font-weight:bold}.pass{color:#070}</style></head><body>",
+        f"<h1>Virtual experiment “{html.escape(scenario.name)}”</h1>",
+        f"<p>{html.escape(scenario.description)} (seed {scenario.seed}).</p>",
+        "<h2>Checks against truth</h2>",
+    ]
+    rows = [
+        (m["id"], _fmt(m["value"]), m["tolerance"], "PASS" if m["passed"] else "FAIL")
+        for m in results["must_hold"]
+    ]
+    parts.append(_table(["check", "value", "tolerance", ""], rows))
+    p = results["flow"]
+    parts.append("<h2>Flow</h2>")
+    parts.append(
+        _table(
+            ["u' (m/s)", "ε (m²/s³)", "ν (m²/s)", "η (µm)", "τ_η (ms)", "R_λ", "L_int (cm)"],
+            [
+                (
+                    _fmt(p["u_rms"]),
+                    _fmt(p["epsilon"]),
+                    _fmt(p["nu"]),
+                    _fmt(p["eta"] * 1e6),
+                    _fmt(p["tau_eta"] * 1e3),
+                    _fmt(p["R_lambda"]),
+                    _fmt(p["L_int"] * 100),
+                )
+            ],
+        )
+    )
+    parts.append("<h2>Calibration (Table 1, Fig. 3)</h2>")
+    rows = []
+    for method, refs in results["calibration"]["table1"].items():
+        for ref, t in refs.items():
+            rows.append(
+                (method, ref, *(_fmt(t[k], 3) for k in ("d_X_um", "d_Y_um", "d_Z_um", "d_um")))
+            )
+    parts.append(_table(["method", "against", "d_X (µm)", "d_Y (µm)", "d_Z (µm)", "d (µm)"], rows))
+    parts.append(
+        "<p>“nominal”: the paper's metric (dots at their design positions); “true”: against "
+        "the dots' true centres (the plate's imperfections removed).</p>"
+    )
+    parts.append(_img("calibrations/fig3_error_maps.png", "Fig. 3: error maps"))
+    d = results["detection"]
+    parts.append("<h2>Detection and matching</h2>")
+    rows = [
+        (
+            cam,
+            _fmt(d["rms_error_px"][i][0], 3),
+            _fmt(d["rms_error_px"][i][1], 3),
+            _fmt(d["found"][i], 4),
+            _fmt(d["spurious"][i], 3),
+        )
+        for i, cam in enumerate(d["cameras"])
+    ]
+    parts.append(_table(["camera", "rms x (px)", "rms y (px)", "found", "spurious"], rows))
+    noise = ", ".join(f"{v * 1e6:.2f}" for v in d["position_noise_m"])
+    parts.append(f"<p>Position noise (X, Y, Z) with the true cameras: {noise} µm.</p>")
+    parts.append(_img("ptv/detection/peak_locking.png", "Peak-locking diagnostic"))
+    rows = [
+        (
+            v,
+            _fmt(m["yield"], 4),
+            _fmt(m["ghost_fraction"], 3),
+            m["particles"],
+            _fmt(m["frame_rotation_deg"], 3),
+        )
+        for v, m in results["matching"].items()
+    ]
+    parts.append(
+        _table(["cameras", "yield", "ghost fraction", "particles", "frame rotation (°)"], rows)
+    )
+    parts.append("<h2>Statistics (Fig. 5, Fig. 6)</h2>")
+    for variant in (main, *[m for m in scenario.ptv.methods if m != main]):
+        parts.append(f"<h3>PTV with the {html.escape(variant)} calibration</h3>")
+        for fig, caption in (
+            ("fig5a_raw_s2.png", "Fig. 5a: raw S2 per Δt"),
+            ("fig5b_q_vs_dt2.png", "Fig. 5b: ⟨q⟩ against Δt² and the fits"),
+            ("fig6a_s2.png", "Fig. 6a: noise-free S2 with the sample truth"),
+            ("fig6b_epsilon.png", "Fig. 6b: ε(r), reference: the estimator on the exact D_LL"),
+        ):
+            parts.append(_img(f"ptv/{variant}/{fig}", caption))
+    parts.append("<h2>Table 3: recovered against truth</h2>")
+    rows = [
+        (t["quantity"], _fmt(t["recovered"]), _fmt(t["input"]), _fmt(t["reference"]))
+        for t in results["table3"]
+    ]
+    parts.append(
+        _table(["quantity", f"recovered ({main})", "input", "sample / estimator truth"], rows)
+    )
+    e = results["ptv"][main]["checks"]["epsilon"]
+    parts.append(
+        f"<p>The plateau estimator on the exact D_LL gives {_fmt(e['estimator_on_exact_d_ll'])} "
+        f"m²/s³, {_fmt(100 * e['plateau_deficit_of_estimator'], 3)} % from the input ε: the "
+        "finite-Reynolds plateau deficit of the spectrum, not a measurement error.</p>"
+    )
+    parts.append("<h2>Error budget</h2>")
+    rows = [
+        (
+            b["variant"],
+            b["adds"],
+            _fmt(None if b["c1_mean_deviation"] is None else 100 * b["c1_mean_deviation"], 3),
+            _fmt(None if b.get("c1_added") is None else 100 * b["c1_added"], 3),
+            _fmt(None if b["epsilon_relative"] is None else 100 * b["epsilon_relative"], 3),
+            _fmt(None if b.get("epsilon_added") is None else 100 * b["epsilon_added"], 3),
+        )
+        for b in results["error_budget"]
+    ]
+    parts.append(
+        _table(
+            [
+                "rung",
+                "adds",
+                "c1 − truth (%)",
+                "added (%)",
+                "ε − estimator on D_LL (%)",
+                "added (%)",
+            ],
+            rows,
+        )
+    )
+    parts.append(
+        "<p>c1 − truth: mean relative deviation from the sample-truth S2 over the check "
+        "range; each rung adds one source of error to the one before it (calibrations are "
+        "compared with the true cameras).</p>"
+    )
+    parts.append(_img("figures/error_budget.png", "c1 / sample truth for every rung"))
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def write_report(scenario: Scenario, stages: ExperimentStages, out: Path) -> tuple[Path, Path]:
+    """Write ``results.json``, ``report.html`` and ``run_log.json`` into ``out``.
+
+    Returns
+    -------
+    (Path, Path)
+        The HTML report and the JSON results.
+    """
+    out = Path(out)
+    results = build_results(scenario, stages, out)
+    json_path, html_path = out / "results.json", out / "report.html"
+    _atomic_write(json_path, json.dumps(results, indent=2, allow_nan=False) + "\n")
+    _atomic_write(html_path, render_html(results, scenario))
+    log = {
+        "stages_seconds": stages.seconds,
+        "reused": {
+            name: s.reused
+            for name, s in (
+                ("render", stages.dataset),
+                ("truth", stages.truth),
+                ("calibrate", stages.calibrations),
+                *((f"ptv {v}", s) for v, s in stages.ptv.items()),
+            )
+        },
+    }
+    _atomic_write(out / "run_log.json", json.dumps(log, indent=2) + "\n")
+    return html_path, json_path

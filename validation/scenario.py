@@ -1,0 +1,291 @@
+"""Virtual experiments described by TOML files: presets ``default`` and ``paper-8hz/10hz/12hz``.
+
+A scenario composes a flow preset, a rig, the calibration target and traverse, the
+tracer seeding and lighting, the sensor, the sizes and the PTV analysis. Every length
+is in m, every time in s. A scenario file has ``name``, ``description``, ``seed`` and
+the tables (fields and defaults in :class:`Scenario`)::
+
+    [flow]         preset, spectrum, modes
+    [rig]          name (a rig preset or a .toml path, relative to the scenario file)
+    [calibration]  planes, plate ("realistic" or "ideal"), brightness, methods
+    [particles]    count, frames, electrons, diameter, shared_first_frame
+    [sensor]       gain, read_noise, offset, full_well, bit_depth, background
+    [ptv]          methods, analysis_volume, r_range, bins, plateau, kolmogorov_c2,
+                   max_speed, tolerance, n_boot
+    [checks]       c1_r_min_eta, c1_r_max_l_int
+
+Missing tables take their defaults; unknown tables or fields are errors that name the
+file and the field.
+"""
+
+import tomllib
+from dataclasses import asdict, dataclass, field, fields, replace
+from importlib import resources
+from pathlib import Path
+
+from ptv.calibration.methods import CALIBRATION_METHODS
+from simulator.presets import FLOW_PRESETS
+from simulator.render.sensor import Sensor
+from simulator.spectra import SPECTRA
+
+
+class ScenarioError(ValueError):
+    """A scenario file or name that cannot be used; the message names file and field."""
+
+
+@dataclass(frozen=True)
+class FlowSection:
+    """The turbulence: a preset of the paper's Table 3 (its Δt set included)."""
+
+    preset: str = "lem-10hz"
+    spectrum: str = "pope"
+    modes: int = 200
+
+
+@dataclass(frozen=True)
+class RigSection:
+    """The cameras: a rig preset name or a rig TOML file."""
+
+    name: str = "paper-stereo"
+
+
+@dataclass(frozen=True)
+class CalibrationSection:
+    """The dotted plate, its traverse and the calibration methods fitted.
+
+    ``plate`` is ``"realistic"`` (dot scatter, traverse error, tilt, bow, uneven light:
+    :data:`simulator.target.REALISTIC`) or ``"ideal"``; ``brightness`` is the
+    photo-electrons of a fully lit plate pixel.
+    """
+
+    planes: int = 13
+    plate: str = "realistic"
+    brightness: float = 4000.0
+    methods: tuple[str, ...] = ("model-free", "tsai", "pinhole", "soloff")
+
+
+@dataclass(frozen=True)
+class ParticlesSection:
+    """Tracers: mean number in the illuminated sheet, frame pairs per Δt, light, size.
+
+    ``electrons`` is the photo-electron count from a tracer on the sheet's centre
+    plane; it sets the detection noise (0.05 px rms at 2000 e⁻ on paper-stereo).
+    ``shared_first_frame``: every Δt from the same snapshots (the paper's time-resolved
+    acquisition, default) or one independent experiment per Δt.
+    """
+
+    count: int = 2000
+    frames: int = 40
+    electrons: float = 2000.0
+    diameter: float = 225e-6
+    shared_first_frame: bool = True
+
+
+@dataclass(frozen=True)
+class PtvSection:
+    """The PTV analysis.
+
+    ``methods`` are the calibrations the PTV runs with (the true cameras always run
+    too, for the error budget); ``analysis_volume`` is the size of the centred box the
+    statistics use, m; ``r_range`` the outer edges of the ``bins`` log-spaced
+    separation bins, m; ``plateau`` the r range of the plateau ε, m.
+    """
+
+    methods: tuple[str, ...] = ("model-free", "tsai")
+    analysis_volume: tuple[float, float, float] = (0.07, 0.07, 0.008)
+    r_range: tuple[float, float] = (0.5e-3, 35e-3)
+    bins: int = 24
+    plateau: tuple[float, float] = (2e-3, 20e-3)
+    kolmogorov_c2: float = 2.0
+    max_speed: float = 1.5
+    tolerance: float = 1.5e-4
+    n_boot: int = 200
+
+
+@dataclass(frozen=True)
+class ChecksSection:
+    """Where c1 is compared with the sample truth: c1_r_min_eta·η ≤ r ≤ c1_r_max_l_int·L_int."""
+
+    c1_r_min_eta: float = 40.0
+    c1_r_max_l_int: float = 0.5
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One virtual experiment (module docstring for the file format)."""
+
+    name: str
+    description: str = ""
+    seed: int = 0
+    flow: FlowSection = field(default_factory=FlowSection)
+    rig: RigSection = field(default_factory=RigSection)
+    calibration: CalibrationSection = field(default_factory=CalibrationSection)
+    particles: ParticlesSection = field(default_factory=ParticlesSection)
+    sensor: Sensor = field(default_factory=Sensor)
+    ptv: PtvSection = field(default_factory=PtvSection)
+    checks: ChecksSection = field(default_factory=ChecksSection)
+
+    def as_dict(self) -> dict:
+        """JSON-able form (tuples as lists), the inverse of :func:`scenario_from_dict`."""
+        return asdict(self)
+
+    def with_seed(self, seed: int) -> "Scenario":
+        """The same scenario with another seed."""
+        return replace(self, seed=int(seed))
+
+
+_SECTIONS = {
+    "flow": FlowSection,
+    "rig": RigSection,
+    "calibration": CalibrationSection,
+    "particles": ParticlesSection,
+    "sensor": Sensor,
+    "ptv": PtvSection,
+    "checks": ChecksSection,
+}
+
+
+def _section(cls, table: object, where: str):
+    if not isinstance(table, dict):
+        raise ScenarioError(f"{where} must be a table")
+    known = {f.name: f for f in fields(cls)}
+    unknown = sorted(set(table) - set(known))
+    if unknown:
+        raise ScenarioError(
+            f"{where}: unknown field(s) {', '.join(unknown)}; known: {', '.join(known)}"
+        )
+    values = {}
+    for name, value in table.items():
+        default = getattr(cls(), name)
+        if isinstance(default, tuple):
+            if not isinstance(value, list | tuple):
+                raise ScenarioError(f"{where}.{name} must be a list, got {value!r}")
+            value = tuple(value)
+        elif isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if type(value) is not type(default):
+            raise ScenarioError(f"{where}.{name} must be {type(default).__name__}, got {value!r}")
+        values[name] = value
+    try:
+        return cls(**values)
+    except ValueError as err:
+        raise ScenarioError(f"{where}: {err}") from None
+
+
+def _check(scenario: Scenario, source: str) -> None:
+    def fail(message: str):
+        raise ScenarioError(f"{source}: {message}")
+
+    if scenario.flow.preset not in FLOW_PRESETS:
+        fail(f"flow.preset {scenario.flow.preset!r} unknown; known: {', '.join(FLOW_PRESETS)}")
+    if scenario.flow.spectrum not in SPECTRA:
+        fail(f"flow.spectrum {scenario.flow.spectrum!r} unknown; known: {', '.join(SPECTRA)}")
+    for where, methods in (
+        ("calibration.methods", scenario.calibration.methods),
+        ("ptv.methods", scenario.ptv.methods),
+    ):
+        unknown = [m for m in methods if m not in CALIBRATION_METHODS]
+        if unknown:
+            fail(f"{where}: unknown method(s) {unknown}; known: {', '.join(CALIBRATION_METHODS)}")
+    missing = [m for m in scenario.ptv.methods if m not in scenario.calibration.methods]
+    if missing:
+        fail(f"ptv.methods {missing} are not in calibration.methods")
+    if scenario.calibration.plate not in ("realistic", "ideal"):
+        fail(
+            f"calibration.plate must be 'realistic' or 'ideal', got {scenario.calibration.plate!r}"
+        )
+    for where, value, minimum in (
+        ("flow.modes", scenario.flow.modes, 1),
+        ("calibration.planes", scenario.calibration.planes, 3),
+        ("particles.count", scenario.particles.count, 1),
+        ("particles.frames", scenario.particles.frames, 2),
+        ("ptv.bins", scenario.ptv.bins, 1),
+    ):
+        if value < minimum:
+            fail(f"{where} must be >= {minimum}, got {value}")
+    for where, value in (
+        ("particles.electrons", scenario.particles.electrons),
+        ("particles.diameter", scenario.particles.diameter),
+        ("calibration.brightness", scenario.calibration.brightness),
+    ):
+        if not value > 0:
+            fail(f"{where} must be > 0, got {value}")
+    if len(scenario.ptv.analysis_volume) != 3 or min(scenario.ptv.analysis_volume) <= 0:
+        fail(f"ptv.analysis_volume must be 3 sizes > 0, m, got {scenario.ptv.analysis_volume}")
+    for where, (lo, hi) in (
+        ("ptv.r_range", scenario.ptv.r_range),
+        ("ptv.plateau", scenario.ptv.plateau),
+    ):
+        if not 0 < lo < hi:
+            fail(f"{where} must be [low, high] with 0 < low < high, m, got {[lo, hi]}")
+
+
+def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
+    """A validated scenario from a parsed TOML (or :meth:`Scenario.as_dict`) table.
+
+    Raises
+    ------
+    ScenarioError
+        Unknown or ill-typed fields, unknown presets or methods, impossible sizes.
+    """
+    if "name" not in spec or not isinstance(spec["name"], str):
+        raise ScenarioError(f"{source}: a scenario needs a 'name' string")
+    unknown = sorted(set(spec) - {"name", "description", "seed", *_SECTIONS})
+    if unknown:
+        raise ScenarioError(f"{source}: unknown table(s) or field(s) {', '.join(unknown)}")
+    seed = spec.get("seed", 0)
+    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        raise ScenarioError(f"{source}: seed must be an integer >= 0, got {seed!r}")
+    sections = {
+        key: _section(cls, spec.get(key, {}), f"{source}: [{key}]")
+        for key, cls in _SECTIONS.items()
+    }
+    scenario = Scenario(
+        name=spec["name"], description=str(spec.get("description", "")), seed=seed, **sections
+    )
+    _check(scenario, source)
+    return scenario
+
+
+def scenario_presets() -> list[str]:
+    """Names of the scenario presets shipped with synptv."""
+    folder = resources.files("validation") / "scenarios"
+    return sorted(
+        p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml")
+    )
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """A preset scenario by name, or a scenario file by path.
+
+    A rig given as a relative ``.toml`` path in a scenario file is taken relative to
+    that file.
+
+    Raises
+    ------
+    ScenarioError
+        Unknown preset, missing or invalid file.
+    """
+    path = Path(name_or_path)
+    if path.suffix == ".toml" or path.exists():
+        if not path.is_file():
+            raise ScenarioError(f"scenario file {str(path)!r} does not exist")
+        text, source = path.read_text(), str(path)
+    else:
+        presets = scenario_presets()
+        if str(name_or_path) not in presets:
+            raise ScenarioError(
+                f"unknown scenario {str(name_or_path)!r}; presets: {', '.join(presets)} "
+                "(or a .toml path)"
+            )
+        text = (resources.files("validation") / "scenarios" / f"{name_or_path}.toml").read_text()
+        source, path = f"{name_or_path}.toml", None
+    try:
+        spec = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise ScenarioError(f"{source}: not valid TOML: {err}") from None
+    scenario = scenario_from_dict(spec, source=source)
+    rig = Path(scenario.rig.name)
+    if path is not None and rig.suffix == ".toml" and not rig.is_absolute():
+        scenario = replace(scenario, rig=RigSection(str(path.parent / rig)))
+    return scenario

@@ -1,0 +1,84 @@
+"""Reusable, atomic stages of a run: a stage is redone only when its inputs change.
+
+A stage writes one folder. It is built under a temporary name beside its destination
+and renamed when complete; then ``<folder>/stage.json`` records the SHA-256 key of its
+inputs (which include the keys of the stages it reads). A later run with the same key
+reuses the folder; a different key, or a folder without ``stage.json`` (a run
+interrupted between the rename and the record), rebuilds it. An interrupted build
+leaves only a hidden temporary folder, removed by the next run.
+"""
+
+import hashlib
+import json
+import shutil
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+STAGE_FILE = "stage.json"
+
+
+def stage_key(inputs: dict) -> str:
+    """SHA-256 of the canonical JSON of ``inputs`` (sorted keys), hex."""
+    text = json.dumps(inputs, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+@dataclass(frozen=True)
+class StageOutcome:
+    """A stage's folder, its key, and whether it was reused."""
+
+    folder: Path
+    key: str
+    reused: bool
+
+
+def _recorded_key(folder: Path) -> str | None:
+    try:
+        return json.loads((folder / STAGE_FILE).read_text())["key"]
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def run_stage(
+    folder: Path, inputs: dict, build: Callable[[Path], None], *, name: str
+) -> StageOutcome:
+    """Reuse ``folder`` if it was built from the same inputs, else build it atomically.
+
+    Parameters
+    ----------
+    folder : Path
+        The stage's output folder.
+    inputs : dict
+        JSON-able description of everything the output depends on.
+    build : callable(Path)
+        Writes the stage's files under the path it is given, which does not exist yet
+        (the builder creates it: a folder).
+    name : str
+        The stage's name, recorded beside the key.
+
+    Returns
+    -------
+    StageOutcome
+    """
+    folder = Path(folder)
+    key = stage_key(inputs)
+    if folder.is_dir() and _recorded_key(folder) == key:
+        return StageOutcome(folder, key, reused=True)
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    for stale in folder.parent.glob(f".{folder.name}.partial-*"):
+        shutil.rmtree(stale, ignore_errors=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.partial-", dir=folder.parent))
+    try:
+        target = staging / folder.name
+        build(target)
+        (target / STAGE_FILE).write_text(
+            json.dumps({"stage": name, "key": key, "inputs": inputs}, indent=2)
+        )
+        if folder.exists():
+            shutil.rmtree(folder)
+        target.rename(folder)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return StageOutcome(folder, key, reused=False)

@@ -1,0 +1,281 @@
+"""Parameter sweeps on Dask that save every point as it finishes, and resume.
+
+A :class:`Sweep` is a top-level (picklable) task function, the plain inputs every point
+shares (the scenario's settings and the study's options) and the points. Each point
+runs as one Dask task on a :func:`dask_client` (a ``LocalCluster`` of single-threaded
+worker processes, or an existing scheduler). The parent process writes each result as
+``<folder>/<point id>.json`` the moment it arrives (temporary file, then rename), with
+the inputs it was computed from; a later run reuses a point only when its recorded
+inputs equal the current ones, so an interrupted sweep resumes where it stopped.
+"""
+
+import json
+import logging
+import os
+import tempfile
+import zlib
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import dask
+import numpy as np
+from distributed import Client, LocalCluster, as_completed
+
+log = logging.getLogger(__name__)
+
+#: Seconds to wait for an existing scheduler before giving up.
+CONNECT_TIMEOUT_S = 10
+
+#: Environment of local worker processes: one thread each for numba and OpenCV too (Dask
+#: already sets OMP/MKL/OpenBLAS to one), so N workers use N cores.
+SINGLE_THREADED = {"NUMBA_NUM_THREADS": "1", "OPENCV_FOR_THREADS_NUM": "1"}
+#: Dask's nannies set glibc's MALLOC_TRIM_THRESHOLD_, which turns off glibc's adaptive
+#: mmap threshold: every large NumPy temporary is then mapped and unmapped afresh, and
+#: the calibration tasks ran 2-3x slower (a third of their time in the kernel). Local
+#: workers go without it.
+TRIM_THRESHOLD = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
+
+Task = Callable[[dict, dict, dict], dict]
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    """One point of a sweep.
+
+    Attributes
+    ----------
+    id : str
+        Name of the point's file (letters, digits, ``-``, ``.``, ``_``).
+    params : dict
+        The point's parameters (JSON-able), passed to the task.
+    """
+
+    id: str
+    params: dict
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A study's points and how each is computed.
+
+    Attributes
+    ----------
+    study : str
+        The study's name.
+    task : callable(settings, options, params) -> dict
+        A top-level function returning a JSON-able result for one point.
+    settings : dict
+        The scenario as :meth:`validation.scenario.Scenario.as_dict` gives it.
+    options : dict
+        The study's JSON-able options shared by every point.
+    points : tuple of SweepPoint
+        The sweep, in the order of the summary table.
+    """
+
+    study: str
+    task: Task
+    settings: dict
+    options: dict
+    points: tuple[SweepPoint, ...]
+
+    def inputs(self, point: SweepPoint) -> dict:
+        """Everything the point's result depends on, as recorded in its file."""
+        return as_json(
+            {
+                "study": self.study,
+                "scenario": self.settings["name"],
+                "settings": self.settings,
+                "options": self.options,
+                "point": point.params,
+            }
+        )
+
+
+@dataclass(frozen=True)
+class SweepOutcome:
+    """The results of a sweep, by point id in sweep order, and which points ran now."""
+
+    results: dict[str, dict]
+    computed: tuple[str, ...]
+    reused: tuple[str, ...]
+
+
+def seed_sequence(seed: int, *keys: object) -> np.random.SeedSequence:
+    """A seed derived from an integer seed and keys (str, numbers, dicts), order-free.
+
+    The same seed and keys give the same sequence in every process and Python session
+    (CRC-32 of the keys' canonical JSON, not ``hash``).
+    """
+    words = [zlib.crc32(json.dumps(key, sort_keys=True).encode()) for key in keys]
+    return np.random.SeedSequence([int(seed), *words])
+
+
+def as_json(value: object) -> object:
+    """A JSON round trip: tuples become lists, NumPy numbers floats, NaN and inf None."""
+
+    def convert(v):
+        if isinstance(v, dict):
+            return {str(k): convert(x) for k, x in v.items()}
+        if isinstance(v, list | tuple | np.ndarray):
+            return [convert(x) for x in v]
+        if isinstance(v, np.generic):
+            v = v.item()
+        if isinstance(v, float) and not np.isfinite(v):
+            return None
+        return v
+
+    return json.loads(json.dumps(convert(value), allow_nan=False))
+
+
+def write_text_atomic(path: Path, text: str) -> Path:
+    """Write ``text`` to ``path`` under a temporary name, then rename it into place."""
+    path = Path(path)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    try:
+        with os.fdopen(handle, "w") as stream:
+            stream.write(text)
+        os.chmod(temporary, 0o644)  # mkstemp makes it private; results are for sharing
+        os.replace(temporary, path)
+    finally:
+        if os.path.exists(temporary):
+            os.remove(temporary)
+    return path
+
+
+def write_json_atomic(path: Path, value: object) -> Path:
+    """:func:`write_text_atomic` of ``value`` as indented JSON (NaN written as null)."""
+    return write_text_atomic(path, json.dumps(as_json(value), indent=2) + "\n")
+
+
+def _load_point(path: Path, inputs: dict) -> dict | None:
+    """The saved result of a point if its file records exactly ``inputs``, else None."""
+    try:
+        saved = json.loads(path.read_text())
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError) as err:
+        log.warning("%s unreadable (%s): recomputing the point", path, err)
+        return None
+    if not isinstance(saved, dict) or saved.get("inputs") != inputs or "result" not in saved:
+        log.info("%s was computed from other inputs: recomputing the point", path)
+        return None
+    return saved["result"]
+
+
+@contextmanager
+def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> Iterator[Client]:
+    """A Dask client: on an existing scheduler, or on a new local cluster.
+
+    Parameters
+    ----------
+    workers : int or None
+        Worker processes of the local cluster, single-threaded (None: one per CPU).
+    scheduler : str or None
+        Address of a running scheduler (``tcp://host:port``); its workers must be able
+        to import synptv. Excludes ``workers``.
+
+    Raises
+    ------
+    ValueError
+        Both or bad values given, or no scheduler answering at ``scheduler``.
+    """
+    if workers is not None and scheduler is not None:
+        raise ValueError("give --workers or --scheduler, not both")
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError, TypeError) as err:
+            raise ValueError(
+                f"cannot connect to a Dask scheduler at {scheduler!r}: {err}"
+            ) from None
+        with client:
+            yield client
+        return
+    n = (os.cpu_count() or 1) if workers is None else workers
+    if not isinstance(n, int) or n < 1:
+        raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
+    with (
+        dask.config.set({TRIM_THRESHOLD: None}),
+        LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            env=SINGLE_THREADED,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield client
+
+
+def run_sweep(
+    sweep: Sweep,
+    folder: Path,
+    connect: Callable[[int], AbstractContextManager[Client]],
+    *,
+    progress: Callable[[int, int], None] | None = None,
+    on_saved: Callable[[str], None] | None = None,
+) -> SweepOutcome:
+    """Compute the points of a sweep that have no valid saved result, saving each.
+
+    Parameters
+    ----------
+    sweep : Sweep
+        The points and their task.
+    folder : Path
+        Where point files live (created).
+    connect : callable(int) -> context manager of distributed.Client
+        Called with the number of points to compute (only when there are some) for
+        the client that runs them, e.g. ``lambda n: dask_client(workers=min(n, 2))``.
+    progress : callable(done, total), optional
+        Called after each point is available (points saved earlier count at once).
+    on_saved : callable(point id), optional
+        Called after each newly computed point is saved; an exception raised there (or
+        a KeyboardInterrupt) stops the sweep, cancelling the tasks not yet finished.
+
+    Returns
+    -------
+    SweepOutcome
+        Results as saved (a JSON round trip: NaN reads as None), by point id.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    ids = [point.id for point in sweep.points]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"{sweep.study}: point ids must be unique, got {ids}")
+    results = {}
+    for point in sweep.points:
+        saved = _load_point(folder / f"{point.id}.json", sweep.inputs(point))
+        if saved is not None:
+            results[point.id] = saved
+    reused = tuple(i for i in ids if i in results)
+    total = len(ids)
+    if progress is not None and reused:
+        progress(len(reused), total)
+    pending = [point for point in sweep.points if point.id not in results]
+    computed = []
+    if pending:
+        with connect(len(pending)) as client:
+            futures = {
+                client.submit(sweep.task, sweep.settings, sweep.options, p.params, pure=False): p
+                for p in pending
+            }
+            try:
+                for future in as_completed(list(futures)):
+                    point = futures[future]
+                    record = as_json({"inputs": sweep.inputs(point), "result": future.result()})
+                    write_json_atomic(folder / f"{point.id}.json", record)
+                    results[point.id] = record["result"]
+                    computed.append(point.id)
+                    log.info("%s: point %s saved", sweep.study, point.id)
+                    if progress is not None:
+                        progress(len(results), total)
+                    if on_saved is not None:
+                        on_saved(point.id)
+            finally:
+                unfinished = [f for f in futures if not f.done()]
+                if unfinished:
+                    client.cancel(unfinished)
+    return SweepOutcome({i: results[i] for i in ids}, tuple(computed), reused)

@@ -1,0 +1,258 @@
+"""Reference measurements of a rendered dataset that use the truth: the error budget's rungs.
+
+- :func:`exact_runs`: the true positions at t and t + Δt of every particle (no camera at
+  all): what is left is the multi-Δt method's own error (finite Δt, sampling).
+- :func:`detected_runs`: the detected centres on the images, each paired with the
+  particle that made it (so no matching error), triangulated with the true cameras (so
+  no calibration error): what is added is the detection error. It also measures the
+  detection error in pixels, the detection yield, the fractional-position histogram
+  and the position noise in 3-D.
+
+Both return :class:`ptv.pipeline.RunParticles`, so the same statistics run on them as
+on the PTV stack's own links.
+"""
+
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ptv.camera_model import CameraModel
+from ptv.dataset import Dataset
+from ptv.detect import detect_particles
+from ptv.pipeline import PipelineSettings, RunParticles
+from ptv.triangulate import triangulate
+from simulator.rigs import Rig, rig_from_dict
+
+#: Largest distance between a detection and the true image of its particle, px.
+ASSOCIATION_RADIUS = 1.0
+
+
+@dataclass(frozen=True)
+class TruthRun:
+    """The truth of the run at one Δt (``/particles/dt<k>`` of truth.h5).
+
+    Attributes
+    ----------
+    dt : float
+        s.
+    positions : ndarray, shape (M, 2, P, 3)
+        Particle positions at t and t + Δt, m.
+    velocity : ndarray, shape (M, P, 3)
+        Velocities at t, m/s.
+    xy : dict of str to ndarray, shape (M, 2, P, 2)
+        Exact image of every particle per camera, px.
+    visible : dict of str to ndarray of bool, shape (M, 2, P)
+        Particle lit and its spot on the sensor.
+    """
+
+    dt: float
+    positions: np.ndarray
+    velocity: np.ndarray
+    xy: dict
+    visible: dict
+
+
+def read_truth(folder: Path) -> tuple[Rig, list[TruthRun]]:
+    """The rig and the particle truth of a dataset written by ``synptv render``."""
+    path = Path(folder) / "truth.h5"
+    if not path.is_file():
+        raise ValueError(f"{folder} has no truth.h5: reference runs need a synthetic dataset")
+    with h5py.File(path) as truth:
+        rig = rig_from_dict(json.loads(truth.attrs["rig"]), source=str(path))
+        runs = []
+        for k in range(len(truth["particles"])):
+            g = truth[f"particles/dt{k}"]
+            runs.append(
+                TruthRun(
+                    dt=float(g.attrs["dt"]),
+                    positions=g["positions"][:],
+                    velocity=g["velocity"][:],
+                    xy={name: g[f"{name}/xy"][:] for name in rig.camera_names},
+                    visible={name: g[f"{name}/visible"][:] for name in rig.camera_names},
+                )
+            )
+    return rig, runs
+
+
+def _inside(points: np.ndarray, box) -> np.ndarray:
+    lower, upper = (np.asarray(v) for v in box)
+    return np.all((points >= lower) & (points <= upper), axis=-1)
+
+
+def _run_particles(
+    k: int,
+    dt: float,
+    per_snapshot: Sequence[tuple[np.ndarray, np.ndarray]],
+    settings: PipelineSettings,
+    n_cam: int,
+) -> RunParticles:
+    """RunParticles from (X(t), X(t + Δt)) per snapshot; no outliers by construction.
+
+    Detections and matches per snapshot are recorded as the number of particles used.
+    """
+    x = [a for a, _ in per_snapshot]
+    d = [b - a for a, b in per_snapshot]
+    sizes = np.array([len(a) for a in x], dtype=np.int64)
+    positions = np.concatenate(x) if x else np.empty((0, 3))
+    m = len(per_snapshot)
+    return RunParticles(
+        k=k,
+        dt=dt,
+        positions=positions,
+        displacements=np.concatenate(d) if d else np.empty((0, 3)),
+        offsets=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+        snapshot_ids=np.arange(m, dtype=np.int64),
+        detections=np.broadcast_to(sizes[:, None, None], (m, 2, n_cam)).copy(),
+        matches=np.repeat(sizes[:, None], 2, axis=1),
+        links=sizes,
+        processed=np.arange(m, dtype=np.int64),
+        in_analysis=_inside(positions, settings.analysis_volume),
+        outlier=np.zeros(len(positions), dtype=bool),
+    )
+
+
+def exact_runs(truth: Sequence[TruthRun], settings: PipelineSettings) -> list[RunParticles]:
+    """The true positions of every particle at t and t + Δt, per Δt."""
+    return [
+        _run_particles(k, run.dt, [(p[0], p[1]) for p in run.positions], settings, len(run.xy))
+        for k, run in enumerate(truth)
+    ]
+
+
+@dataclass(frozen=True)
+class DetectionQuality:
+    """Detection measured against the exact particle images, per camera.
+
+    Attributes
+    ----------
+    cameras : tuple of str
+        Camera names.
+    rms_error_px : ndarray, shape (C, 2)
+        RMS of detected − exact centre (x, y) over associated particles, px.
+    found : ndarray, shape (C,)
+        Fraction of the visible particles with a detection within
+        :data:`ASSOCIATION_RADIUS`.
+    spurious : ndarray, shape (C,)
+        Fraction of detections associated with no particle.
+    fractional : dict of str to ndarray, shape (N, 2)
+        Detected positions of the associated particles, px (for the peak-locking test).
+    position_noise : ndarray, shape (3,)
+        RMS of triangulated − true position per component (true cameras), m.
+    displacement_noise : ndarray, shape (3,)
+        RMS of measured − true ΔX per component, m (√2 × position noise when the noise
+        at t and t + Δt is independent).
+    """
+
+    cameras: tuple[str, ...]
+    rms_error_px: np.ndarray
+    found: np.ndarray
+    spurious: np.ndarray
+    fractional: dict
+    position_noise: np.ndarray
+    displacement_noise: np.ndarray
+
+
+def _associate(detected: np.ndarray, exact: np.ndarray, visible: np.ndarray) -> np.ndarray:
+    """Row of ``detected`` imaging each particle (−1: none), mutual nearest within radius."""
+    out = np.full(len(exact), -1, dtype=np.int64)
+    idx = np.flatnonzero(visible & np.isfinite(exact).all(axis=1))
+    if len(detected) == 0 or len(idx) == 0:
+        return out
+    dist, nearest = cKDTree(detected).query(exact[idx], distance_upper_bound=ASSOCIATION_RADIUS)
+    ok = np.isfinite(dist)
+    back = cKDTree(exact[idx]).query(detected[nearest[ok]])[1]
+    mutual = back == np.flatnonzero(ok)
+    out[idx[np.flatnonzero(ok)[mutual]]] = nearest[ok][mutual]
+    return out
+
+
+def detected_runs(
+    dataset: Dataset,
+    truth: Sequence[TruthRun],
+    cameras: Sequence[CameraModel],
+    settings: PipelineSettings,
+    *,
+    tick: Callable[[], None] | None = None,
+) -> tuple[list[RunParticles], DetectionQuality]:
+    """Detected centres, paired with their particles by the truth, through the true cameras.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        The rendered images.
+    truth : sequence of TruthRun
+        From :func:`read_truth`, in the dataset's Δt order.
+    cameras : sequence of CameraModel
+        The true cameras in the dataset's camera order.
+    settings : PipelineSettings
+        Detection threshold, analysis volume, snapshot limit.
+    tick : callable, optional
+        Called after each snapshot.
+
+    Returns
+    -------
+    (list of RunParticles, DetectionQuality)
+    """
+    names = dataset.cameras
+    n_cam = len(names)
+    sq_err = np.zeros((n_cam, 2))
+    n_err = np.zeros(n_cam)
+    n_visible, n_found = np.zeros(n_cam), np.zeros(n_cam)
+    n_detected, n_spurious = np.zeros(n_cam), np.zeros(n_cam)
+    fractional = {name: [] for name in names}
+    pos_err, disp_err = [], []
+    runs = []
+    for k, run in enumerate(truth):
+        per_snapshot = []
+        for snap in dataset.snapshots(k, limit=settings.snapshots):
+            rows = []  # per frame: (P, C) detection row per camera
+            centres = []  # per frame and camera: detected xy
+            for f, frame in enumerate("ab"):
+                found_rows, found_xy = [], []
+                for c, (name, pair) in enumerate(zip(names, snap.frames, strict=True)):
+                    det = detect_particles(
+                        getattr(pair, frame), k=settings.threshold, saturation=dataset.saturation
+                    )
+                    exact = run.xy[name][snap.m, f]
+                    visible = run.visible[name][snap.m, f]
+                    row = _associate(det.xy, exact, visible)
+                    hit = row >= 0
+                    sq_err[c] += np.sum((det.xy[row[hit]] - exact[hit]) ** 2, axis=0)
+                    n_err[c] += hit.sum()
+                    n_visible[c] += visible.sum()
+                    n_found[c] += hit.sum()
+                    n_detected[c] += len(det.xy)
+                    n_spurious[c] += len(det.xy) - hit.sum()
+                    fractional[name].append(det.xy[row[hit]])
+                    found_rows.append(row)
+                    found_xy.append(det.xy)
+                rows.append(np.stack(found_rows, axis=1))
+                centres.append(found_xy)
+            both = np.all(rows[0] >= 0, axis=1) & np.all(rows[1] >= 0, axis=1)
+            ends = []
+            for f in range(2):
+                pixels = [centres[f][c][rows[f][both, c]] for c in range(n_cam)]
+                ends.append(triangulate(cameras, pixels).points)
+            true_ends = run.positions[snap.m][:, both]
+            pos_err.append(np.concatenate([ends[0] - true_ends[0], ends[1] - true_ends[1]]))
+            disp_err.append((ends[1] - ends[0]) - (true_ends[1] - true_ends[0]))
+            per_snapshot.append((ends[0], ends[1]))
+            if tick is not None:
+                tick()
+        runs.append(_run_particles(k, run.dt, per_snapshot, settings, n_cam))
+    pe, de = np.concatenate(pos_err), np.concatenate(disp_err)
+    quality = DetectionQuality(
+        cameras=tuple(names),
+        rms_error_px=np.sqrt(sq_err / np.maximum(n_err, 1)[:, None]),
+        found=n_found / np.maximum(n_visible, 1),
+        spurious=n_spurious / np.maximum(n_detected, 1),
+        fractional={name: np.concatenate(v) for name, v in fractional.items()},
+        position_noise=np.sqrt(np.nanmean(pe**2, axis=0)),
+        displacement_noise=np.sqrt(np.nanmean(de**2, axis=0)),
+    )
+    return runs, quality
