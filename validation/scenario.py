@@ -26,6 +26,7 @@ from pathlib import Path
 from ptv.calibration.methods import CALIBRATION_METHODS
 from simulator.presets import FLOW_PRESETS
 from simulator.render.sensor import Sensor
+from simulator.rigs import rig_presets
 from simulator.spectra import SPECTRA
 
 
@@ -126,7 +127,7 @@ class Scenario:
     checks: ChecksSection = field(default_factory=ChecksSection)
 
     def as_dict(self) -> dict:
-        """JSON-able form (tuples as lists), the inverse of :func:`scenario_from_dict`."""
+        """JSON-able form, the inverse of :func:`scenario_from_dict`."""
         return asdict(self)
 
     def with_seed(self, seed: int) -> "Scenario":
@@ -145,9 +146,20 @@ _SECTIONS = {
 }
 
 
-def _section(cls, table: object, where: str):
+def _typed(value: object, kind: type, where: str):
+    """``value`` as ``kind`` (an integer is a float too), or a ScenarioError naming ``where``."""
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if type(value) is not kind:
+        raise ScenarioError(f"{where} must be {kind.__name__}, got {value!r}")
+    return value
+
+
+def _section(cls, table: object, source: str, key: str):
+    """The section dataclass ``cls`` from TOML table ``[key]`` of ``source``."""
     if not isinstance(table, dict):
-        raise ScenarioError(f"{where} must be a table")
+        raise ScenarioError(f"{source}: [{key}] must be a table")
+    where = f"{source}: {key}"
     known = {f.name: f for f in fields(cls)}
     unknown = sorted(set(table) - set(known))
     if unknown:
@@ -160,11 +172,14 @@ def _section(cls, table: object, where: str):
         if isinstance(default, tuple):
             if not isinstance(value, list | tuple):
                 raise ScenarioError(f"{where}.{name} must be a list, got {value!r}")
-            value = tuple(value)
-        elif isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if type(value) is not type(default):
-            raise ScenarioError(f"{where}.{name} must be {type(default).__name__}, got {value!r}")
+            item = type(default[0])
+            value = tuple(_typed(v, item, f"{where}.{name}") for v in value)
+            if item is float and len(value) != len(default):
+                raise ScenarioError(
+                    f"{where}.{name} must be a list of {len(default)} numbers, got {list(value)}"
+                )
+        else:
+            value = _typed(value, type(default), f"{where}.{name}")
         values[name] = value
     try:
         return cls(**values)
@@ -237,12 +252,12 @@ def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
     if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
         raise ScenarioError(f"{source}: seed must be an integer >= 0, got {seed!r}")
     sections = {
-        key: _section(cls, spec.get(key, {}), f"{source}: [{key}]")
-        for key, cls in _SECTIONS.items()
+        key: _section(cls, spec.get(key, {}), source, key) for key, cls in _SECTIONS.items()
     }
-    scenario = Scenario(
-        name=spec["name"], description=str(spec.get("description", "")), seed=seed, **sections
-    )
+    description = spec.get("description", "")
+    if not isinstance(description, str):
+        raise ScenarioError(f"{source}: description must be a string, got {description!r}")
+    scenario = Scenario(name=spec["name"], description=description, seed=seed, **sections)
     _check(scenario, source)
     return scenario
 
@@ -269,7 +284,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     path = Path(name_or_path)
     if path.suffix == ".toml" or path.exists():
         if not path.is_file():
-            raise ScenarioError(f"scenario file {str(path)!r} does not exist")
+            what = "is a folder, not a file" if path.is_dir() else "does not exist"
+            raise ScenarioError(f"scenario file {str(path)!r} {what}")
         text, source = path.read_text(), str(path)
     else:
         presets = scenario_presets()
@@ -287,5 +303,11 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     scenario = scenario_from_dict(spec, source=source)
     rig = Path(scenario.rig.name)
     if path is not None and rig.suffix == ".toml" and not rig.is_absolute():
-        scenario = replace(scenario, rig=RigSection(str(path.parent / rig)))
+        rig = path.parent / rig
+        scenario = replace(scenario, rig=RigSection(str(rig)))
+    if scenario.rig.name not in rig_presets() and not rig.is_file():
+        raise ScenarioError(
+            f"{source}: rig.name: unknown rig {scenario.rig.name!r}, neither a rig preset "
+            f"({', '.join(rig_presets())}) nor a rig file"
+        )
     return scenario

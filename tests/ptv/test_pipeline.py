@@ -27,6 +27,7 @@ from ptv.pipeline import (
     detect_and_match,
     median_test_outliers,
     run_pipeline,
+    shared_snapshots,
 )
 from ptv.results import save_results
 from ptv.stats.pairs import LogBins, pair_sums
@@ -372,3 +373,78 @@ def test_results_are_written_with_units(result, tmp_path):
     )
     assert len(summary["counts"]) == 5 and summary["counts"][0]["links"] > 1000
     assert set(summary["subsets"]) == {"3 largest dt", "smallest and largest dt"}
+
+
+def _run_from_snapshots(k, dt, rows, processed):
+    """A RunParticles from {snapshot: (positions, displacements, used)}, rows as given."""
+    ids = sorted(rows)
+    sizes = [len(rows[m][0]) for m in ids]
+    used = np.concatenate([rows[m][2] for m in ids])
+    return RunParticles(
+        k=k,
+        dt=dt,
+        positions=np.concatenate([rows[m][0] for m in ids]),
+        displacements=np.concatenate([rows[m][1] for m in ids]),
+        offsets=np.concatenate([[0], np.cumsum(sizes)]),
+        snapshot_ids=np.array(ids),
+        detections=np.zeros((len(processed), 2, 2), dtype=np.int64),
+        matches=np.zeros((len(processed), 2), dtype=np.int64),
+        links=np.array([len(rows[m][0]) if m in rows else 0 for m in processed]),
+        processed=np.array(processed),
+        in_analysis=used,
+        outlier=np.zeros(len(used), dtype=bool),
+    )
+
+
+def test_shared_snapshots_join_the_particles_used_at_every_dt():
+    rng = np.random.default_rng(31)
+    dt, snapshots, particles = np.array([1e-4, 2e-4, 3e-4]), 4, 8
+    x = rng.uniform(-0.03, 0.03, size=(snapshots, particles, 3))
+    v = rng.normal(size=(snapshots, particles, 3)) * 0.2
+    # Per run: particles missing (no link), particles not used, a missing snapshot, and a
+    # frame-a position one ulp off (no longer the same measured X(t)).
+    missing = {(1, 0): [2], (1, 2): [5], (0, 3): [6]}
+    unused = {(0, 0): [7], (2, 2): [3]}
+    moved = {(1, 3): [0]}
+    skipped = {(2, 1)}
+    runs = []
+    for k, step in enumerate(dt):
+        rows = {}
+        for m in range(snapshots):
+            if (k, m) in skipped:
+                continue
+            keep = rng.permutation(np.setdiff1d(np.arange(particles), missing.get((k, m), [])))
+            positions = x[m, keep].copy()
+            for p in moved.get((k, m), []):
+                row = np.flatnonzero(keep == p)[0]
+                positions[row, 0] = np.nextafter(positions[row, 0], np.inf)
+            used = ~np.isin(keep, unused.get((k, m), []))
+            rows[m] = (positions, v[m, keep] * step, used)
+        runs.append(_run_from_snapshots(k, float(step), rows, list(range(snapshots))))
+
+    joined = shared_snapshots(runs)
+
+    expected = {0: {0, 1, 3, 4, 5, 6}, 2: {0, 1, 2, 4, 6, 7}, 3: {1, 2, 3, 4, 5, 7}}
+    assert len(joined) == len(expected)
+    for (positions, displacements), (m, ids) in zip(joined, expected.items(), strict=True):
+        assert positions.shape == (len(ids), 3)
+        assert displacements.shape == (len(ids), len(dt), 3)
+        particle_ids = [int(np.flatnonzero(np.all(x[m] == row, axis=1))[0]) for row in positions]
+        assert set(particle_ids) == ids and len(particle_ids) == len(ids)
+        for k, step in enumerate(dt):
+            assert np.array_equal(displacements[:, k], v[m, particle_ids] * step)
+
+
+def test_shared_snapshots_of_runs_with_no_common_particle_are_empty():
+    dt = [1e-4, 2e-4, 3e-4, 4e-4]
+    runs = [
+        _run_from_snapshots(
+            k,
+            step,
+            {0: (np.full((1, 3), float(k)), np.full((1, 3), step), np.ones(1, dtype=bool))},
+            [0],
+        )
+        for k, step in enumerate(dt)
+    ]
+    ((positions, displacements),) = shared_snapshots(runs)
+    assert positions.shape == (0, 3) and displacements.shape == (0, len(dt), 3)

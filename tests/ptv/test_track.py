@@ -3,7 +3,14 @@
 import numpy as np
 import pytest
 
-from ptv.track import Tracks, link, search_radius, skip_pairs, track_frames
+from ptv.track import (
+    Tracks,
+    link,
+    search_radius,
+    skip_pairs,
+    track_frames,
+    trajectory_residuals,
+)
 from simulator.particles import SHEET, Box, double_frame, time_resolved
 from simulator.presets import flow_preset
 from simulator.spectra import PopeSpectrum
@@ -240,3 +247,54 @@ def test_skip_pairs_from_tracked_flow_match_the_truth():
         exact = truth[pairs.frame + m, particle] - truth[pairs.frame, particle]
         # Measured increments carry the noise of two positions, nothing more.
         assert np.all(np.abs(pairs.displacements[:, k] - exact) < 6 * np.sqrt(2) * SIGMA)
+
+
+def quadratic_displacements(dt, rng, particles=20):
+    """ΔX_k = c + uΔt_k + ½aΔt_k² with c of the noise scale and typical u, a, m."""
+    c = rng.normal(size=(particles, 1, 3)) * 10e-6
+    u = rng.normal(size=(particles, 1, 3)) * U_RMS
+    a = rng.normal(size=(particles, 1, 3)) * 20.0
+    t = np.asarray(dt)[None, :, None]
+    return c + u * t + 0.5 * a * t**2
+
+
+@pytest.mark.parametrize("dt", [PRESET.dt, PRESET.dt[:4], np.array([1e-4, 3e-4, 4e-4, 9e-4, 2e-3])])
+def test_trajectory_residuals_vanish_on_quadratic_paths(dt):
+    d = quadratic_displacements(dt, np.random.default_rng(11))
+    residuals = trajectory_residuals(dt, d)
+    assert residuals.shape == (len(d),)
+    # Round-off only: displacements are ~0.1 mm, a mislink or noise is ≥ 1 µm.
+    assert np.all(residuals < 1e-15)
+    assert np.all(residuals < 1e-12 * np.abs(d).max(axis=(1, 2)))
+
+
+def test_a_jump_at_one_dt_gives_its_least_squares_residual():
+    dt = PRESET.dt
+    d = quadratic_displacements(dt, np.random.default_rng(12))
+    jump, k, mislinked = np.array([120e-6, -50e-6, 80e-6]), 2, 5
+    d[mislinked, k] += jump
+    residuals = trajectory_residuals(dt, d)
+    # The residual of a unit vector e_k off span(1, Δt, Δt²) has squared norm 1 − H_kk,
+    # H the hat matrix, so the RMS over K Δt and 3 components is |J| sqrt((1 − H_kk)/3K).
+    q, _ = np.linalg.qr(np.vander(dt, 3))
+    leverage = np.sum(q[k] ** 2)
+    expected = np.linalg.norm(jump) * np.sqrt((1 - leverage) / (3 * len(dt)))
+    assert residuals[mislinked] == pytest.approx(expected, rel=1e-9)
+    assert residuals[mislinked] > np.linalg.norm(jump) / 10
+    others = np.delete(residuals, mislinked)
+    assert np.all(others < 1e-6 * expected)
+
+
+@pytest.mark.parametrize(
+    ("dt", "shape", "message"),
+    [
+        (PRESET.dt[:3], (4, 3, 3), "at least 4"),
+        (np.ones((2, 4)), (4, 8, 3), "at least 4"),
+        (PRESET.dt, (4, 4, 3), "shape"),
+        (PRESET.dt, (4, 5, 2), "shape"),
+        (PRESET.dt, (5, 3), "shape"),
+    ],
+)
+def test_trajectory_residuals_reject_too_few_dt_and_wrong_shapes(dt, shape, message):
+    with pytest.raises(ValueError, match=message):
+        trajectory_residuals(dt, np.zeros(shape))

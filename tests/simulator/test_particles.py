@@ -12,6 +12,7 @@ from simulator.particles import (
     follow_snapshots,
     integrate,
     max_step,
+    shared_start,
     time_resolved,
 )
 from simulator.presets import flow_preset
@@ -141,3 +142,52 @@ def test_bad_sizes_are_rejected():
         time_resolved(SPECTRUM, 1e-4, 1, particles=10, snapshots=1)
     with pytest.raises(ValueError, match="box size"):
         Box((0.1, -0.1, 0.01))
+
+
+@pytest.fixture(scope="module")
+def shared():
+    kw = dict(particles=150, snapshots=3, n_modes=60, rng=21)
+    return shared_start(SPECTRUM, PRESET.dt, **kw), follow_snapshots(
+        SPECTRUM, np.concatenate([[0.0], PRESET.dt]), **kw
+    )
+
+
+def test_shared_start_runs_share_frame_a_bit_for_bit(shared):
+    sample, _ = shared
+    assert sample.shared_first_frame is True
+    assert np.array_equal(sample.dt, PRESET.dt) and len(sample.runs) == len(PRESET.dt)
+    first = sample.runs[0]
+    assert first.positions.shape[:2] == (3, 2)
+    for run in sample.runs[1:]:
+        assert np.array_equal(run.positions[:, 0], first.positions[:, 0])
+        assert np.array_equal(run.velocity[:, 0], first.velocity[:, 0])
+        assert np.array_equal(run.acceleration[:, 0], first.acceleration[:, 0])
+    # The snapshots themselves are independent realizations.
+    assert not np.array_equal(first.positions[0, 0], first.positions[1, 0])
+
+
+def test_shared_start_second_frames_are_the_same_particles_at_each_dt(shared):
+    sample, followed = shared
+    cubic = []
+    for k, (run, dt) in enumerate(zip(sample.runs, PRESET.dt, strict=True)):
+        assert np.array_equal(run.times, [0.0, dt])
+        assert np.array_equal(run.positions[:, 1], followed.positions[:, k + 1])
+        assert np.array_equal(run.velocity[:, 1], followed.velocity[:, k + 1])
+        x0, v, a = run.positions[:, 0], run.velocity[:, 0], run.acceleration[:, 0]
+        remainder = run.positions[:, 1] - (x0 + v * dt + 0.5 * a * dt**2)
+        cubic.append(np.abs(remainder).max() / dt**3)
+    # X(Δt) − (X + vΔt + ½aΔt²) = ȧΔt³/6 + … for the same particles at every Δt (the
+    # cubic term is large in KS, see the Taylor test above): a frame b taken at another
+    # Δt would add a first-order term, hundreds of times larger, and break the Δt³ scaling.
+    assert max(cubic) < 3 * min(cubic), cubic
+
+
+@pytest.mark.parametrize("dt", [[2e-4, 1e-4], [1e-4, 1e-4], [1e-4, 3e-4, 2e-4]])
+def test_shared_start_needs_strictly_increasing_dt(dt):
+    with pytest.raises(ValueError, match="increase"):
+        shared_start(SPECTRUM, dt, particles=10, snapshots=1, n_modes=10)
+
+
+def test_shared_start_rejects_nonpositive_dt():
+    with pytest.raises(ValueError, match="dt"):
+        shared_start(SPECTRUM, [0.0, 1e-4], particles=10, snapshots=1, n_modes=10)

@@ -1,0 +1,192 @@
+"""Scenarios: presets load, dict round trip, errors that name file and field, rig paths."""
+
+import json
+import shutil
+from dataclasses import replace
+from importlib import resources
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from simulator.presets import flow_preset
+from simulator.rigs import load_rig
+from validation.scenario import (
+    PtvSection,
+    ScenarioError,
+    load_scenario,
+    scenario_from_dict,
+    scenario_presets,
+)
+
+RIG_PRESET = resources.files("simulator") / "rig_presets" / "paper-stereo.toml"
+
+
+def write(path, text):
+    """Write ``text`` to ``path`` (its folders created) and return the path."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def json_round_trip(scenario):
+    """The scenario as it comes back from a JSON file: tuples become lists."""
+    return scenario_from_dict(json.loads(json.dumps(scenario.as_dict(), allow_nan=False)))
+
+
+def test_the_shipped_presets_include_the_documented_ones():
+    assert {"default", "paper-8hz", "paper-10hz", "paper-12hz"} <= set(scenario_presets())
+
+
+@pytest.mark.parametrize("name", scenario_presets())
+def test_every_preset_loads_with_a_usable_flow_and_rig(name):
+    scenario = load_scenario(name)
+    assert scenario.name == name
+    assert set(scenario.ptv.methods) <= set(scenario.calibration.methods)
+    flow_preset(scenario.flow.preset)
+    load_rig(scenario.rig.name)
+
+
+@pytest.mark.parametrize("name", scenario_presets())
+def test_presets_round_trip_through_json(name):
+    scenario = load_scenario(name)
+    assert json_round_trip(scenario) == scenario
+
+
+@given(
+    seed=st.integers(0, 2**63 - 1),
+    count=st.integers(1, 10**6),
+    electrons=st.floats(1e-3, 1e6),
+    gain=st.floats(1e-3, 10.0),
+    r_low=st.floats(1e-6, 1e-2),
+    r_ratio=st.floats(1.001, 1e3),
+    shared=st.booleans(),
+)
+def test_any_valid_scenario_round_trips_through_json(
+    seed, count, electrons, gain, r_low, r_ratio, shared
+):
+    base = load_scenario("default")
+    scenario = replace(
+        base,
+        seed=seed,
+        particles=replace(
+            base.particles, count=count, electrons=electrons, shared_first_frame=shared
+        ),
+        sensor=replace(base.sensor, gain=gain),
+        ptv=replace(base.ptv, r_range=(r_low, r_low * r_ratio)),
+    )
+    assert json_round_trip(scenario) == scenario
+
+
+def test_missing_tables_and_fields_take_the_defaults(tmp_path):
+    scenario = load_scenario(write(tmp_path / "minimal.toml", 'name = "minimal"\n'))
+    assert scenario.seed == 0 and scenario.description == ""
+    assert scenario.ptv == PtvSection()
+    assert json_round_trip(scenario) == scenario
+
+
+def test_an_integer_is_accepted_for_a_float_field(tmp_path):
+    path = write(tmp_path / "s.toml", 'name = "s"\n[particles]\nelectrons = 1500\n')
+    electrons = load_scenario(path).particles.electrons
+    assert electrons == 1500.0 and type(electrons) is float
+
+
+@pytest.mark.parametrize(
+    ("body", "field"),
+    [
+        ("[camera]\nexposure = 1.0\n", "camera"),
+        ('[flow]\nturbulence = "strong"\n', "turbulence"),
+        ("flow = 3\n", "[flow]"),
+        ('[particles]\ncount = "many"\n', "count"),
+        ("[particles]\ncount = 2000.0\n", "count"),
+        ("[particles]\nshared_first_frame = 1\n", "shared_first_frame"),
+        ('[ptv]\nmethods = "tsai"\n', "methods"),
+        ("seed = -1\n", "seed"),
+        ("seed = 1.5\n", "seed"),
+        ("[sensor]\ngain = -0.4\n", "gain"),
+        ('[flow]\npreset = "lem-11hz"\n', "flow.preset"),
+        ('[flow]\nspectrum = "von-karman"\n', "flow.spectrum"),
+        ('[calibration]\nmethods = ["model-free", "dlt"]\n', "calibration.methods"),
+        ('[calibration]\nplate = "warped"\n', "calibration.plate"),
+        (
+            '[calibration]\nmethods = ["model-free"]\n[ptv]\nmethods = ["model-free", "tsai"]\n',
+            "ptv.methods",
+        ),
+        ("[calibration]\nplanes = 2\n", "calibration.planes"),
+        ("[particles]\nframes = 1\n", "particles.frames"),
+        ("[particles]\ndiameter = 0.0\n", "particles.diameter"),
+        ("[ptv]\nanalysis_volume = [0.07, 0.07]\n", "ptv.analysis_volume"),
+        ("[ptv]\nr_range = [35e-3, 0.5e-3]\n", "ptv.r_range"),
+        ("[ptv]\nr_range = [0.0, 35e-3]\n", "ptv.r_range"),
+        ("[ptv]\nr_range = [-1e-3, 35e-3]\n", "ptv.r_range"),
+        ("[ptv]\nplateau = [2e-3, 2e-3]\n", "ptv.plateau"),
+        ("[ptv]\nr_range = [1e-3]\n", "ptv.r_range"),
+        ('[ptv]\nr_range = ["0.5 mm", "35 mm"]\n', "ptv.r_range"),
+        ('[rig]\nname = "no-such-rig"\n', "rig.name"),
+    ],
+)
+def test_bad_fields_are_errors_that_name_the_file_and_the_field(tmp_path, body, field):
+    path = write(tmp_path / "bad.toml", f'name = "bad"\n{body}')
+    with pytest.raises(ScenarioError) as error:
+        load_scenario(path)
+    assert str(path) in str(error.value)
+    assert field in str(error.value)
+
+
+def test_a_scenario_without_a_name_is_an_error(tmp_path):
+    path = write(tmp_path / "anonymous.toml", "seed = 3\n")
+    with pytest.raises(ScenarioError, match="name") as error:
+        load_scenario(path)
+    assert str(path) in str(error.value)
+
+
+def test_invalid_toml_is_an_error_naming_the_file(tmp_path):
+    path = write(tmp_path / "broken.toml", 'name = "broken"\n[flow\n')
+    with pytest.raises(ScenarioError, match="TOML") as error:
+        load_scenario(path)
+    assert str(path) in str(error.value)
+
+
+def test_a_missing_file_and_an_unknown_preset_are_clear_errors(tmp_path):
+    missing = tmp_path / "nowhere.toml"
+    with pytest.raises(ScenarioError, match="does not exist") as error:
+        load_scenario(missing)
+    assert str(missing) in str(error.value)
+    with pytest.raises(ScenarioError, match="'paper-11hz'") as error:
+        load_scenario("paper-11hz")
+    assert "default" in str(error.value)  # the message lists the presets
+
+
+@pytest.mark.parametrize("rig", ["myrig.toml", "rigs/myrig.toml"])
+def test_a_relative_rig_file_is_taken_relative_to_the_scenario_file(tmp_path, monkeypatch, rig):
+    folder = tmp_path / "cases"
+    rig_file = folder / rig
+    rig_file.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(RIG_PRESET, rig_file)
+    path = write(folder / "scenario.toml", f'name = "s"\n[rig]\nname = "{rig}"\n')
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    for given_path in (path, "../cases/scenario.toml"):
+        scenario = load_scenario(given_path)
+        assert (elsewhere / scenario.rig.name).resolve() == rig_file.resolve()
+        load_rig(scenario.rig.name)
+
+
+def test_absolute_rig_paths_and_rig_presets_are_kept(tmp_path):
+    absolute = tmp_path / "rigs" / "abs.toml"
+    absolute.parent.mkdir()
+    shutil.copyfile(RIG_PRESET, absolute)
+    for rig in (str(absolute), "conventional"):
+        path = write(tmp_path / "cases" / "s.toml", f'name = "s"\n[rig]\nname = "{rig}"\n')
+        assert load_scenario(path).rig.name == rig
+
+
+def test_with_seed_changes_only_the_seed():
+    scenario = load_scenario("default")
+    reseeded = scenario.with_seed(np.int64(scenario.seed + 7))
+    assert reseeded.seed == scenario.seed + 7 and type(reseeded.seed) is int
+    assert reseeded == replace(scenario, seed=scenario.seed + 7)
+    assert {**reseeded.as_dict(), "seed": scenario.seed} == scenario.as_dict()
+    assert scenario.seed == load_scenario("default").seed  # the original is untouched
