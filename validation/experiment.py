@@ -1,7 +1,7 @@
 """``synptv run``: a whole virtual experiment, from the flow to a report against truth.
 
-Stages (each a folder of ``out``, reused when its inputs are unchanged, see
-:mod:`validation.stages`):
+Stages (each a folder of ``out``, reused when its inputs and the synptv version are
+unchanged, see :mod:`validation.stages`):
 
 ``dataset/``            simulate and render (:func:`validation.dataset.write_dataset`)
 ``truth/``              sample-truth S2, exact D_LL, reference ε (:mod:`validation.flow_truth`)
@@ -20,7 +20,8 @@ import json
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
@@ -167,6 +168,7 @@ def run_stages(
         return outcome
 
     render_inputs = {
+        "synptv": version("synptv"),
         "format_version": FORMAT_VERSION,
         "seed": scenario.seed,
         "flow": scenario.as_dict()["flow"],
@@ -186,6 +188,7 @@ def run_stages(
         ),
     )
     settings_inputs = {
+        "synptv": version("synptv"),
         "ptv": scenario.as_dict()["ptv"],
         "seed": scenario.seed,
     }
@@ -226,6 +229,13 @@ def run_stages(
         {"dataset": dataset.key, "methods": list(scenario.calibration.methods)},
         build_calibrations,
     )
+    # The reference rungs have no links, so nothing for the trajectory test to catch; on
+    # noise-free trajectories it would only drop the particles of largest jerk.
+    unlinked = replace(settings, trajectory_threshold=None)
+
+    def statistics(runs):
+        return compute_statistics(runs, unlinked, shared_first_frame=data.shared_first_frame)
+
     voxel = object_pixel(truth_rig)
     cameras_true = dict(zip(truth_rig.camera_names, truth_rig.cameras, strict=True))
     ptv = {}
@@ -238,14 +248,8 @@ def run_stages(
             target.mkdir()
             tick = bar(f"ptv {variant}")
             if variant == "exact":
-                runs = exact_runs(truth_runs, settings)
-                result = PtvResult(
-                    data,
-                    data.cameras,
-                    settings,
-                    runs,
-                    compute_statistics(runs, settings, shared_first_frame=data.shared_first_frame),
-                )
+                runs = exact_runs(truth_runs, unlinked)
+                result = PtvResult(data, data.cameras, unlinked, runs, statistics(runs))
                 _save_ptv(result, target, truth_dict, "none: true trajectories")
                 return
             if variant == "detection":
@@ -258,14 +262,8 @@ def run_stages(
                         tick(count[0], total)
 
                 cams = [cameras_true[name] for name in data.cameras]
-                runs, quality = detected_runs(data, truth_runs, cams, settings, tick=step)
-                result = PtvResult(
-                    data,
-                    data.cameras,
-                    settings,
-                    runs,
-                    compute_statistics(runs, settings, shared_first_frame=data.shared_first_frame),
-                )
+                runs, quality = detected_runs(data, truth_runs, cams, unlinked, tick=step)
+                result = PtvResult(data, data.cameras, unlinked, runs, statistics(runs))
                 _save_ptv(result, target, truth_dict, "true cameras, truth-paired detections")
                 _save_detection(quality, target)
                 return
@@ -295,6 +293,7 @@ def _save_detection(quality, folder: Path) -> None:
             "found": quality.found.tolist(),
             "spurious": quality.spurious.tolist(),
             "position_noise_m": quality.position_noise.tolist(),
+            "dt": quality.dt.tolist(),
             "displacement_noise_m": quality.displacement_noise.tolist(),
             "peak_locking": {
                 name: {

@@ -17,7 +17,7 @@ from scipy.spatial import cKDTree
 from ptv.camera_model import CameraModel
 from ptv.dataset import Dataset
 from ptv.pipeline import PipelineSettings, detect_and_match
-from validation.truth_runs import TruthRun
+from validation.truth_runs import TruthRun, inside_box
 
 #: Nearest-neighbour distance within which pairs enter the rigid fit, m.
 _ALIGN_RADIUS = 0.5e-3
@@ -30,15 +30,19 @@ class MatchingQuality:
     Attributes
     ----------
     yield_fraction : float
-        Particles imaged by every camera that have a matched point within one voxel.
+        Particles in the analysis volume imaged by every camera that have a matched
+        point within one voxel.
     ghost_fraction : float
-        Matched points within one voxel of no particle.
+        Matched points in the analysis volume within one voxel of no particle.
+    sheet_yield_fraction, sheet_ghost_fraction : float
+        The same over the whole lit sheet, whose wings hold dim particles that the
+        detection misses more often.
     voxel : float
         The tolerance, m.
     particles : int
-        Particles imaged by every camera.
+        Particles in the analysis volume imaged by every camera.
     matches : int
-        Matched points.
+        Matched points in the analysis volume.
     rotation_deg : float
         Angle of the fitted rigid rotation (calibration frame → world), degrees.
     translation : ndarray, shape (3,)
@@ -47,6 +51,8 @@ class MatchingQuality:
 
     yield_fraction: float
     ghost_fraction: float
+    sheet_yield_fraction: float
+    sheet_ghost_fraction: float
     voxel: float
     particles: int
     matches: int
@@ -58,12 +64,19 @@ class MatchingQuality:
         return {
             "yield": self.yield_fraction,
             "ghost_fraction": self.ghost_fraction,
+            "sheet_yield": self.sheet_yield_fraction,
+            "sheet_ghost_fraction": self.sheet_ghost_fraction,
             "voxel_m": self.voxel,
             "particles": self.particles,
             "matches": self.matches,
             "frame_rotation_deg": self.rotation_deg,
             "frame_translation_m": self.translation.tolist(),
         }
+
+
+def _fraction(selected: np.ndarray, among: np.ndarray) -> float:
+    """Fraction of the ``among`` entries that are ``selected`` (0 if there are none)."""
+    return float(np.sum(selected & among) / max(int(among.sum()), 1))
 
 
 def rigid_fit(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -134,23 +147,30 @@ def score_matching(
             src.append(p[ok])
             dst.append(t[nearest[ok]])
         rotation, translation = rigid_fit(np.concatenate(src), np.concatenate(dst))
-    found = ghosts = total_matches = total_particles = 0
+    found, measured, particle_in, ghost, point_in = [], [], [], [], []
     for p, t, m in zip(points, particles, measurable, strict=True):
         moved = p @ rotation.T + translation
-        dist_to_particle = cKDTree(t).query(moved)[0]
-        ghosts += int(np.sum(dist_to_particle > voxel))
-        total_matches += len(p)
+        ghost.append(cKDTree(t).query(moved)[0] > voxel)
+        point_in.append(inside_box(moved, settings.analysis_volume))
+        hit = np.zeros(len(t), dtype=bool)
         if len(p):
-            dist_to_point = cKDTree(moved).query(t[m])[0]
-            found += int(np.sum(dist_to_point <= voxel))
-        total_particles += int(m.sum())
+            hit[m] = cKDTree(moved).query(t[m])[0] <= voxel
+        found.append(hit)
+        measured.append(m)
+        particle_in.append(inside_box(t, settings.analysis_volume))
+    found, measured, particle_in, ghost, point_in = (
+        np.concatenate(v) for v in (found, measured, particle_in, ghost, point_in)
+    )
+    scored = measured & particle_in
     angle = np.degrees(np.arccos(np.clip((np.trace(rotation) - 1) / 2, -1.0, 1.0)))
     return MatchingQuality(
-        yield_fraction=found / max(total_particles, 1),
-        ghost_fraction=ghosts / max(total_matches, 1),
+        yield_fraction=_fraction(found, scored),
+        ghost_fraction=_fraction(ghost, point_in),
+        sheet_yield_fraction=_fraction(found, measured),
+        sheet_ghost_fraction=_fraction(ghost, np.ones_like(ghost)),
         voxel=voxel,
-        particles=total_particles,
-        matches=total_matches,
+        particles=int(scored.sum()),
+        matches=int(point_in.sum()),
         rotation_deg=float(angle),
         translation=translation,
     )

@@ -48,7 +48,7 @@ def _plain(value: float, _position=None) -> str:
     return f"{value:g}"
 
 
-def _log_axis(axis, limits) -> None:
+def plain_log_axis(axis, limits) -> None:
     """Label a log axis with plain numbers: 1-2-3-4-5-6-8 steps within about a decade,
     1-2-5 up to three decades, decades beyond."""
     lo, hi = sorted(float(v) for v in limits)
@@ -69,8 +69,8 @@ def _log_axis(axis, limits) -> None:
 def _loglog(ax) -> None:
     ax.set_xscale("log")
     ax.set_yscale("log")
-    _log_axis(ax.xaxis, ax.get_xlim())
-    _log_axis(ax.yaxis, ax.get_ylim())
+    plain_log_axis(ax.xaxis, ax.get_xlim())
+    plain_log_axis(ax.yaxis, ax.get_ylim())
 
 
 def _fitted(result: PtvResult) -> np.ndarray:

@@ -1,4 +1,5 @@
-"""Figures of the ``synptv run`` report beyond the paper's: peak locking and the error budget."""
+"""Figures of the ``synptv run`` report beyond the paper's: peak locking, the error budget
+and the noise term c2 against the measured noise."""
 
 from collections.abc import Mapping
 
@@ -10,6 +11,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ptv.detect.peaklocking import PeakLocking
+from validation.comparison import NoisePrediction
+from validation.ptv_figures import plain_log_axis
 
 
 def peak_locking_figure(locking: Mapping[str, PeakLocking]) -> Figure:
@@ -62,10 +65,65 @@ def budget_figure(
         ok = np.isfinite(ratio) & np.isfinite(r)
         ax.plot(r[ok] * 1e3, ratio[ok], "o-", ms=3.5, lw=1.0, color=f"C{i}", label=name)
     ax.set_xscale("log")
+    plain_log_axis(ax.xaxis, ax.get_xlim())
     ax.set_ylim(0.8, 1.2)
     ax.set_xlabel("r (mm)")
     ax.set_ylabel("c1 / sample-truth S2")
     ax.set_title("Error budget: noise-free S2 of each measurement against the truth", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8, ncol=2)
+    return figure
+
+
+def noise_figure(
+    r: np.ndarray,
+    c2: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    prediction: NoisePrediction,
+    check_range: tuple[float, float],
+) -> Figure:
+    """The fitted noise term c2(r) of each measurement against the measured noise.
+
+    Parameters
+    ----------
+    r : ndarray, shape (B,)
+        Separations, m.
+    c2 : mapping of str to (ndarray (B,), ndarray (B,))
+        c2 and its standard error per variant, m² (NaN where not fitted).
+    prediction : NoisePrediction
+        c2 predicted from the displacement noise measured against the truth.
+    check_range : (float, float)
+        r range of the checks, m (shaded).
+    """
+    figure, ax = plt.subplots(figsize=(7.0, 4.4), layout="constrained")
+    um2 = 1e12
+    ax.axvspan(*(v * 1e3 for v in check_range), color="0.93", label="check range")
+    ok = np.isfinite(r)
+    ax.fill_between(
+        r[ok] * 1e3,
+        prediction.c2_low[ok] * um2,
+        prediction.c2[ok] * um2,
+        color="k",
+        alpha=0.15,
+        label="from the measured noise",
+    )
+    for i, (name, (value, se)) in enumerate(c2.items()):
+        fit = ok & np.isfinite(value)
+        ax.errorbar(
+            r[fit] * 1e3 * (1 + 0.015 * i),
+            value[fit] * um2,
+            yerr=se[fit] * um2,
+            fmt="o",
+            ms=3.5,
+            capsize=2,
+            color=f"C{i}",
+            label=name,
+        )
+    ax.set_xscale("log")
+    plain_log_axis(ax.xaxis, ax.get_xlim())
+    ax.set_ylim(bottom=0)
+    ax.set_xlabel("r (mm)")
+    ax.set_ylabel("c2 (µm²)")
+    ax.set_title("Noise term c2 of the multi-Δt fit against the measured noise", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, ncol=2)
     return figure

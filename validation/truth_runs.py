@@ -15,6 +15,7 @@ on the PTV stack's own links.
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import reduce
 from pathlib import Path
 
 import h5py
@@ -79,7 +80,8 @@ def read_truth(folder: Path) -> tuple[Rig, list[TruthRun]]:
     return rig, runs
 
 
-def _inside(points: np.ndarray, box) -> np.ndarray:
+def inside_box(points: np.ndarray, box) -> np.ndarray:
+    """Points (..., 3) inside the box (lower corner, upper corner), m, boundary included."""
     lower, upper = (np.asarray(v) for v in box)
     return np.all((points >= lower) & (points <= upper), axis=-1)
 
@@ -111,7 +113,7 @@ def _run_particles(
         matches=np.repeat(sizes[:, None], 2, axis=1),
         links=sizes,
         processed=np.arange(m, dtype=np.int64),
-        in_analysis=_inside(positions, settings.analysis_volume),
+        in_analysis=inside_box(positions, settings.analysis_volume),
         outlier=np.zeros(len(positions), dtype=bool),
     )
 
@@ -141,11 +143,17 @@ class DetectionQuality:
         Fraction of detections associated with no particle.
     fractional : dict of str to ndarray, shape (N, 2)
         Detected positions of the associated particles, px (for the peak-locking test).
+    dt : ndarray, shape (K,)
+        The time separations, s.
     position_noise : ndarray, shape (3,)
-        RMS of triangulated − true position per component (true cameras), m.
-    displacement_noise : ndarray, shape (3,)
-        RMS of measured − true ΔX per component, m (√2 × position noise when the noise
-        at t and t + Δt is independent).
+        RMS of triangulated − true position per component (true cameras), m, over the
+        particles whose true X(t) lies in the analysis volume (those the statistics use;
+        the dim ones in the sheet's wings are noisier).
+    displacement_noise : ndarray, shape (K, 3)
+        RMS of measured − true ΔX per Δt and component, m, same particles (√2 × the
+        position noise when the noise at t and t + Δt is independent; less, and growing
+        with Δt, when part of the error, such as a neighbour's overlapping image, is
+        common to both frames).
     """
 
     cameras: tuple[str, ...]
@@ -153,6 +161,7 @@ class DetectionQuality:
     found: np.ndarray
     spurious: np.ndarray
     fractional: dict
+    dt: np.ndarray
     position_noise: np.ndarray
     displacement_noise: np.ndarray
 
@@ -205,10 +214,10 @@ def detected_runs(
     n_visible, n_found = np.zeros(n_cam), np.zeros(n_cam)
     n_detected, n_spurious = np.zeros(n_cam), np.zeros(n_cam)
     fractional = {name: [] for name in names}
-    pos_err, disp_err = [], []
+    errors = []  # per Δt: {snapshot: (particle indices, position error, ΔX error)}
     runs = []
     for k, run in enumerate(truth):
-        per_snapshot = []
+        per_snapshot, run_errors = [], {}
         for snap in dataset.snapshots(k, limit=settings.snapshots):
             rows = []  # per frame: (P, C) detection row per camera
             centres = []  # per frame and camera: detected xy
@@ -239,20 +248,51 @@ def detected_runs(
                 pixels = [centres[f][c][rows[f][both, c]] for c in range(n_cam)]
                 ends.append(triangulate(cameras, pixels).points)
             true_ends = run.positions[snap.m][:, both]
-            pos_err.append(np.concatenate([ends[0] - true_ends[0], ends[1] - true_ends[1]]))
-            disp_err.append((ends[1] - ends[0]) - (true_ends[1] - true_ends[0]))
+            inside = inside_box(true_ends[0], settings.analysis_volume)
+            run_errors[snap.m] = (
+                np.flatnonzero(both)[inside],
+                ends[0][inside] - true_ends[0][inside],
+                (ends[1] - ends[0])[inside] - (true_ends[1] - true_ends[0])[inside],
+            )
             per_snapshot.append((ends[0], ends[1]))
             if tick is not None:
                 tick()
         runs.append(_run_particles(k, run.dt, per_snapshot, settings, n_cam))
-    pe, de = np.concatenate(pos_err), np.concatenate(disp_err)
+        errors.append(run_errors)
+    position_noise, displacement_noise = _noise_rms(errors, shared=dataset.shared_first_frame)
     quality = DetectionQuality(
         cameras=tuple(names),
         rms_error_px=np.sqrt(sq_err / np.maximum(n_err, 1)[:, None]),
         found=n_found / np.maximum(n_visible, 1),
         spurious=n_spurious / np.maximum(n_detected, 1),
         fractional={name: np.concatenate(v) for name, v in fractional.items()},
-        position_noise=np.sqrt(np.nanmean(pe**2, axis=0)),
-        displacement_noise=np.sqrt(np.nanmean(de**2, axis=0)),
+        dt=np.array([run.dt for run in truth]),
+        position_noise=position_noise,
+        displacement_noise=displacement_noise,
     )
     return runs, quality
+
+
+def _noise_rms(errors: Sequence[dict], *, shared: bool) -> tuple[np.ndarray, np.ndarray]:
+    """RMS position noise (3,) and displacement noise per Δt (K, 3) of the scored particles.
+
+    ``errors[k][m]`` holds (particle indices, position errors (N, 3), ΔX errors (N, 3)) of
+    snapshot m at Δt_k. With a shared first frame the statistics use only the particles
+    found at every Δt (:func:`ptv.pipeline.shared_snapshots`), which are less often
+    overlapped by a neighbour and so less noisy: the noise is measured on them too.
+    """
+    if shared:
+        snapshots = sorted(set.intersection(*(set(e) for e in errors)))
+        common = {m: reduce(np.intersect1d, [e[m][0] for e in errors]) for m in snapshots}
+        errors = [
+            {m: tuple(a[np.isin(e[m][0], common[m])] for a in e[m]) for m in snapshots}
+            for e in errors
+        ]
+
+    def rms(arrays) -> np.ndarray:
+        stacked = np.concatenate(list(arrays)) if arrays else np.empty((0, 3))
+        return np.sqrt(np.mean(stacked**2, axis=0)) if len(stacked) else np.full(3, np.nan)
+
+    position = rms([v[1] for v in errors[0].values()])
+    displacement = np.array([rms([v[2] for v in e.values()]) for e in errors])
+    return position, displacement

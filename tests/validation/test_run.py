@@ -1,0 +1,133 @@
+"""``synptv run`` end to end on a tiny scenario: the report, stage reuse after an
+interruption, reproducibility, and the error budget's noise-free rung against truth."""
+
+import json
+import re
+import shutil
+
+import pytest
+
+import validation.experiment
+from validation.cli import main
+
+TINY = """\
+name = "tiny"
+description = "a tiny end-to-end run"
+seed = 3
+
+[calibration]
+planes = 3
+methods = ["model-free", "tsai"]
+
+[particles]
+count = 300
+frames = 4
+
+[ptv]
+methods = ["model-free"]
+bins = 8
+n_boot = 20
+"""
+
+STAGES = ["render", "truth", "calibrate", "ptv exact", "ptv detection", "ptv true-cameras"]
+
+
+class Interrupted(Exception):
+    """Stands for a KeyboardInterrupt in the last stage."""
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Run A is interrupted in its last stage, then resumed; run B is a fresh copy."""
+    root = tmp_path_factory.mktemp("run")
+    scenario = root / "tiny.toml"
+    scenario.write_text(TINY)
+    score = validation.experiment.score_matching
+
+    def interrupt_for_model_free(data, truth, cameras, settings, *, voxel):
+        if type(cameras[0]).__name__ != "Camera":  # a calibration, not the true cameras
+            raise Interrupted
+        return score(data, truth, cameras, settings, voxel=voxel)
+
+    argv = ["run", "--scenario", str(scenario), "--quiet", "--out"]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(validation.experiment, "score_matching", interrupt_for_model_free)
+        with pytest.raises(Interrupted):
+            main([*argv, str(root / "a")])
+    left_by_interruption = sorted(p.name for p in (root / "a").rglob("*"))
+    status_a = main([*argv, str(root / "a")])
+    status_b = main([*argv, str(root / "b")])
+    return root, left_by_interruption, status_a, status_b
+
+
+def test_an_interrupted_run_leaves_no_partial_output(runs):
+    _, left, _, _ = runs
+    assert "results.json" not in left and "report.html" not in left
+    assert "model-free" not in left  # the interrupted stage's folder never appeared
+    assert not [name for name in left if ".partial-" in name]
+
+
+def test_the_resumed_run_reuses_the_stages_finished_before_the_interruption(runs):
+    root, _, _, _ = runs
+    reused = json.loads((root / "a" / "run_log.json").read_text())["reused"]
+    assert reused == {**dict.fromkeys(STAGES, True), "ptv model-free": False}
+    fresh = json.loads((root / "b" / "run_log.json").read_text())["reused"]
+    assert not any(fresh.values())
+
+
+def test_the_same_scenario_and_seed_give_identical_results(runs):
+    root, _, _, _ = runs
+    assert (root / "a" / "results.json").read_bytes() == (root / "b" / "results.json").read_bytes()
+
+
+def test_the_exit_status_says_whether_every_check_passed(runs):
+    root, _, status_a, status_b = runs
+    checks = json.loads((root / "a" / "results.json").read_text())["must_hold"]
+    assert status_a == status_b == (0 if all(c["passed"] for c in checks) else 1)
+
+
+def test_the_report_shows_every_figure_it_names(runs):
+    root, _, _, _ = runs
+    page = (root / "a" / "report.html").read_text()
+    images = re.findall(r'<img src="([^"]+)"', page)
+    assert {"calibrations/fig3_error_maps.png", "figures/error_budget.png"} <= set(images)
+    assert "ptv/model-free/fig6a_s2.png" in images
+    for image in images:
+        assert (root / "a" / image).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", image
+
+
+def test_results_hold_table1_table3_and_the_error_budget(runs):
+    root, _, _, _ = runs
+    results = json.loads((root / "a" / "results.json").read_text())
+    assert set(results["calibration"]["table1"]) == {"model-free", "tsai"}
+    assert [row["variant"] for row in results["error_budget"]] == [
+        "exact",
+        "detection",
+        "true-cameras",
+        "model-free",
+    ]
+    quantities = [row["quantity"] for row in results["table3"]]
+    assert quantities[:2] == ["u' (m/s)", "ε (m²/s³)"]
+
+
+def test_noise_free_trajectories_give_the_sample_truth_within_their_error(runs):
+    """The exact rung sees the sample truth's particle pairs without noise: what remains is
+    the finite-Δt term δv·δa Δt, whose mean over the few pairs of a tiny run is not yet
+    zero; the bootstrap error covers it (3 standard errors in every bin)."""
+    root, _, _, _ = runs
+    checks = json.loads((root / "a" / "results.json").read_text())["ptv"]["exact"]["checks"]
+    assert checks["c1"]["bins"] >= 3
+    assert checks["c1"]["max_deviation_in_se"] <= 3.0
+    assert abs(checks["c2"]["median_m2"]) < 1e-12  # no noise: |c2| ≪ (1 µm)²
+
+
+def test_a_finished_run_can_be_moved_and_reported_again(runs, tmp_path):
+    root, _, _, _ = runs
+    moved = tmp_path / "moved"
+    shutil.copytree(root / "a", moved)
+    before = (moved / "results.json").read_bytes()
+    scenario = root / "tiny.toml"
+    main(["run", "--scenario", str(scenario), "--quiet", "--out", str(moved)])
+    reused = json.loads((moved / "run_log.json").read_text())["reused"]
+    assert all(reused.values())
+    assert (moved / "results.json").read_bytes() == before
