@@ -84,6 +84,7 @@ from ptv.track import link, search_radius, trajectory_residuals
 __all__ = [
     "ANALYSIS_VOLUME",
     "MEASUREMENT_VOLUME",
+    "FramePoints",
     "MeanDisplacement",
     "PipelineSettings",
     "PtvResult",
@@ -94,6 +95,7 @@ __all__ = [
     "compute_statistics",
     "detect_and_match",
     "link_radius",
+    "measure_frame",
     "measure_run",
     "measure_snapshot",
     "median_test_outliers",
@@ -370,12 +372,29 @@ def detect_and_match(
     return found, matches
 
 
+#: One frame of every camera measured: detections per camera and the matched points (N, 3).
+FramePoints = tuple[list[int], np.ndarray]
+
+
+def measure_frame(
+    images: Sequence[np.ndarray],
+    cameras: Sequence[CameraModel],
+    settings: PipelineSettings,
+    *,
+    saturation: float | None = None,
+) -> FramePoints:
+    """The detection count per camera and the matched 3-D points, m, of one frame."""
+    found, matched = detect_and_match(images, cameras, settings, saturation=saturation)
+    return [len(d) for d in found], matched.points
+
+
 def measure_snapshot(
     snapshot: Snapshot,
     cameras: Sequence[CameraModel],
     settings: PipelineSettings,
     *,
     saturation: float | None = None,
+    frame_a: FramePoints | None = None,
 ) -> SnapshotMeasurement:
     """Detect, match (frames a and b) and link one snapshot.
 
@@ -389,6 +408,8 @@ def measure_snapshot(
         Volume, tolerance, link radius, detection threshold.
     saturation : float, optional
         Saturation level of the images, DN (None: the dtype's maximum).
+    frame_a : FramePoints, optional
+        Frame a already measured (:func:`measure_frame`), as when every Δt shares it.
 
     Returns
     -------
@@ -401,11 +422,14 @@ def measure_snapshot(
         )
     points, detections, matches = [], [], []
     for frame in ("a", "b"):
-        images = [getattr(pair, frame) for pair in snapshot.frames]
-        found, matched = detect_and_match(images, cameras, settings, saturation=saturation)
-        detections.append([len(d) for d in found])
+        if frame == "a" and frame_a is not None:
+            counts, matched = frame_a
+        else:
+            images = [getattr(pair, frame) for pair in snapshot.frames]
+            counts, matched = measure_frame(images, cameras, settings, saturation=saturation)
+        detections.append(counts)
         matches.append(len(matched))
-        points.append(matched.points)
+        points.append(matched)
     if len(points[0]) and len(points[1]):
         links = link(points[0], points[1], radius=link_radius(snapshot.dt, settings))
         positions, displacements = links.positions, links.displacements
@@ -515,6 +539,7 @@ def measure_run(
     settings: PipelineSettings,
     *,
     tick: Callable[[], None] | None = None,
+    first_frames: dict[int, FramePoints] | None = None,
 ) -> RunParticles:
     """Process every snapshot of the run at Δt_k (the first ``settings.snapshots``).
 
@@ -530,6 +555,9 @@ def measure_run(
         Options.
     tick : callable, optional
         Called after each snapshot.
+    first_frames : dict of int to FramePoints, optional
+        Frame a of each snapshot m, measured once for every Δt when the dataset shares
+        its first frames: read from, and filled with what is measured now.
 
     Returns
     -------
@@ -537,7 +565,17 @@ def measure_run(
     """
     kept, det, mat, lnk, processed = [], [], [], [], []
     for snap in dataset.snapshots(k, limit=settings.snapshots):
-        res = measure_snapshot(snap, cameras, settings, saturation=dataset.saturation)
+        frame_a = None
+        if first_frames is not None:
+            if snap.m not in first_frames:
+                images = [pair.a for pair in snap.frames]
+                first_frames[snap.m] = measure_frame(
+                    images, cameras, settings, saturation=dataset.saturation
+                )
+            frame_a = first_frames[snap.m]
+        res = measure_snapshot(
+            snap, cameras, settings, saturation=dataset.saturation, frame_a=frame_a
+        )
         processed.append(snap.m)
         det.append(res.detections)
         mat.append(res.matches)
@@ -1018,7 +1056,11 @@ def run_pipeline(
         if progress is not None:
             progress(done[0], total)
 
-    runs = [measure_run(dataset, k, cameras, settings, tick=tick) for k in range(dataset.n_dt)]
+    first_frames = {} if dataset.shared_first_frame else None
+    runs = [
+        measure_run(dataset, k, cameras, settings, tick=tick, first_frames=first_frames)
+        for k in range(dataset.n_dt)
+    ]
     for run in runs:
         log.info(
             "Δt_%d = %.4g s: %d snapshots, %d links (%d outliers; %d used), %d skipped",

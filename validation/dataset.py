@@ -26,6 +26,7 @@ complete, so an interrupted run leaves no half-written dataset.
 """
 
 import json
+import os
 import shutil
 import tempfile
 from collections.abc import Callable
@@ -157,11 +158,21 @@ def _write_plates(staging: Path, truth: h5py.File, rig: Rig, plate, settings, ti
         group.create_dataset(f"{name}/dots_on_sensor", data=np.stack(on_sensor))
 
 
+def _link_or_copy(source: Path, target: Path) -> None:
+    """Hard-link ``target`` to ``source``, or copy it where links are not possible."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        os.link(source, target)
+    except OSError:
+        shutil.copyfile(source, target)
+
+
 def _write_particles(staging: Path, truth: h5py.File, rig: Rig, sample, settings, tick) -> None:
     """Particle frame pairs per Δt and camera, and the particles' truth.
 
     With a shared first frame, frame a of snapshot m is recorded once per camera (one
-    exposure, one noise draw) and written for every Δt.
+    exposure, one noise draw), written for the first Δt and hard-linked for the others
+    (copied where the file system has no hard links).
     """
     rng = np.random.default_rng(settings.seed + 2)
     groups = []
@@ -182,19 +193,24 @@ def _write_particles(staging: Path, truth: h5py.File, rig: Rig, sample, settings
         xy = [np.empty((*shape, 2)) for _ in sample.runs]
         visible = [np.empty(shape, dtype=bool) for _ in sample.runs]
         for m in range(settings.frames):
-            shared = None
+            shared = shared_path = None
             if sample.shared_first_frame:
                 shared = record(camera, sample.runs[0].positions[m, 0])
                 tick()
             for k, run in enumerate(sample.runs):
                 for f, label in enumerate("ab"):
+                    path = staging / "particles" / f"dt{k}" / name / f"{m:06d}_{label}.tif"
                     if f == 0 and shared is not None:
                         frame = shared
+                        if shared_path is None:
+                            _write_tiff(path, frame.image)
+                            shared_path = path
+                        else:
+                            _link_or_copy(shared_path, path)
                     else:
                         frame = record(camera, run.positions[m, f])
                         tick()
-                    path = staging / "particles" / f"dt{k}" / name / f"{m:06d}_{label}.tif"
-                    _write_tiff(path, frame.image)
+                        _write_tiff(path, frame.image)
                     xy[k][m, f], visible[k][m, f] = frame.xy, frame.visible
         for k, group in enumerate(groups):
             group.create_dataset(f"{name}/xy", data=xy[k], compression="gzip")

@@ -25,6 +25,7 @@ from ptv.pipeline import (
     RunParticles,
     compute_statistics,
     detect_and_match,
+    measure_run,
     median_test_outliers,
     run_pipeline,
     shared_snapshots,
@@ -448,3 +449,18 @@ def test_shared_snapshots_of_runs_with_no_common_particle_are_empty():
     ]
     ((positions, displacements),) = shared_snapshots(runs)
     assert positions.shape == (0, 3) and displacements.shape == (0, len(dt), 3)
+
+
+def test_a_shared_first_frame_is_measured_once_with_the_same_result(rendered):
+    folder, _, calibrations = rendered
+    dataset = open_dataset(folder)
+    assert dataset.shared_first_frame
+    cameras = [calibrations[name] for name in dataset.cameras]
+    settings = PipelineSettings()
+    first_frames = {}
+    measure_run(dataset, 0, cameras, settings, first_frames=first_frames)
+    assert sorted(first_frames) == list(range(dataset.frames[0]))
+    cached = measure_run(dataset, 2, cameras, settings, first_frames=first_frames)
+    fresh = measure_run(dataset, 2, cameras, settings)
+    for name in ("positions", "displacements", "detections", "matches", "links", "outlier"):
+        assert np.array_equal(getattr(cached, name), getattr(fresh, name)), name

@@ -38,6 +38,19 @@ def test_layout_and_experiment_description(dataset):
                 assert (out / "particles" / f"dt{k}" / name / f"000000_{label}.tif").is_file()
 
 
+def test_a_shared_first_frame_is_one_exposure_for_every_dt(dataset):
+    out, rig = dataset
+    assert json.loads((out / "experiment.json").read_text())["shared_first_frame"] is True
+    with h5py.File(out / "truth.h5") as truth:
+        first = truth["particles/dt0/positions"][:, 0]
+        for k in range(1, 5):
+            assert np.array_equal(truth[f"particles/dt{k}/positions"][:, 0], first)
+    for name in rig.camera_names:
+        frames = [out / "particles" / f"dt{k}" / name / "000000_a.tif" for k in range(5)]
+        assert len({f.read_bytes() for f in frames}) == 1
+        assert len({f.read_bytes() for f in (frames[0], frames[0].with_name("000000_b.tif"))}) == 2
+
+
 def test_truth_is_consistent_with_the_cameras_and_the_images(dataset):
     out, rig = dataset
     with h5py.File(out / "truth.h5") as truth:
