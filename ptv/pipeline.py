@@ -52,6 +52,7 @@ Nothing here reads a ground truth, plots or prints; :mod:`ptv.results` writes th
 results, ``validation`` draws and compares.
 """
 
+import hashlib
 import logging
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -60,7 +61,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ptv.camera_model import CameraModel
-from ptv.dataset import Dataset, Snapshot, cameras_in_order
+from ptv.dataset import Dataset, DatasetError, Snapshot, cameras_in_order
 from ptv.detect import Detections, detect_particles
 from ptv.match import Matches, match
 from ptv.stats.dissipation import (
@@ -90,6 +91,7 @@ __all__ = [
     "PtvResult",
     "PtvStatistics",
     "RunParticles",
+    "SharedFirstFrames",
     "SnapshotMeasurement",
     "Subset",
     "compute_statistics",
@@ -388,6 +390,47 @@ def measure_frame(
     return [len(d) for d in found], matched.points
 
 
+class SharedFirstFrames:
+    """Frame a of each snapshot, measured once for every Δt of a dataset that shares it.
+
+    Each use checks that the images are the ones measured (a content digest per camera),
+    so a dataset that declares a shared first frame wrongly is an error, not a silent mix
+    of frames.
+    """
+
+    def __init__(self) -> None:
+        self._frames: dict[int, tuple[tuple[bytes, ...], FramePoints]] = {}
+
+    def __len__(self) -> int:
+        return len(self._frames)
+
+    def measure(
+        self, snapshot: Snapshot, measure: Callable[[list[np.ndarray]], FramePoints]
+    ) -> FramePoints:
+        """Frame a of ``snapshot``: ``measure(images)`` the first time, the stored result after.
+
+        Raises
+        ------
+        DatasetError
+            Frame a differs from the one stored for the same snapshot number.
+        """
+        images = [pair.a for pair in snapshot.frames]
+        digest = tuple(
+            hashlib.blake2b(np.ascontiguousarray(image), digest_size=16).digest()
+            for image in images
+        )
+        if snapshot.m not in self._frames:
+            self._frames[snapshot.m] = (digest, measure(images))
+        stored, points = self._frames[snapshot.m]
+        if stored != digest:
+            raise DatasetError(
+                f"{snapshot.frames[0].path_a}: the dataset declares a shared first frame, but "
+                f"frame a of snapshot {snapshot.m} at Δt_{snapshot.k} is not the one of the "
+                "first Δt"
+            )
+        return points
+
+
 def measure_snapshot(
     snapshot: Snapshot,
     cameras: Sequence[CameraModel],
@@ -539,7 +582,7 @@ def measure_run(
     settings: PipelineSettings,
     *,
     tick: Callable[[], None] | None = None,
-    first_frames: dict[int, FramePoints] | None = None,
+    first_frames: SharedFirstFrames | None = None,
 ) -> RunParticles:
     """Process every snapshot of the run at Δt_k (the first ``settings.snapshots``).
 
@@ -555,9 +598,9 @@ def measure_run(
         Options.
     tick : callable, optional
         Called after each snapshot.
-    first_frames : dict of int to FramePoints, optional
-        Frame a of each snapshot m, measured once for every Δt when the dataset shares
-        its first frames: read from, and filled with what is measured now.
+    first_frames : SharedFirstFrames, optional
+        Frame a of each snapshot, measured once for every Δt when the dataset shares its
+        first frames: read from, and filled with what is measured now.
 
     Returns
     -------
@@ -567,12 +610,12 @@ def measure_run(
     for snap in dataset.snapshots(k, limit=settings.snapshots):
         frame_a = None
         if first_frames is not None:
-            if snap.m not in first_frames:
-                images = [pair.a for pair in snap.frames]
-                first_frames[snap.m] = measure_frame(
+            frame_a = first_frames.measure(
+                snap,
+                lambda images: measure_frame(
                     images, cameras, settings, saturation=dataset.saturation
-                )
-            frame_a = first_frames[snap.m]
+                ),
+            )
         res = measure_snapshot(
             snap, cameras, settings, saturation=dataset.saturation, frame_a=frame_a
         )
@@ -1056,7 +1099,7 @@ def run_pipeline(
         if progress is not None:
             progress(done[0], total)
 
-    first_frames = {} if dataset.shared_first_frame else None
+    first_frames = SharedFirstFrames() if dataset.shared_first_frame else None
     runs = [
         measure_run(dataset, k, cameras, settings, tick=tick, first_frames=first_frames)
         for k in range(dataset.n_dt)

@@ -189,9 +189,9 @@ def _write_particles(staging: Path, truth: h5py.File, rig: Rig, sample, settings
         )
 
     for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
-        shape = sample.runs[0].positions.shape[:3]
-        xy = [np.empty((*shape, 2)) for _ in sample.runs]
-        visible = [np.empty(shape, dtype=bool) for _ in sample.runs]
+        # Independent runs seed different particle counts (the margin grows with Δt).
+        xy = [np.empty((*run.positions.shape[:3], 2)) for run in sample.runs]
+        visible = [np.empty(run.positions.shape[:3], dtype=bool) for run in sample.runs]
         for m in range(settings.frames):
             shared = shared_path = None
             if sample.shared_first_frame:

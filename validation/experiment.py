@@ -284,7 +284,7 @@ def run_stages(
 
 def _save_detection(quality, folder: Path) -> None:
     """detection.json and the fractional-position histograms (peak-locking diagnostic)."""
-    locking = {name: peak_locking(xy) for name, xy in quality.fractional.items()}
+    locking = {name: peak_locking(xy) for name, xy in quality.detected_xy.items()}
     _write_json(
         folder / "detection.json",
         {

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from simulator.rigs import load_rig
 from simulator.turbulence import TurbulenceParameters
 from validation.comparison import compare_variant, error_budget, float_array, predicted_noise
 from validation.experiment import REFERENCE_VARIANTS, ExperimentStages, pipeline_settings
@@ -60,6 +61,15 @@ def _table3(summary: dict, truth: dict) -> list[dict]:
             ("L_int = u'³/ε (cm)", rec["L_int"] * 100, p["L_int"] * 100, None),
         ]
     return [{"quantity": q, "recovered": v, "input": t, "reference": ref} for q, v, t, ref in rows]
+
+
+def _portable(scenario: Scenario) -> dict:
+    """The scenario as a dict that does not depend on where its files lie: a rig file is
+    named by its file name and described by its content."""
+    spec = scenario.as_dict()
+    rig = load_rig(scenario.rig.name)
+    spec["rig"] = {"name": Path(scenario.rig.name).name, "spec": rig.spec}
+    return spec
 
 
 def _must_hold(comparisons: dict, detection: dict, matching: dict, main: str) -> list[dict]:
@@ -184,7 +194,7 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     save_figure(noise_figure(r, c2, noise, check_range), figures / "noise.png")
     calibration = _read(stages.calibrations.folder / "table1.json")
     return {
-        "scenario": scenario.as_dict(),
+        "scenario": _portable(scenario),
         "flow": p,
         "truth": truth,
         "calibration": calibration,

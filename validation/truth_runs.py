@@ -141,7 +141,7 @@ class DetectionQuality:
         :data:`ASSOCIATION_RADIUS`.
     spurious : ndarray, shape (C,)
         Fraction of detections associated with no particle.
-    fractional : dict of str to ndarray, shape (N, 2)
+    detected_xy : dict of str to ndarray, shape (N, 2)
         Detected positions of the associated particles, px (for the peak-locking test).
     dt : ndarray, shape (K,)
         The time separations, s.
@@ -160,7 +160,7 @@ class DetectionQuality:
     rms_error_px: np.ndarray
     found: np.ndarray
     spurious: np.ndarray
-    fractional: dict
+    detected_xy: dict
     dt: np.ndarray
     position_noise: np.ndarray
     displacement_noise: np.ndarray
@@ -180,6 +180,65 @@ def _associate(detected: np.ndarray, exact: np.ndarray, visible: np.ndarray) -> 
     return out
 
 
+class _DetectionTally:
+    """Detection against the exact particle images, summed per camera over the frames."""
+
+    def __init__(self, names: Sequence[str]) -> None:
+        n = len(names)
+        self.sq_err = np.zeros((n, 2))
+        self.found, self.visible = np.zeros(n), np.zeros(n)
+        self.detected, self.spurious = np.zeros(n), np.zeros(n)
+        self.xy: list[list[np.ndarray]] = [[] for _ in names]
+
+    def add(self, c: int, detected: np.ndarray, exact: np.ndarray, visible, row) -> None:
+        """Camera c's detections (D, 2), the exact images (P, 2), visibility and rows (P,)."""
+        hit = row >= 0
+        self.sq_err[c] += np.sum((detected[row[hit]] - exact[hit]) ** 2, axis=0)
+        self.found[c] += hit.sum()
+        self.visible[c] += visible.sum()
+        self.detected[c] += len(detected)
+        self.spurious[c] += len(detected) - hit.sum()
+        self.xy[c].append(detected[row[hit]])
+
+
+def _triangulated_particles(
+    images, exact, visible, cameras, settings: PipelineSettings, saturation, tally
+) -> np.ndarray:
+    """Each particle's position from its detected centres in one frame of every camera.
+
+    Parameters
+    ----------
+    images : sequence of C ndarray
+        The frame of each camera.
+    exact, visible : sequences of C ndarray, shapes (P, 2) and (P,)
+        The exact image of every particle and whether it is imaged, per camera.
+    cameras : sequence of C CameraModel
+        The true cameras.
+    settings : PipelineSettings
+        Detection threshold.
+    saturation : float or None
+        Saturation level of the images, DN.
+    tally : _DetectionTally
+        Receives the detection statistics.
+
+    Returns
+    -------
+    ndarray, shape (P, 3)
+        Triangulated positions, m; NaN for particles not detected in every camera.
+    """
+    rows = []
+    for c, image in enumerate(images):
+        det = detect_particles(image, k=settings.threshold, saturation=saturation)
+        row = _associate(det.xy, exact[c], visible[c])
+        tally.add(c, det.xy, exact[c], visible[c], row)
+        rows.append((row, det.xy))
+    everywhere = np.all([row >= 0 for row, _ in rows], axis=0)
+    points = np.full((len(everywhere), 3), np.nan)
+    pixels = [xy[row[everywhere]] for row, xy in rows]
+    points[everywhere] = triangulate(cameras, pixels).points
+    return points
+
+
 def detected_runs(
     dataset: Dataset,
     truth: Sequence[TruthRun],
@@ -189,6 +248,10 @@ def detected_runs(
     tick: Callable[[], None] | None = None,
 ) -> tuple[list[RunParticles], DetectionQuality]:
     """Detected centres, paired with their particles by the truth, through the true cameras.
+
+    With a shared first frame, frame a of each snapshot is detected and triangulated once
+    for every Δt, so X(t) is the same bits at every Δt (the statistics join the Δt on it)
+    and the detection figures count each image once.
 
     Parameters
     ----------
@@ -208,45 +271,31 @@ def detected_runs(
     (list of RunParticles, DetectionQuality)
     """
     names = dataset.cameras
-    n_cam = len(names)
-    sq_err = np.zeros((n_cam, 2))
-    n_err = np.zeros(n_cam)
-    n_visible, n_found = np.zeros(n_cam), np.zeros(n_cam)
-    n_detected, n_spurious = np.zeros(n_cam), np.zeros(n_cam)
-    fractional = {name: [] for name in names}
+    tally = _DetectionTally(names)
+    shared_a: dict[int, np.ndarray] = {}  # frame a of each snapshot, when every Δt shares it
     errors = []  # per Δt: {snapshot: (particle indices, position error, ΔX error)}
     runs = []
     for k, run in enumerate(truth):
         per_snapshot, run_errors = [], {}
         for snap in dataset.snapshots(k, limit=settings.snapshots):
-            rows = []  # per frame: (P, C) detection row per camera
-            centres = []  # per frame and camera: detected xy
-            for f, frame in enumerate("ab"):
-                found_rows, found_xy = [], []
-                for c, (name, pair) in enumerate(zip(names, snap.frames, strict=True)):
-                    det = detect_particles(
-                        getattr(pair, frame), k=settings.threshold, saturation=dataset.saturation
-                    )
-                    exact = run.xy[name][snap.m, f]
-                    visible = run.visible[name][snap.m, f]
-                    row = _associate(det.xy, exact, visible)
-                    hit = row >= 0
-                    sq_err[c] += np.sum((det.xy[row[hit]] - exact[hit]) ** 2, axis=0)
-                    n_err[c] += hit.sum()
-                    n_visible[c] += visible.sum()
-                    n_found[c] += hit.sum()
-                    n_detected[c] += len(det.xy)
-                    n_spurious[c] += len(det.xy) - hit.sum()
-                    fractional[name].append(det.xy[row[hit]])
-                    found_rows.append(row)
-                    found_xy.append(det.xy)
-                rows.append(np.stack(found_rows, axis=1))
-                centres.append(found_xy)
-            both = np.all(rows[0] >= 0, axis=1) & np.all(rows[1] >= 0, axis=1)
-            ends = []
-            for f in range(2):
-                pixels = [centres[f][c][rows[f][both, c]] for c in range(n_cam)]
-                ends.append(triangulate(cameras, pixels).points)
+
+            def measured(f: int, snap=snap, run=run) -> np.ndarray:
+                images = [getattr(pair, "ab"[f]) for pair in snap.frames]
+                exact = [run.xy[name][snap.m, f] for name in names]
+                visible = [run.visible[name][snap.m, f] for name in names]
+                return _triangulated_particles(
+                    images, exact, visible, cameras, settings, dataset.saturation, tally
+                )
+
+            if dataset.shared_first_frame:
+                if snap.m not in shared_a:
+                    shared_a[snap.m] = measured(0)
+                start = shared_a[snap.m]
+            else:
+                start = measured(0)
+            end = measured(1)
+            both = np.isfinite(start[:, 0]) & np.isfinite(end[:, 0])
+            ends = (start[both], end[both])
             true_ends = run.positions[snap.m][:, both]
             inside = inside_box(true_ends[0], settings.analysis_volume)
             run_errors[snap.m] = (
@@ -254,18 +303,18 @@ def detected_runs(
                 ends[0][inside] - true_ends[0][inside],
                 (ends[1] - ends[0])[inside] - (true_ends[1] - true_ends[0])[inside],
             )
-            per_snapshot.append((ends[0], ends[1]))
+            per_snapshot.append(ends)
             if tick is not None:
                 tick()
-        runs.append(_run_particles(k, run.dt, per_snapshot, settings, n_cam))
+        runs.append(_run_particles(k, run.dt, per_snapshot, settings, len(names)))
         errors.append(run_errors)
     position_noise, displacement_noise = _noise_rms(errors, shared=dataset.shared_first_frame)
     quality = DetectionQuality(
         cameras=tuple(names),
-        rms_error_px=np.sqrt(sq_err / np.maximum(n_err, 1)[:, None]),
-        found=n_found / np.maximum(n_visible, 1),
-        spurious=n_spurious / np.maximum(n_detected, 1),
-        fractional={name: np.concatenate(v) for name, v in fractional.items()},
+        rms_error_px=np.sqrt(tally.sq_err / np.maximum(tally.found, 1)[:, None]),
+        found=tally.found / np.maximum(tally.visible, 1),
+        spurious=tally.spurious / np.maximum(tally.detected, 1),
+        detected_xy={n: np.concatenate(v) for n, v in zip(names, tally.xy, strict=True)},
         dt=np.array([run.dt for run in truth]),
         position_noise=position_noise,
         displacement_noise=displacement_noise,

@@ -1,5 +1,6 @@
 """Pair binning against a brute-force loop over pairs, and against exact linear fields."""
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given
@@ -61,3 +62,20 @@ def test_bad_shapes_and_values_are_rejected():
         LogBins(0.0, 1.0, 3)
     with pytest.raises(ValueError, match="n_bins"):
         LogBins(1e-3, 1.0, 0)
+
+
+def test_sums_do_not_depend_on_the_number_of_threads():
+    """Results must be reproducible on any machine: same bits on 1 thread and on all."""
+    rng = np.random.default_rng(4)
+    x = rng.uniform(-0.5, 0.5, (1500, 3)) * np.array([0.07, 0.07, 0.008])
+    d = rng.normal(size=(1500, 5, 3)) * 1e-5
+    bins = LogBins(5e-4, 0.035, 24)
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        single = pair_sums(x, d, bins)
+    finally:
+        numba.set_num_threads(threads)
+    every = pair_sums(x, d, bins)
+    for name in ("count", "sum_q", "sum_q2", "sum_r"):
+        assert np.array_equal(getattr(single, name), getattr(every, name)), name

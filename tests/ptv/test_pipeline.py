@@ -10,6 +10,7 @@ their nominal positions); displacements need no such map.
 import json
 import logging
 import os
+import shutil
 
 import h5py
 import numpy as np
@@ -23,6 +24,7 @@ from ptv.pipeline import (
     ANALYSIS_VOLUME,
     PipelineSettings,
     RunParticles,
+    SharedFirstFrames,
     compute_statistics,
     detect_and_match,
     measure_run,
@@ -275,10 +277,11 @@ def test_an_empty_frame_skips_its_snapshot(rendered, tmp_path, caplog):
     folder, _, calibrations = rendered
     copy = tmp_path / "ds"
     _link_dataset(folder, copy)
-    frame = copy / "particles" / "dt0" / "cam1" / "000000_a.tif"
-    shape = tifffile.imread(frame).shape
-    frame.unlink()
-    tifffile.imwrite(frame, np.zeros(shape, dtype=np.uint16))
+    for k in range(5):  # the shared first frame of snapshot 0, at every Δt
+        frame = copy / "particles" / f"dt{k}" / "cam1" / "000000_a.tif"
+        shape = tifffile.imread(frame).shape
+        frame.unlink()
+        tifffile.imwrite(frame, np.zeros(shape, dtype=np.uint16))
     with caplog.at_level(logging.WARNING, logger="ptv.pipeline"):
         res = run_pipeline(open_dataset(copy), calibrations, PipelineSettings(snapshots=2))
     assert "snapshot 0 skipped: no matched particle in frame a" in caplog.text
@@ -457,10 +460,22 @@ def test_a_shared_first_frame_is_measured_once_with_the_same_result(rendered):
     assert dataset.shared_first_frame
     cameras = [calibrations[name] for name in dataset.cameras]
     settings = PipelineSettings()
-    first_frames = {}
+    first_frames = SharedFirstFrames()
     measure_run(dataset, 0, cameras, settings, first_frames=first_frames)
-    assert sorted(first_frames) == list(range(dataset.frames[0]))
+    assert len(first_frames) == dataset.frames[0]
     cached = measure_run(dataset, 2, cameras, settings, first_frames=first_frames)
     fresh = measure_run(dataset, 2, cameras, settings)
     for name in ("positions", "displacements", "detections", "matches", "links", "outlier"):
         assert np.array_equal(getattr(cached, name), getattr(fresh, name)), name
+
+
+def test_a_wrongly_declared_shared_first_frame_is_an_error_naming_the_file(rendered, tmp_path):
+    folder, _, calibrations = rendered
+    copy = tmp_path / "ds"
+    shutil.copytree(folder, copy)
+    frame = copy / "particles" / "dt3" / "cam1" / "000001_a.tif"
+    other = tifffile.imread(copy / "particles" / "dt3" / "cam1" / "000001_b.tif")
+    frame.unlink()  # a hard link: replace the file, not the shared content
+    tifffile.imwrite(frame, other)
+    with pytest.raises(DatasetError, match=r"000001_a\.tif.*shared first frame"):
+        run_pipeline(open_dataset(copy), calibrations)

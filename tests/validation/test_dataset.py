@@ -1,6 +1,7 @@
 """``synptv render`` datasets: layout, images, truth consistent with the cameras, atomicity."""
 
 import json
+from dataclasses import replace
 
 import h5py
 import numpy as np
@@ -49,6 +50,21 @@ def test_a_shared_first_frame_is_one_exposure_for_every_dt(dataset):
         frames = [out / "particles" / f"dt{k}" / name / "000000_a.tif" for k in range(5)]
         assert len({f.read_bytes() for f in frames}) == 1
         assert len({f.read_bytes() for f in (frames[0], frames[0].with_name("000000_b.tif"))}) == 2
+
+
+def test_independent_runs_per_dt_are_rendered_too(tmp_path):
+    """One experiment per Δt: each run seeds its own particles (more at larger Δt)."""
+    out = tmp_path / "ds"
+    settings = replace(SETTINGS, planes=2, shared_first_frame=False)
+    write_dataset(out, load_rig("paper-stereo"), flow_preset("lem-10hz"), settings)
+    assert json.loads((out / "experiment.json").read_text())["shared_first_frame"] is False
+    with h5py.File(out / "truth.h5") as truth:
+        counts = [truth[f"particles/dt{k}/positions"].shape[2] for k in range(5)]
+        assert counts[-1] > counts[0]
+        for k, count in enumerate(counts):
+            assert truth[f"particles/dt{k}/cam1/xy"].shape == (1, 2, count, 2)
+    frames = [out / "particles" / f"dt{k}" / "cam1" / "000000_a.tif" for k in range(5)]
+    assert len({f.read_bytes() for f in frames}) == 5
 
 
 def test_truth_is_consistent_with_the_cameras_and_the_images(dataset):

@@ -4,7 +4,9 @@ interruption, reproducibility, and the error budget's noise-free rung against tr
 import json
 import re
 import shutil
+from importlib import resources
 
+import numba
 import pytest
 
 import validation.experiment
@@ -14,6 +16,9 @@ TINY = """\
 name = "tiny"
 description = "a tiny end-to-end run"
 seed = 3
+
+[rig]
+name = "rig.toml"
 
 [calibration]
 planes = 3
@@ -38,10 +43,14 @@ class Interrupted(Exception):
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """Run A is interrupted in its last stage, then resumed; run B is a fresh copy."""
+    """Run A is interrupted in its last stage, then resumed; run B is a fresh run of the
+    same scenario named by another path, from another folder, on one thread."""
     root = tmp_path_factory.mktemp("run")
     scenario = root / "tiny.toml"
     scenario.write_text(TINY)
+    shutil.copyfile(
+        resources.files("simulator") / "rig_presets" / "paper-stereo.toml", root / "rig.toml"
+    )
     score = validation.experiment.score_matching
 
     def interrupt_for_model_free(data, truth, cameras, settings, *, voxel):
@@ -56,7 +65,14 @@ def runs(tmp_path_factory):
             main([*argv, str(root / "a")])
     left_by_interruption = sorted(p.name for p in (root / "a").rglob("*"))
     status_a = main([*argv, str(root / "a")])
-    status_b = main([*argv, str(root / "b")])
+    threads = numba.get_num_threads()
+    with pytest.MonkeyPatch.context() as patch:
+        patch.chdir(root)
+        numba.set_num_threads(1)
+        try:
+            status_b = main(["run", "--scenario", "tiny.toml", "--quiet", "--out", "b"])
+        finally:
+            numba.set_num_threads(threads)
     return root, left_by_interruption, status_a, status_b
 
 
