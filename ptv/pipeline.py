@@ -72,7 +72,7 @@ from ptv.stats.dissipation import (
     plateau_epsilon,
 )
 from ptv.stats.eulerian import EulerianFit, Grid, UPrime, eulerian_fit, eulerian_moments, u_prime
-from ptv.stats.multidt import LineFit, largest_dt, smallest_and_largest_dt, wls_line
+from ptv.stats.multidt import LineFit, gls_line, largest_dt, smallest_and_largest_dt, wls_line
 from ptv.stats.pairs import LogBins
 from ptv.stats.structure import (
     StructureFunction,
@@ -96,6 +96,7 @@ __all__ = [
     "Subset",
     "compute_statistics",
     "detect_and_match",
+    "inside_box",
     "link_radius",
     "measure_frame",
     "measure_run",
@@ -385,7 +386,24 @@ def measure_frame(
     *,
     saturation: float | None = None,
 ) -> FramePoints:
-    """The detection count per camera and the matched 3-D points, m, of one frame."""
+    """The detection count per camera and the matched 3-D points of one frame.
+
+    Parameters
+    ----------
+    images : sequence of C ndarray, shape (H, W)
+        One image per camera (the same instant).
+    cameras : sequence of C CameraModel
+        Their calibrations.
+    settings : PipelineSettings
+        Detection threshold, matching volume and tolerance.
+    saturation : float, optional
+        Saturation level of the images, DN (None: the dtype's maximum).
+
+    Returns
+    -------
+    FramePoints
+        Detections per camera (list of C int) and matched points, shape (N, 3), m.
+    """
     found, matched = detect_and_match(images, cameras, settings, saturation=saturation)
     return [len(d) for d in found], matched.points
 
@@ -570,9 +588,10 @@ class RunParticles:
         return out
 
 
-def _inside(points: np.ndarray, box: Box) -> np.ndarray:
+def inside_box(points: np.ndarray, box: Box) -> np.ndarray:
+    """Points (..., 3) inside ``box`` = (lower corner, upper corner), m, boundary included."""
     lower, upper = (np.asarray(v) for v in box)
-    return np.all((points >= lower) & (points <= upper), axis=1)
+    return np.all((points >= lower) & (points <= upper), axis=-1)
 
 
 def measure_run(
@@ -663,7 +682,7 @@ def measure_run(
         matches=np.asarray(mat, dtype=np.int64).reshape(-1, 2),
         links=np.asarray(lnk, dtype=np.int64),
         processed=np.asarray(processed, dtype=np.int64),
-        in_analysis=_inside(positions, settings.analysis_volume),
+        in_analysis=inside_box(positions, settings.analysis_volume),
         outlier=outlier,
     )
 
@@ -680,7 +699,8 @@ class MeanDisplacement:
     dt : ndarray, shape (K,)
         s.
     mean : ndarray, shape (K, 3)
-        ⟨ΔX⟩ over all links in the analysis volume, m.
+        ⟨ΔX⟩ over the links in the analysis volume (with a shared first frame: over the
+        particles linked at every Δt), m.
     se : ndarray, shape (K, 3)
         Its standard error from the scatter of the snapshot means (snapshots are the
         independent units), m; from the particles when a run has one snapshot.
@@ -688,7 +708,9 @@ class MeanDisplacement:
         Links averaged.
     fit : LineFit
         Per component (3 rows): c1 = α, the mean velocity, m/s; c2 = β0, m (zero
-        within se_c2 for zero-mean noise); chi2_dof of the line.
+        within se_c2 for zero-mean noise); chi2_dof of the line. A WLS line for
+        independent runs; a GLS line with the snapshot covariance of the K means when
+        they share their particles.
     """
 
     dt: np.ndarray
@@ -826,6 +848,33 @@ def _mean_displacement(runs: Sequence[RunParticles]) -> MeanDisplacement:
     return MeanDisplacement(dt=dt, mean=mean, se=se, count=count, fit=fit)
 
 
+def _mean_displacement_joined(joined, dt: np.ndarray) -> MeanDisplacement | None:
+    """:class:`MeanDisplacement` of the particles followed over every Δt (shared frame a).
+
+    The K means then share their particles, so their errors are correlated: their
+    covariance comes from the scatter of the snapshot means (snapshots are the
+    independent units) and the line is fitted by GLS. None when there are too few
+    snapshots (M ≤ K) for that covariance to be positive definite.
+    """
+    groups = [d for _, d in joined if len(d)]
+    k = len(dt)
+    if len(groups) <= k:
+        return None
+    n = np.array([len(d) for d in groups], dtype=np.float64)
+    snapshot_means = np.array([d.mean(axis=0) for d in groups])  # (M, K, 3)
+    total = n.sum()
+    mean = np.einsum("m,mkc->kc", n, snapshot_means) / total
+    dev = n[:, None, None] * (snapshot_means - mean)
+    m = len(groups)
+    cov = m / (m - 1) * np.einsum("mkc,mlc->ckl", dev, dev) / total**2  # (3, K, K)
+    try:
+        fit = gls_line(np.broadcast_to(dt, (3, k)), mean.T, cov)
+    except ValueError:  # not positive definite
+        return None
+    se = np.sqrt(np.diagonal(cov, axis1=1, axis2=2)).T
+    return MeanDisplacement(dt=dt, mean=mean, se=se, count=np.full(k, int(total)), fit=fit)
+
+
 def _eulerian(runs: Sequence[RunParticles], dt: np.ndarray, settings: PipelineSettings):
     x, d = [], []
     for run in runs:
@@ -887,7 +936,22 @@ def shared_snapshots(runs: Sequence[RunParticles]) -> list[tuple[np.ndarray, np.
 
 
 def _consistent(joined, dt: np.ndarray, settings: PipelineSettings):
-    """Drop the joined particles whose trajectory residual is an outlier."""
+    """The joined particles whose trajectory residual is not an outlier.
+
+    Parameters
+    ----------
+    joined : list of (ndarray (P, 3), ndarray (P, K, 3))
+        X(t) and ΔX at every Δt per snapshot (:func:`shared_snapshots`), m.
+    dt : ndarray, shape (K,)
+        s.
+    settings : PipelineSettings
+        ``trajectory_threshold``: the limit in multiples of the median residual.
+
+    Returns
+    -------
+    list of (ndarray, ndarray)
+        The same snapshots without the particles above the limit.
+    """
     residuals = [trajectory_residuals(dt, d) for _, d in joined]
     limit = settings.trajectory_threshold * np.median(np.concatenate(residuals))
     kept = [(x[r <= limit], d[r <= limit]) for (x, d), r in zip(joined, residuals, strict=True)]
@@ -960,13 +1024,17 @@ def compute_statistics(
             len(joined),
         )
         if settings.trajectory_threshold is not None and len(usable) >= 4:
-            joined = _consistent(joined, np.array([r.dt for r in usable]), settings)
+            joined = _consistent(joined, dt, settings)
         sums = time_resolved_sums(joined, bins)
         n_snap = np.full(len(usable), len(joined), dtype=np.int64)
+        mean_displacement = _mean_displacement_joined(joined, dt)
     else:
         per_run = [r.snapshot_arrays() for r in usable]
         sums = double_frame_sums(per_run, bins)
         n_snap = np.array([len(p) for p in per_run], dtype=np.int64)
+        mean_displacement = None
+    if mean_displacement is None:
+        mean_displacement = _mean_displacement(usable)
     errors = "bootstrap"
     if n_snap.min() < 2:
         log.warning(
@@ -1013,7 +1081,7 @@ def compute_statistics(
         profile=profile,
         plateau=plateau,
         subsets=subsets,
-        mean_displacement=_mean_displacement(usable),
+        mean_displacement=mean_displacement,
         grid=grid,
         eulerian=eul,
         u_prime=up,

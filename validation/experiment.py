@@ -29,7 +29,7 @@ import numpy as np
 from ptv.calibration.io import load_calibrations
 from ptv.dataset import open_dataset
 from ptv.detect.peaklocking import peak_locking
-from ptv.pipeline import PipelineSettings, PtvResult, compute_statistics, run_pipeline
+from ptv.pipeline import PtvResult, compute_statistics, run_pipeline
 from ptv.results import save_results
 from simulator.presets import flow_preset
 from simulator.render.camera_frames import ParticleLighting, local_magnification
@@ -42,7 +42,7 @@ from validation.flow_truth import flow_truth
 from validation.matching_quality import score_matching
 from validation.ptv_figures import save_ptv_figures
 from validation.report_figures import peak_locking_figure
-from validation.scenario import Scenario
+from validation.scenario import Scenario, pipeline_settings
 from validation.stages import StageOutcome, run_stage
 from validation.truth_runs import detected_runs, exact_runs, read_truth
 
@@ -70,24 +70,6 @@ def render_settings(scenario: Scenario) -> RenderSettings:
         ),
         sensor=scenario.sensor,
         shared_first_frame=particles.shared_first_frame,
-        seed=scenario.seed,
-    )
-
-
-def pipeline_settings(scenario: Scenario) -> PipelineSettings:
-    """The PTV options of a scenario (analysis box centred on the origin)."""
-    p = scenario.ptv
-    half = np.asarray(p.analysis_volume) / 2
-    return PipelineSettings(
-        analysis_volume=(-half, half),
-        r_min=p.r_range[0],
-        r_max=p.r_range[1],
-        n_bins=p.bins,
-        plateau=p.plateau,
-        kolmogorov_c2=p.kolmogorov_c2,
-        max_speed=p.max_speed,
-        tolerance=p.tolerance,
-        n_boot=p.n_boot,
         seed=scenario.seed,
     )
 
@@ -187,11 +169,9 @@ def run_stages(
             target, rig, preset, render_settings(scenario), progress=bar("render")
         ),
     )
-    settings_inputs = {
-        "synptv": version("synptv"),
-        "ptv": scenario.as_dict()["ptv"],
-        "seed": scenario.seed,
-    }
+    # The PTV options every statistics stage reads; which calibrations run is not one.
+    analysis = {k: v for k, v in scenario.as_dict()["ptv"].items() if k != "methods"}
+    settings_inputs = {"synptv": version("synptv"), "ptv": analysis, "seed": scenario.seed}
     truth_rig, truth_runs = read_truth(dataset.folder)
     data = open_dataset(dataset.folder)
     # With a shared first frame every run holds the same particles at t.

@@ -16,8 +16,8 @@ from scipy.spatial import cKDTree
 
 from ptv.camera_model import CameraModel
 from ptv.dataset import Dataset
-from ptv.pipeline import PipelineSettings, detect_and_match
-from validation.truth_runs import TruthRun, inside_box
+from ptv.pipeline import PipelineSettings, detect_and_match, inside_box
+from validation.truth_runs import TruthRun
 
 #: Nearest-neighbour distance within which pairs enter the rigid fit, m.
 _ALIGN_RADIUS = 0.5e-3

@@ -23,7 +23,10 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
 from ptv.calibration.methods import CALIBRATION_METHODS
+from ptv.pipeline import PipelineSettings
 from simulator.presets import FLOW_PRESETS
 from simulator.render.sensor import Sensor
 from simulator.rigs import rig_presets
@@ -202,6 +205,8 @@ def _check(scenario: Scenario, source: str) -> None:
         unknown = [m for m in methods if m not in CALIBRATION_METHODS]
         if unknown:
             fail(f"{where}: unknown method(s) {unknown}; known: {', '.join(CALIBRATION_METHODS)}")
+    if not scenario.ptv.methods:
+        fail("ptv.methods must name at least one calibration method")
     missing = [m for m in scenario.ptv.methods if m not in scenario.calibration.methods]
     if missing:
         fail(f"ptv.methods {missing} are not in calibration.methods")
@@ -227,12 +232,22 @@ def _check(scenario: Scenario, source: str) -> None:
             fail(f"{where} must be > 0, got {value}")
     if len(scenario.ptv.analysis_volume) != 3 or min(scenario.ptv.analysis_volume) <= 0:
         fail(f"ptv.analysis_volume must be 3 sizes > 0, m, got {scenario.ptv.analysis_volume}")
+    for where, value in (
+        ("checks.c1_r_min_eta", scenario.checks.c1_r_min_eta),
+        ("checks.c1_r_max_l_int", scenario.checks.c1_r_max_l_int),
+    ):
+        if not value > 0:
+            fail(f"{where} must be > 0, got {value}")
     for where, (lo, hi) in (
         ("ptv.r_range", scenario.ptv.r_range),
         ("ptv.plateau", scenario.ptv.plateau),
     ):
         if not 0 < lo < hi:
             fail(f"{where} must be [low, high] with 0 < low < high, m, got {[lo, hi]}")
+    try:
+        pipeline_settings(scenario)
+    except ValueError as err:
+        fail(f"ptv: {err}")
 
 
 def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
@@ -311,3 +326,21 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
             f"({', '.join(rig_presets())}) nor a rig file"
         )
     return scenario
+
+
+def pipeline_settings(scenario: Scenario) -> PipelineSettings:
+    """The PTV options of a scenario (analysis box centred on the origin)."""
+    p = scenario.ptv
+    half = np.asarray(p.analysis_volume) / 2
+    return PipelineSettings(
+        analysis_volume=(-half, half),
+        r_min=p.r_range[0],
+        r_max=p.r_range[1],
+        n_bins=p.bins,
+        plateau=p.plateau,
+        kolmogorov_c2=p.kolmogorov_c2,
+        max_speed=p.max_speed,
+        tolerance=p.tolerance,
+        n_boot=p.n_boot,
+        seed=scenario.seed,
+    )

@@ -1,11 +1,12 @@
 """Reusable, atomic stages of a run: a stage is redone only when its inputs change.
 
-A stage writes one folder. It is built under a temporary name beside its destination
-and renamed when complete; then ``<folder>/stage.json`` records the SHA-256 key of its
-inputs (which include the keys of the stages it reads). A later run with the same key
-reuses the folder; a different key, or a folder without ``stage.json`` (a run
-interrupted between the rename and the record), rebuilds it. An interrupted build
-leaves only a hidden temporary folder, removed by the next run.
+A stage writes one folder. It is built under a temporary name beside its destination,
+``stage.json`` (the SHA-256 key of its inputs, which include the keys of the stages it
+reads) is written into it, and it is renamed into place when complete. A later run with
+the same key reuses the folder; a different key, or a folder without a readable
+``stage.json`` (not made by this module), rebuilds it. An interrupted build leaves only
+a hidden temporary folder, removed by the next run; so one output folder serves one run
+at a time.
 """
 
 import hashlib

@@ -12,16 +12,18 @@ inputs equal the current ones, so an interrupted sweep resumes where it stopped.
 import json
 import logging
 import os
-import tempfile
 import zlib
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
+from importlib.metadata import version
 from pathlib import Path
 
 import dask
 import numpy as np
 from distributed import Client, LocalCluster, as_completed
+
+from validation.files import as_json, write_json_atomic
 
 log = logging.getLogger(__name__)
 
@@ -84,6 +86,7 @@ class Sweep:
         """Everything the point's result depends on, as recorded in its file."""
         return as_json(
             {
+                "synptv": version("synptv"),
                 "study": self.study,
                 "scenario": self.settings["name"],
                 "settings": self.settings,
@@ -103,50 +106,14 @@ class SweepOutcome:
 
 
 def seed_sequence(seed: int, *keys: object) -> np.random.SeedSequence:
-    """A seed derived from an integer seed and keys (str, numbers, dicts), order-free.
+    """A seed derived from an integer seed and keys (str, numbers, dicts).
 
-    The same seed and keys give the same sequence in every process and Python session
-    (CRC-32 of the keys' canonical JSON, not ``hash``).
+    The same seed and keys, in the same order, give the same sequence in every process
+    and Python session (CRC-32 of each key's canonical JSON, so the order of a dict's
+    entries does not matter; not ``hash``).
     """
     words = [zlib.crc32(json.dumps(key, sort_keys=True).encode()) for key in keys]
     return np.random.SeedSequence([int(seed), *words])
-
-
-def as_json(value: object) -> object:
-    """A JSON round trip: tuples become lists, NumPy numbers floats, NaN and inf None."""
-
-    def convert(v):
-        if isinstance(v, dict):
-            return {str(k): convert(x) for k, x in v.items()}
-        if isinstance(v, list | tuple | np.ndarray):
-            return [convert(x) for x in v]
-        if isinstance(v, np.generic):
-            v = v.item()
-        if isinstance(v, float) and not np.isfinite(v):
-            return None
-        return v
-
-    return json.loads(json.dumps(convert(value), allow_nan=False))
-
-
-def write_text_atomic(path: Path, text: str) -> Path:
-    """Write ``text`` to ``path`` under a temporary name, then rename it into place."""
-    path = Path(path)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(handle, "w") as stream:
-            stream.write(text)
-        os.chmod(temporary, 0o644)  # mkstemp makes it private; results are for sharing
-        os.replace(temporary, path)
-    finally:
-        if os.path.exists(temporary):
-            os.remove(temporary)
-    return path
-
-
-def write_json_atomic(path: Path, value: object) -> Path:
-    """:func:`write_text_atomic` of ``value`` as indented JSON (NaN written as null)."""
-    return write_text_atomic(path, json.dumps(as_json(value), indent=2) + "\n")
 
 
 def _load_point(path: Path, inputs: dict) -> dict | None:

@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 from ptv.camera_model import CameraModel
 from ptv.dataset import Dataset
 from ptv.detect import detect_particles
-from ptv.pipeline import PipelineSettings, RunParticles
+from ptv.pipeline import PipelineSettings, RunParticles, inside_box
 from ptv.triangulate import triangulate
 from simulator.rigs import Rig, rig_from_dict
 
@@ -78,12 +78,6 @@ def read_truth(folder: Path) -> tuple[Rig, list[TruthRun]]:
                 )
             )
     return rig, runs
-
-
-def inside_box(points: np.ndarray, box) -> np.ndarray:
-    """Points (..., 3) inside the box (lower corner, upper corner), m, boundary included."""
-    lower, upper = (np.asarray(v) for v in box)
-    return np.all((points >= lower) & (points <= upper), axis=-1)
 
 
 def _run_particles(

@@ -25,6 +25,7 @@ from ptv.pipeline import (
     PipelineSettings,
     RunParticles,
     SharedFirstFrames,
+    _mean_displacement_joined,
     compute_statistics,
     detect_and_match,
     measure_run,
@@ -479,3 +480,37 @@ def test_a_wrongly_declared_shared_first_frame_is_an_error_naming_the_file(rende
     tifffile.imwrite(frame, other)
     with pytest.raises(DatasetError, match=r"000001_a\.tif.*shared first frame"):
         run_pipeline(open_dataset(copy), calibrations)
+
+
+def _joined_experiment(rng, dt, *, offset=0.0, snapshots=30, particles=200, sigma=5e-6):
+    """Particles followed over every Δt from a shared frame a: each snapshot has its own
+    mean velocity and acceleration, each frame its own white noise (frame a's is shared
+    by every Δt), and frame b may be offset by a constant, m."""
+    joined = []
+    for _ in range(snapshots):
+        x = rng.uniform(-0.03, 0.03, (particles, 3))
+        v = rng.normal(size=3) * 0.05 + rng.normal(size=(particles, 3)) * 0.2
+        a = rng.normal(size=3) * 2.0 + rng.normal(size=(particles, 3)) * 20.0
+        b_a = rng.normal(size=(particles, 1, 3)) * sigma
+        b_b = rng.normal(size=(particles, len(dt), 3)) * sigma + offset
+        t = dt[None, :, None]
+        joined.append((x, v[:, None] * t + 0.5 * a[:, None] * t**2 + b_b - b_a))
+    return joined
+
+
+def test_the_mean_displacement_offset_of_shared_frames_has_calibrated_errors():
+    """The K means share frame a, so their errors are correlated: the GLS line's β0 must
+    scatter over independent experiments as its error says (pulls of unit spread; with
+    the covariance estimated from M = 30 snapshots for K = 5 means, Hotelling's factor
+    √((M − 1)/(M − K − 1)) ≈ 1.1 is expected), and a 1 µm offset of frame b must stand
+    out of its ~0.1 µm error."""
+    rng = np.random.default_rng(5)
+    dt = np.array([1e-4, 2e-4, 3e-4, 4e-4, 5e-4])
+    pulls = []
+    for _ in range(200):
+        md = _mean_displacement_joined(_joined_experiment(rng, dt), dt)
+        pulls.append(md.fit.c2 / md.se_offset_scaled)
+    assert 0.9 < np.std(pulls) < 1.25
+    md = _mean_displacement_joined(_joined_experiment(rng, dt, offset=1e-6), dt)
+    assert np.all(md.fit.c2 / md.se_offset_scaled > 5)
+    assert np.allclose(md.fit.c2, 1e-6, rtol=0.3)

@@ -5,8 +5,9 @@ import json
 
 import pytest
 
+from simulator.presets import flow_preset
 from simulator.spectra import C_KOLMOGOROV
-from validation.claims import CLAIMS, ClaimContext, run_claims
+from validation.claims import CLAIMS, ClaimContext, dt3_gamma, run_claims
 
 
 def test_claim_ids_required_by_the_validation_suite_exist():
@@ -80,3 +81,11 @@ def test_a_ten_times_larger_dt3_term_is_not_negligible(quick):
     broken.__dict__.pop("dt3_fits", None)  # refit with the larger β (a cached_property)
     (result,) = run_claims(broken, ids=["stats.dt3_negligible"])
     assert not result.passed and result.value > 10  # max |bias| in %, ≈ 15
+
+
+@pytest.mark.parametrize(
+    ("preset", "gamma_over_tau_eta"), [("lem-8hz", 0.155), ("lem-10hz", 0.218), ("lem-12hz", 0.243)]
+)
+def test_dt3_gamma_of_the_table4_sets_is_that_of_physics_4(preset, gamma_over_tau_eta):
+    p = flow_preset(preset)
+    assert dt3_gamma(p.dt) / p.parameters.tau_eta == pytest.approx(gamma_over_tau_eta, abs=6e-4)

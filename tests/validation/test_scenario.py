@@ -124,6 +124,10 @@ def test_an_integer_is_accepted_for_a_float_field(tmp_path):
         ("[ptv]\nr_range = [1e-3]\n", "ptv.r_range"),
         ('[ptv]\nr_range = ["0.5 mm", "35 mm"]\n', "ptv.r_range"),
         ('[rig]\nname = "no-such-rig"\n', "rig.name"),
+        ("[ptv]\nmethods = []\n", "ptv.methods"),
+        ("[checks]\nc1_r_min_eta = 0.0\n", "checks.c1_r_min_eta"),
+        ("[ptv]\nkolmogorov_c2 = -2.0\n", "kolmogorov_c2"),
+        ("[ptv]\nmax_speed = 0.0\n", "max_speed"),
     ],
 )
 def test_bad_fields_are_errors_that_name_the_file_and_the_field(tmp_path, body, field):

@@ -6,6 +6,7 @@ import pytest
 
 from simulator.presets import flow_preset
 from validation.figures import save_figure
+from validation.files import as_json
 from validation.scenario import load_scenario
 from validation.study_figures import multi_dt_figure
 from validation.study_multi_dt import (
@@ -18,7 +19,6 @@ from validation.study_multi_dt import (
     spread_indices,
     study_sizes,
 )
-from validation.study_runner import as_json
 
 DEFAULT = load_scenario("default")
 SETTINGS = DEFAULT.as_dict()
