@@ -1,7 +1,9 @@
 """Multi-Δt sweeps on KS particles without images: how many Δt, what noise, what seeding.
 
 Each point simulates exact double-frame runs of the scenario's flow (one independent
-run of M snapshots per Δt, :func:`simulator.particles.double_frame`), measures them
+run of M snapshots per Δt, :func:`simulator.particles.double_frame`, whatever the
+scenario's ``shared_first_frame``: the conservative design, whose sampling noise does not
+cancel between the Δt as it does when they share frame a), measures them
 with white Gaussian position noise (:class:`validation.multi_dt_experiment.Measurement`)
 and fits c₁Δt² + c₂ per separation bin (PHYSICS.md §4), beside the sample truth of the
 same pairs and the exact D_LL of the spectrum.
