@@ -91,6 +91,7 @@ __all__ = [
     "PtvResult",
     "PtvStatistics",
     "RunParticles",
+    "S2Population",
     "SharedFirstFrames",
     "SnapshotMeasurement",
     "Subset",
@@ -756,6 +757,31 @@ class Subset:
 
 
 @dataclass(frozen=True, eq=False)
+class S2Population:
+    """The particles whose pairs enter S2 when every Δt shares frame a.
+
+    Attributes
+    ----------
+    snapshot_ids : ndarray of int, shape (S,)
+        Snapshots kept at every Δt.
+    positions : tuple of S ndarray, shape (P_s, 3)
+        X(t) of the particles linked at every Δt and not dropped by the trajectory test,
+        m (in the calibration's frame).
+    trajectory_outliers : int
+        Particles linked at every Δt that the trajectory test dropped.
+    """
+
+    snapshot_ids: np.ndarray
+    positions: tuple[np.ndarray, ...]
+    trajectory_outliers: int
+
+    @property
+    def count(self) -> int:
+        """Particles in the population."""
+        return sum(len(x) for x in self.positions)
+
+
+@dataclass(frozen=True, eq=False)
 class PtvStatistics:
     """Second-order statistics of the measured displacements.
 
@@ -790,6 +816,8 @@ class PtvStatistics:
         "bootstrap" or "pairs" (when a run has fewer than two snapshots).
     n_snapshots : ndarray of int, shape (K,)
         Snapshots per Δt used.
+    population : S2Population or None
+        The particles of S2 with a shared first frame (None: each run's own links).
     """
 
     dt_index: np.ndarray
@@ -806,6 +834,7 @@ class PtvStatistics:
     position_noise: np.ndarray
     errors: str
     n_snapshots: np.ndarray
+    population: S2Population | None = None
 
 
 def _plateau(profile: DissipationProfile, settings: PipelineSettings, what: str) -> Plateau | None:
@@ -903,7 +932,9 @@ def _eulerian(runs: Sequence[RunParticles], dt: np.ndarray, settings: PipelineSe
     return grid, fit, up, sigma_b
 
 
-def shared_snapshots(runs: Sequence[RunParticles]) -> list[tuple[np.ndarray, np.ndarray]]:
+def shared_snapshots(
+    runs: Sequence[RunParticles],
+) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
     """The particles used at every Δt of runs that share their first frames.
 
     With a shared frame a, a particle has the same measured X(t) in every run, so the
@@ -916,8 +947,8 @@ def shared_snapshots(runs: Sequence[RunParticles]) -> list[tuple[np.ndarray, np.
 
     Returns
     -------
-    list of (ndarray (P, 3), ndarray (P, K, 3))
-        Per snapshot kept in every run: X(t), m, and ΔX at each Δt, m.
+    (ndarray of int (S,), list of S (ndarray (P, 3), ndarray (P, K, 3)))
+        The snapshots kept in every run, and per snapshot X(t), m, and ΔX at each Δt, m.
     """
     per_run = [
         dict(zip(run.snapshot_ids.tolist(), run.snapshot_arrays(), strict=True)) for run in runs
@@ -932,7 +963,7 @@ def shared_snapshots(runs: Sequence[RunParticles]) -> list[tuple[np.ndarray, np.
         x = arrays[0][0][rows[0]].reshape(-1, 3)
         d = np.stack([a[1][r].reshape(-1, 3) for a, r in zip(arrays, rows, strict=True)], axis=1)
         out.append((x, d))
-    return out
+    return np.array(common, dtype=np.int64), out
 
 
 def _consistent(joined, dt: np.ndarray, settings: PipelineSettings):
@@ -1015,12 +1046,13 @@ def compute_statistics(
     dt = np.array([r.dt for r in usable])
     bins = settings.bins
     if shared_first_frame:
-        joined = shared_snapshots(usable)
+        ids, joined = shared_snapshots(usable)
         if not joined:
             raise ValueError("no snapshot has particles linked at every Δt")
+        linked = sum(len(x) for x, _ in joined)
         log.info(
             "shared first frame: %d particles linked at every Δt in %d snapshots",
-            sum(len(x) for x, _ in joined),
+            linked,
             len(joined),
         )
         if settings.trajectory_threshold is not None and len(usable) >= 4:
@@ -1028,11 +1060,16 @@ def compute_statistics(
         sums = time_resolved_sums(joined, bins)
         n_snap = np.full(len(usable), len(joined), dtype=np.int64)
         mean_displacement = _mean_displacement_joined(joined, dt)
+        population = S2Population(
+            snapshot_ids=ids,
+            positions=tuple(x for x, _ in joined),
+            trajectory_outliers=linked - sum(len(x) for x, _ in joined),
+        )
     else:
         per_run = [r.snapshot_arrays() for r in usable]
         sums = double_frame_sums(per_run, bins)
         n_snap = np.array([len(p) for p in per_run], dtype=np.int64)
-        mean_displacement = None
+        mean_displacement = population = None
     if mean_displacement is None:
         mean_displacement = _mean_displacement(usable)
     errors = "bootstrap"
@@ -1088,6 +1125,7 @@ def compute_statistics(
         position_noise=sigma_b,
         errors=errors,
         n_snapshots=n_snap,
+        population=population,
     )
 
 

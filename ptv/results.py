@@ -29,6 +29,9 @@ dataset has a ``units`` attribute)::
         epsilon_paper_caption (B,) m²/s³           S2^{3/2}/r (no C2)
         plateau                      attrs: epsilon, se_epsilon, epsilon_paper_caption,
                                      r_min, r_max, method, n_bins (absent if none)
+        population                   with a shared first frame, the particles of S2:
+                                     positions (N, 3) m (X(t)), offsets (S + 1,),
+                                     snapshot_ids (S,); attrs trajectory_outliers
         subsets/<name>               used (K,), s2, se_s2, noise, epsilon (B,); plateau attrs
         mean_displacement            dt (K,), mean, se (K, 3) m, count (K,);
                                      velocity, se_velocity (3,) m/s; offset, se_offset,
@@ -200,6 +203,13 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
             "se_offset_scaled": _list(md.se_offset_scaled),
             "chi2_dof": _list(md.fit.chi2_dof),
         },
+        "population": None
+        if st.population is None
+        else {
+            "snapshots": len(st.population.snapshot_ids),
+            "particles": st.population.count,
+            "trajectory_outliers": st.population.trajectory_outliers,
+        },
         "noise": {
             "c2_median": _num(np.median(noise)) if noise.size else None,
             "c2_fitted_bins": int(noise.size),
@@ -287,6 +297,14 @@ def _write_h5(path: Path, result: PtvResult, calibration: str | None) -> None:
         _put(s, "se_epsilon", st.profile.se_epsilon, "m^2/s^3")
         _put(s, "epsilon_paper_caption", st.profile.epsilon_paper_caption, "m^2/s^3")
         _put_plateau(s, st.plateau)
+        if st.population is not None:
+            g = s.create_group("population")
+            g.attrs["trajectory_outliers"] = st.population.trajectory_outliers
+            sizes = [len(x) for x in st.population.positions]
+            _put(g, "snapshot_ids", st.population.snapshot_ids)
+            _put(g, "offsets", np.concatenate([[0], np.cumsum(sizes)]), "row index")
+            positions = st.population.positions
+            _put(g, "positions", np.concatenate(positions) if positions else np.empty((0, 3)), "m")
         for name, sub in st.subsets.items():
             g = s.create_group(f"subsets/{name}")
             _put(g, "used", sub.used)

@@ -38,7 +38,7 @@ from simulator.target import REALISTIC, Imperfections
 from validation.calibrate_dataset import calibrate_dataset
 from validation.dataset import FORMAT_VERSION, RenderSettings, write_dataset
 from validation.figures import error_maps, save_figure
-from validation.flow_truth import flow_truth
+from validation.flow_truth import flow_truth, population_truth
 from validation.matching_quality import score_matching
 from validation.ptv_figures import save_ptv_figures
 from validation.report_figures import peak_locking_figure
@@ -217,6 +217,24 @@ def run_stages(
         return compute_statistics(runs, unlinked, shared_first_frame=data.shared_first_frame)
 
     voxel = object_pixel(truth_rig)
+
+    def save_population(result: PtvResult, folder: Path, rotation=None, translation=None):
+        """population.json: the sample truth over the pairs this measurement's S2 used
+        (its X(t) brought from the calibration frame to the world by the rigid
+        ``rotation`` and ``translation`` the matching score found)."""
+        population = result.statistics.population
+        if population is None:
+            return
+        reference = population_truth(
+            population,
+            truth_runs[0],
+            settings,
+            radius=voxel,
+            rotation=rotation,
+            translation=translation,
+        )
+        _write_json(folder / "population.json", reference.as_dict())
+
     cameras_true = dict(zip(truth_rig.camera_names, truth_rig.cameras, strict=True))
     ptv = {}
     for variant in (*REFERENCE_VARIANTS, *scenario.ptv.methods):
@@ -246,6 +264,7 @@ def run_stages(
                 result = PtvResult(data, data.cameras, unlinked, runs, statistics(runs))
                 _save_ptv(result, target, truth_dict, "true cameras, truth-paired detections")
                 _save_detection(quality, target)
+                save_population(result, target)
                 return
             if variant == "true-cameras":
                 cams, label = cameras_true, "true cameras"
@@ -257,6 +276,7 @@ def run_stages(
             ordered = [cams[name] for name in data.cameras]
             quality = score_matching(data, truth_runs, ordered, settings, voxel=voxel)
             _write_json(target / "matching.json", quality.as_dict())
+            save_population(result, target, quality.rotation, quality.translation)
 
         ptv[variant] = timed(f"ptv {variant}", out / "ptv" / variant, inputs, build)
     return ExperimentStages(dataset, truth, calibrations, ptv, seconds)

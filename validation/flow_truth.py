@@ -1,7 +1,8 @@
 """What the statistics of a rendered dataset should recover: sample truth and exact D_LL.
 
 - the sample-truth S2(r): the exact velocities at t of the particles in the analysis
-  volume, over all snapshots of all Δt runs, in the PTV run's separation bins;
+  volume, over all snapshots of all Δt runs, in the PTV run's separation bins; and, per
+  measurement, over the pairs its S2 actually used (:func:`population_truth`);
 - the exact D_LL(r) of the spectrum at the same separations;
 - the plateau ε of the same estimator (ε(r) = (S2/C2)^{3/2}/r averaged over the
   plateau range) applied to both, beside the input ε: the estimator on the exact D_LL
@@ -13,9 +14,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
-from ptv.pipeline import PipelineSettings
+from ptv.pipeline import PipelineSettings, S2Population
 from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
+from ptv.stats.pairs import PairSums, pair_sums
 from simulator.particles import Box
 from simulator.spectra import SPECTRA
 from simulator.truth import longitudinal_structure_function
@@ -90,6 +93,97 @@ def _plateau(r, s2, settings: PipelineSettings) -> float:
     ).epsilon
 
 
+def _pooled(per_snapshot: Sequence[PairSums]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean separation, pair-weighted S2 and its cluster standard error (snapshots as
+    clusters) of per-snapshot pair sums, per bin (NaN where empty)."""
+    sums = per_snapshot[0]
+    for s in per_snapshot[1:]:
+        sums = sums + s
+    means = np.array([s.mean[:, 0] for s in per_snapshot])
+    weights = np.array([s.count for s in per_snapshot], dtype=float)
+    s2 = sums.mean[:, 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dev = np.where(weights > 0, weights * (np.nan_to_num(means) - s2), 0.0)
+        m = (weights > 0).sum(axis=0)
+        se = np.sqrt(m / np.maximum(m - 1, 1) * np.sum(dev**2, axis=0)) / weights.sum(axis=0)
+    return sums.mean_separation, s2, se
+
+
+@dataclass(frozen=True)
+class PopulationTruth:
+    """The sample truth over the particle pairs one measurement's S2 used.
+
+    Attributes
+    ----------
+    s2_sample : ndarray, shape (B,)
+        S2 of the exact velocities at t of the true particles behind the measured ones,
+        m²/s² (NaN where no pair).
+    se_s2_sample : ndarray, shape (B,)
+        Its cluster standard error over the snapshots, m²/s².
+    particles : int
+        Measured particles of the population.
+    associated : int
+        Those with a true particle within the association radius (the others, ghosts,
+        are left out).
+    """
+
+    s2_sample: np.ndarray
+    se_s2_sample: np.ndarray
+    particles: int
+    associated: int
+
+    def as_dict(self) -> dict:
+        """JSON-able form (NaN → None)."""
+        return {
+            "s2_sample": [None if not np.isfinite(v) else float(v) for v in self.s2_sample],
+            "se_s2_sample": [None if not np.isfinite(v) else float(v) for v in self.se_s2_sample],
+            "particles": self.particles,
+            "associated": self.associated,
+        }
+
+
+def population_truth(
+    population: S2Population,
+    truth: TruthRun,
+    settings: PipelineSettings,
+    *,
+    radius: float,
+    rotation: np.ndarray | None = None,
+    translation: np.ndarray | None = None,
+) -> PopulationTruth:
+    """The sample truth of the pairs a measurement's S2 used (PHYSICS.md §2: the exact
+    velocities over the actual pairs isolate the method's error from the sampling).
+
+    Parameters
+    ----------
+    population : S2Population
+        The measured X(t) of S2's particles, per snapshot (calibration frame).
+    truth : TruthRun
+        A run of the dataset: its positions and velocities at t (the same in every run
+        when frame a is shared).
+    settings : PipelineSettings
+        The separation bins.
+    radius : float
+        A measured particle is the true particle nearest to it within this distance, m
+        (one voxel).
+    rotation, translation : ndarray, shapes (3, 3) and (3,), optional
+        Calibration frame → world, X_world = R X + t (default: the identity).
+    """
+    rotation = np.eye(3) if rotation is None else np.asarray(rotation)
+    translation = np.zeros(3) if translation is None else np.asarray(translation)
+    per_snapshot, associated = [], 0
+    for m, measured in zip(population.snapshot_ids, population.positions, strict=True):
+        true_x, true_u = truth.positions[m, 0], truth.velocity[m]
+        dist, nearest = cKDTree(true_x).query(
+            measured @ rotation.T + translation, distance_upper_bound=radius
+        )
+        found = np.unique(nearest[np.isfinite(dist)])
+        associated += len(found)
+        per_snapshot.append(pair_sums(true_x[found], true_u[found], settings.bins))
+    _, s2, se = _pooled(per_snapshot)
+    return PopulationTruth(s2, se, population.count, associated)
+
+
 def flow_truth(
     truth: Sequence[TruthRun],
     parameters: TurbulenceParameters,
@@ -104,17 +198,7 @@ def flow_truth(
         for run in truth
         for x, u in zip(run.positions[:, 0], run.velocity, strict=True)
     ]
-    sums = per_snapshot[0]
-    for s in per_snapshot[1:]:
-        sums = sums + s
-    means = np.array([s.mean[:, 0] for s in per_snapshot])
-    weights = np.array([s.count for s in per_snapshot], dtype=float)
-    r, s2 = sums.mean_separation, sums.mean[:, 0]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        # cluster standard error of the pair-weighted mean, snapshots as clusters
-        dev = np.where(weights > 0, weights * (np.nan_to_num(means) - s2), 0.0)
-        m = (weights > 0).sum(axis=0)
-        se = np.sqrt(m / np.maximum(m - 1, 1) * np.sum(dev**2, axis=0)) / weights.sum(axis=0)
+    r, s2, se = _pooled(per_snapshot)
     ok = np.isfinite(r)
     exact = np.full_like(r, np.nan)
     exact[ok] = longitudinal_structure_function(SPECTRA[spectrum](parameters), r[ok])

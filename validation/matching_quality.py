@@ -43,10 +43,12 @@ class MatchingQuality:
         Particles in the analysis volume imaged by every camera.
     matches : int
         Matched points in the analysis volume.
+    rotation : ndarray, shape (3, 3)
+        The fitted rigid rotation, calibration frame → world: X_world = R X + t.
     rotation_deg : float
-        Angle of the fitted rigid rotation (calibration frame → world), degrees.
+        Its angle, degrees.
     translation : ndarray, shape (3,)
-        Its translation, m.
+        t, m.
     """
 
     yield_fraction: float
@@ -56,6 +58,7 @@ class MatchingQuality:
     voxel: float
     particles: int
     matches: int
+    rotation: np.ndarray
     rotation_deg: float
     translation: np.ndarray
 
@@ -69,6 +72,7 @@ class MatchingQuality:
             "voxel_m": self.voxel,
             "particles": self.particles,
             "matches": self.matches,
+            "frame_rotation": self.rotation.tolist(),
             "frame_rotation_deg": self.rotation_deg,
             "frame_translation_m": self.translation.tolist(),
         }
@@ -171,6 +175,7 @@ def score_matching(
         voxel=voxel,
         particles=int(scored.sum()),
         matches=int(point_in.sum()),
+        rotation=rotation,
         rotation_deg=float(angle),
         translation=translation,
     )

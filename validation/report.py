@@ -164,13 +164,17 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
         scenario.checks.c1_r_max_l_int * p["L_int"],
     )
     noise = predicted_noise(detection, settings.bins, scenario.ptv.analysis_volume)
-    summaries, comparisons, matching = {}, {}, {}
+    summaries, comparisons, matching, populations = {}, {}, {}, {}
     for variant, stage in stages.ptv.items():
         summary = _read(stage.folder / "summary.json")
         summary.pop("dataset", None)
         summary["calibration"] = variant
         summaries[variant] = summary
-        comparisons[variant] = compare_variant(summary, truth, check_range=check_range, noise=noise)
+        population = stage.folder / "population.json"
+        populations[variant] = _read(population) if population.is_file() else None
+        comparisons[variant] = compare_variant(
+            summary, truth, check_range=check_range, noise=noise, population=populations[variant]
+        )
         if (stage.folder / "matching.json").is_file():
             matching[variant] = _read(stage.folder / "matching.json")
     order = [(v, *_RUNGS[v]) for v in REFERENCE_VARIANTS]
@@ -196,7 +200,10 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
         "calibration": calibration,
         "detection": detection,
         "matching": matching,
-        "ptv": {v: {"summary": summaries[v], "checks": comparisons[v]} for v in summaries},
+        "ptv": {
+            v: {"summary": summaries[v], "checks": comparisons[v], "population": populations[v]}
+            for v in summaries
+        },
         "table3": _table3(summaries[main], truth),
         "error_budget": error_budget(comparisons, order),
         "must_hold": _must_hold(comparisons, detection, matching, main),
@@ -319,6 +326,22 @@ def render_html(results: dict, scenario: Scenario) -> str:
         "detection.</p>"
     )
     parts.append("<h2>Statistics (Fig. 5, Fig. 6)</h2>")
+    rows = []
+    for variant, entry in results["ptv"].items():
+        pop, counted = entry["summary"]["population"], entry["population"]
+        if pop is not None:
+            associated = "–" if counted is None else counted["associated"]
+            counts = (pop["snapshots"], pop["particles"], pop["trajectory_outliers"])
+            rows.append((variant, *counts, associated))
+    if rows:
+        header = ["measurement", "snapshots", "particles in S2", "trajectory outliers"]
+        parts.append(_table([*header, "with a true particle"], rows))
+        parts.append(
+            "<p>S2 uses the particles linked at every Δt (frame a is shared) that pass the "
+            "trajectory test; c1 is compared with the sample truth of those particles' "
+            "pairs (the true particle within one voxel of each), so a particle a "
+            "measurement misses does not count as its error.</p>"
+        )
     for variant in (main, *[m for m in scenario.ptv.methods if m != main]):
         parts.append(f"<h3>PTV with the {html.escape(variant)} calibration</h3>")
         for fig, caption in (

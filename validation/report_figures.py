@@ -68,7 +68,7 @@ def budget_figure(
     plain_log_axis(ax.xaxis, ax.get_xlim())
     ax.set_ylim(0.8, 1.2)
     ax.set_xlabel("r (mm)")
-    ax.set_ylabel("c1 / sample-truth S2")
+    ax.set_ylabel("c1 / sample-truth S2 of its pairs")
     ax.set_title("Error budget: noise-free S2 of each measurement against the truth", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, ncol=2)

@@ -427,10 +427,10 @@ def test_shared_snapshots_join_the_particles_used_at_every_dt():
             rows[m] = (positions, v[m, keep] * step, used)
         runs.append(_run_from_snapshots(k, float(step), rows, list(range(snapshots))))
 
-    joined = shared_snapshots(runs)
+    snapshot_ids, joined = shared_snapshots(runs)
 
     expected = {0: {0, 1, 3, 4, 5, 6}, 2: {0, 1, 2, 4, 6, 7}, 3: {1, 2, 3, 4, 5, 7}}
-    assert len(joined) == len(expected)
+    assert snapshot_ids.tolist() == list(expected)
     for (positions, displacements), (m, ids) in zip(joined, expected.items(), strict=True):
         assert positions.shape == (len(ids), 3)
         assert displacements.shape == (len(ids), len(dt), 3)
@@ -451,7 +451,8 @@ def test_shared_snapshots_of_runs_with_no_common_particle_are_empty():
         )
         for k, step in enumerate(dt)
     ]
-    ((positions, displacements),) = shared_snapshots(runs)
+    snapshot_ids, ((positions, displacements),) = shared_snapshots(runs)
+    assert snapshot_ids.tolist() == [0]
     assert positions.shape == (0, 3) and displacements.shape == (0, len(dt), 3)
 
 

@@ -2,6 +2,7 @@
 
 import json
 import uuid
+from importlib.metadata import version
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -99,6 +100,7 @@ def test_points_computed_from_other_inputs_or_unreadable_are_recomputed(tmp_path
     run_sweep(sweep(marks, n=3), points, connect)
     record = json.loads((points / "x-1.json").read_text())
     assert record["inputs"] == {
+        "synptv": version("synptv"),
         "study": "square",
         "scenario": "test",
         "settings": {"name": "test", "seed": 0},
