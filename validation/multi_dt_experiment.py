@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
-from ptv.stats.multidt import wls_line
+from ptv.stats.multidt import largest_dt, smallest_and_largest_dt, wls_line
 from ptv.stats.pairs import LogBins, PairSums, pair_sums
 from ptv.stats.snapshots import SnapshotSums
 from ptv.stats.structure import StructureFunction, double_frame_sums, structure_function
@@ -79,7 +79,8 @@ class MultiDtResult:
         Plateau (maximum) of (S2/C₂)^{3/2}/r over the inertial range for the fit and for
         the exact D_LL, m²/s³.
     epsilon_subsets : dict
-        Plateau ε from the three largest Δt and from the smallest and largest only.
+        Plateau ε from the three largest Δt (K ≥ 4) and from the smallest and largest
+        only (K ≥ 3).
     mean_offset_pull : ndarray, shape (3,)
         β₀/σ(β₀) of the fit ⟨ΔX⟩ = αΔt + β₀ per component, with σ of ⟨ΔX⟩ from the
         scatter of per-snapshot means (particles of one snapshot share its large scales,
@@ -168,6 +169,7 @@ def analyse(
     inertial_range: tuple[float, float] = (2e-3, 20e-3),
     kolmogorov_c2: float = 2.0,
     spectrum: Spectrum | None = None,
+    n_boot: int = 200,
     rng: np.random.Generator | int | None = None,
 ) -> MultiDtResult:
     """Measure the sample, fit the multi-Δt statistics and put them beside the truth.
@@ -191,6 +193,8 @@ def analyse(
     spectrum : PopeSpectrum, KolmogorovBandSpectrum or None
         The spectrum the sample was simulated with, for the exact D_LL (None: the Pope
         spectrum of ``preset``).
+    n_boot : int
+        Bootstrap replicates over snapshots.
     rng : numpy.random.Generator, int or None
         Noise draws and bootstrap.
 
@@ -218,7 +222,7 @@ def analyse(
         mean_shift.append(per_snapshot.mean(axis=0))
         se_shift.append(per_snapshot.std(axis=0, ddof=1) / np.sqrt(len(per_snapshot)))
     snapshot_sums = double_frame_sums(runs, log_bins)
-    fit = structure_function(snapshot_sums, sample.dt, rng=rng)
+    fit = structure_function(snapshot_sums, sample.dt, n_boot=n_boot, rng=rng)
     r = np.where(np.isfinite(fit.r), fit.r, log_bins.centres)
     exact = longitudinal_structure_function(PopeSpectrum(p) if spectrum is None else spectrum, r)
     inertial = (r >= inertial_range[0]) & (r <= inertial_range[1]) & fit.fitted
@@ -230,9 +234,13 @@ def analyse(
         ).epsilon
 
     subsets = {}
-    for name, use in (("three_largest", [2, 3, 4]), ("smallest_and_largest", [0, 4])):
-        sub = structure_function(snapshot_sums, sample.dt, use=np.asarray(use), rng=rng)
-        subsets[name] = plateau(sub.s2)
+    for name, use, needed in (
+        ("three_largest", lambda: largest_dt(sample.dt, 3), 4),
+        ("smallest_and_largest", lambda: smallest_and_largest_dt(sample.dt), 3),
+    ):
+        if sample.dt.size >= needed:  # only subsets smaller than the whole set
+            sub = structure_function(snapshot_sums, sample.dt, use=use(), n_boot=n_boot, rng=rng)
+            subsets[name] = plateau(sub.s2)
     mean = wls_line(sample.dt, np.array(mean_shift).T, np.array(se_shift).T)
     return MultiDtResult(
         fit=fit,

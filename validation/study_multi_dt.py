@@ -27,14 +27,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
-from ptv.stats.pairs import LogBins, pair_sums
-from ptv.stats.structure import StructureFunction, double_frame_sums, structure_function
+from ptv.stats.structure import StructureFunction
 from simulator.particles import Box, DoubleFrameSample, double_frame
 from simulator.presets import FlowPreset, flow_preset
 from simulator.rigs import load_rig
 from simulator.spectra import SPECTRA, Spectrum
-from simulator.truth import longitudinal_structure_function
 from validation.multi_dt_experiment import Measurement, analyse
 from validation.scenario import Scenario, scenario_from_dict
 from validation.study_runner import Sweep, SweepPoint, seed_sequence
@@ -154,6 +151,7 @@ def _analyse(
         inertial_range=tuple(ptv.plateau),
         kolmogorov_c2=ptv.kolmogorov_c2,
         spectrum=spectrum,
+        n_boot=ptv.n_boot,
         rng=rng,
     )
     return _summary(
@@ -236,10 +234,6 @@ def seeding_task(settings: dict, options: dict, point: dict) -> dict:
 def dt_task(settings: dict, options: dict, point: dict) -> dict:
     """The multi-Δt fit on k Δt of the preset's set, ``snapshots_per_dt`` runs each.
 
-    :func:`validation.multi_dt_experiment.analyse` also refits the paper's 5-Δt subsets,
-    which a set of fewer Δt does not have, so the measurement and the fit are composed
-    here from the same pieces (:class:`Measurement`, ``ptv.stats``).
-
     Parameters
     ----------
     settings : dict
@@ -255,47 +249,19 @@ def dt_task(settings: dict, options: dict, point: dict) -> dict:
         As :func:`noise_task`.
     """
     scenario = scenario_from_dict(settings)
-    preset, spectrum, region = _flow(scenario)
+    preset = flow_preset(scenario.flow.preset)
     ratios = tuple(preset.dt_over_tau_eta[i] for i in point["dt_indices"])
-    subset = replace(preset, dt_over_tau_eta=ratios)
     sample = _simulate(
         scenario,
-        subset,
+        replace(preset, dt_over_tau_eta=ratios),
         particles=options["particles"],
         snapshots=point["snapshots_per_dt"],
         study="dt",
     )
     sigma = options["noise_um"] * 1e-6
-    measurement = Measurement(noise=(sigma,) * 3)
-    rng = np.random.default_rng(seed_sequence(scenario.seed, "dt", "measurement", point))
-    p, ptv = preset.parameters, scenario.ptv
-    bins = LogBins(10 * p.eta, p.L_int / 2, ptv.bins)
-    runs, truth = [], None
-    for run in sample.runs:
-        snapshots = []
-        for x, u in zip(run.positions, run.velocity[:, 0], strict=True):
-            measured = x + np.stack([measurement.draw(frame, rng) for frame in x])
-            inside = region.contains(measured[0])
-            snapshots.append((measured[0][inside], (measured[1] - measured[0])[inside]))
-            sums = pair_sums(x[0][inside], u[inside], bins)
-            truth = sums if truth is None else truth + sums
-        runs.append(snapshots)
-    fit = structure_function(double_frame_sums(runs, bins), sample.dt, n_boot=ptv.n_boot, rng=rng)
-    r = np.where(np.isfinite(fit.r), fit.r, bins.centres)
-    exact = longitudinal_structure_function(spectrum, r)
-    inertial = (r >= ptv.plateau[0]) & (r <= ptv.plateau[1]) & fit.fitted
-    epsilon = [
-        plateau_epsilon(
-            dissipation_profile(r[inertial], s2[inertial], kolmogorov_c2=ptv.kolmogorov_c2),
-            r_min=ptv.plateau[0],
-            r_max=ptv.plateau[1],
-            method="max",
-        ).epsilon
-        for s2 in (fit.s2, exact)
-    ]
-    out = _summary(fit, truth.mean[:, 0], exact, tuple(epsilon), p.eta, sigma)
-    row = {**point, "dt_over_tau_eta": list(ratios), **options, **out["rows"][0]}
-    out["rows"] = [row]
+    rng = seed_sequence(scenario.seed, "dt", "measurement", point)
+    out = _analyse(scenario, sample, Measurement(noise=(sigma,) * 3), rng)
+    out["rows"] = [{**point, "dt_over_tau_eta": list(ratios), **options, **out["rows"][0]}]
     return out
 
 
