@@ -29,6 +29,13 @@ Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
      particles' fitted Gaussians (deblending). Where the fit is ill-posed (singular,
      not concave, shift > 1 px) the 3-point Gaussian is used, and failing that the
      centroid (flag FALLBACK).
+     A clean detection with no other within :data:`ISOLATION_PX` is then refined by a
+     least-squares fit, in linear intensity over its whole 5 × 5 window, of a
+     pixel-integrated Gaussian A·E(i − x₀)·E(j − y₀) + B (erf differences; amplitude,
+     centre, width and background free; Gauss–Newton from the log fit). No threshold or
+     logarithm shapes that estimate, which removes the log fit's pull towards pixel
+     centres at low signal (0.008 px at 300–700 e⁻ per spot over 8 e⁻ of read noise,
+     under 0.003 px refined).
    - ``"gauss3"``: the 3-point Gaussian estimator along x and along y through the
      maximum pixel, on background-subtracted values (PHYSICS.md §8),
      x̂ = i + [ln I₋ − ln I₊] / [2(ln I₋ − 2 ln I₀ + ln I₊)]. Where a logarithm is
@@ -67,6 +74,7 @@ import time
 from typing import Literal
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ptv.detect import _kernels
 from ptv.detect._image import check_image, default_saturation
@@ -77,6 +85,33 @@ logger = logging.getLogger(__name__)
 
 Estimator = Literal["gauss", "gauss3", "centroid"]
 _ESTIMATORS = {"gauss": _kernels.GAUSS, "gauss3": _kernels.GAUSS3, "centroid": _kernels.CENTROID}
+
+
+#: A clean detection with no other within this distance, px, is refined by the
+#: integrated-Gaussian fit: another spot's light on its 5 × 5 window is then < 10⁻⁶ of
+#: that spot's peak for σ ≤ 0.9 px.
+ISOLATION_PX = 6.0
+#: Starting Gaussian width of the refinement, px (d_τ ≈ 3 px spots, PHYSICS.md §8).
+_REFINE_START_WIDTH = 0.8
+
+
+def _refine_isolated(
+    img: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    flags: np.ndarray,
+    background: BackgroundEstimate,
+) -> None:
+    """Refine the centres (x, y updated in place) of the clean, isolated detections."""
+    xy = np.column_stack((x, y))
+    crowded = np.zeros(x.size, dtype=bool)
+    pairs = cKDTree(xy).query_pairs(ISOLATION_PX, output_type="ndarray")
+    crowded[pairs.ravel()] = True
+    level = background.at(xy)[0]
+    refined = _kernels.refine_integrated_gaussian(
+        img, x, y, _REFINE_START_WIDTH, level, (flags == 0) & ~crowded
+    )
+    logger.debug("%d of %d detections refined", int(refined.sum()), x.size)
 
 
 def _number(name: str, value: object, *, low: float, strict: bool = False) -> float:
@@ -228,6 +263,8 @@ def detect_particles(
     keep = size >= min_size
     if not keep.all():
         x, y, inten, peak, size, flags = (a[keep] for a in (x, y, inten, peak, size, flags))
+    if estimator == "gauss" and x.size:
+        _refine_isolated(img, x, y, flags, background)
     det = Detections(
         xy=np.column_stack((x, y)),
         intensity=inten,
