@@ -389,16 +389,7 @@ def measure_frame(
 ) -> FramePoints:
     """The detection count per camera and the matched 3-D points of one frame.
 
-    Parameters
-    ----------
-    images : sequence of C ndarray, shape (H, W)
-        One image per camera (the same instant).
-    cameras : sequence of C CameraModel
-        Their calibrations.
-    settings : PipelineSettings
-        Detection threshold, matching volume and tolerance.
-    saturation : float, optional
-        Saturation level of the images, DN (None: the dtype's maximum).
+    Parameters as :func:`detect_and_match`.
 
     Returns
     -------

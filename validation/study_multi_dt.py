@@ -164,6 +164,31 @@ def _analyse(
     )
 
 
+def _measure(
+    settings: dict,
+    study: str,
+    point: dict,
+    *,
+    particles: int,
+    snapshots: int,
+    noise_um: float,
+    dt_indices: list[int] | None = None,
+) -> dict:
+    """Simulate the study's sample, measure it with white noise and analyse it.
+
+    The sample is seeded by the study (every point of a study sees the same flow), the
+    noise by the point. ``dt_indices`` keeps only those of the preset's Δt set.
+    """
+    scenario = scenario_from_dict(settings)
+    preset = flow_preset(scenario.flow.preset)
+    if dt_indices is not None:
+        ratios = tuple(preset.dt_over_tau_eta[i] for i in dt_indices)
+        preset = replace(preset, dt_over_tau_eta=ratios)
+    sample = _simulate(scenario, preset, particles=particles, snapshots=snapshots, study=study)
+    rng = seed_sequence(scenario.seed, study, "measurement", point)
+    return _analyse(scenario, sample, Measurement(noise=(noise_um * 1e-6,) * 3), rng)
+
+
 def noise_task(settings: dict, options: dict, point: dict) -> dict:
     """One noise level σ = ``point["noise_um"]`` (µm) on the study's sample.
 
@@ -182,18 +207,14 @@ def noise_task(settings: dict, options: dict, point: dict) -> dict:
         ``rows`` (one row: the point, c₁ vs sample truth at :data:`R_OVER_ETA`, ε, c₂)
         and ``curves`` (per separation bin, SI units).
     """
-    scenario = scenario_from_dict(settings)
-    preset = flow_preset(scenario.flow.preset)
-    sample = _simulate(
-        scenario,
-        preset,
+    out = _measure(
+        settings,
+        "noise",
+        point,
         particles=options["particles"],
         snapshots=options["snapshots"],
-        study="noise",
+        noise_um=point["noise_um"],
     )
-    sigma = point["noise_um"] * 1e-6
-    rng = seed_sequence(scenario.seed, "noise", "measurement", point)
-    out = _analyse(scenario, sample, Measurement(noise=(sigma,) * 3), rng)
     out["rows"] = [{**point, **options, **out["rows"][0]}]
     return out
 
@@ -215,18 +236,14 @@ def seeding_task(settings: dict, options: dict, point: dict) -> dict:
     dict
         As :func:`noise_task`.
     """
-    scenario = scenario_from_dict(settings)
-    preset = flow_preset(scenario.flow.preset)
-    sample = _simulate(
-        scenario,
-        preset,
+    out = _measure(
+        settings,
+        "seeding",
+        point,
         particles=point["particles"],
         snapshots=options["snapshots"],
-        study="seeding",
+        noise_um=options["noise_um"],
     )
-    sigma = options["noise_um"] * 1e-6
-    rng = seed_sequence(scenario.seed, "seeding", "measurement", point)
-    out = _analyse(scenario, sample, Measurement(noise=(sigma,) * 3), rng)
     out["rows"] = [{**point, **options, **out["rows"][0]}]
     return out
 
@@ -248,20 +265,18 @@ def dt_task(settings: dict, options: dict, point: dict) -> dict:
     dict
         As :func:`noise_task`.
     """
-    scenario = scenario_from_dict(settings)
-    preset = flow_preset(scenario.flow.preset)
-    ratios = tuple(preset.dt_over_tau_eta[i] for i in point["dt_indices"])
-    sample = _simulate(
-        scenario,
-        replace(preset, dt_over_tau_eta=ratios),
+    out = _measure(
+        settings,
+        "dt",
+        point,
         particles=options["particles"],
         snapshots=point["snapshots_per_dt"],
-        study="dt",
+        noise_um=options["noise_um"],
+        dt_indices=point["dt_indices"],
     )
-    sigma = options["noise_um"] * 1e-6
-    rng = seed_sequence(scenario.seed, "dt", "measurement", point)
-    out = _analyse(scenario, sample, Measurement(noise=(sigma,) * 3), rng)
-    out["rows"] = [{**point, "dt_over_tau_eta": list(ratios), **options, **out["rows"][0]}]
+    ratios = flow_preset(settings["flow"]["preset"]).dt_over_tau_eta
+    dt_over_tau_eta = [ratios[i] for i in point["dt_indices"]]
+    out["rows"] = [{**point, "dt_over_tau_eta": dt_over_tau_eta, **options, **out["rows"][0]}]
     return out
 
 
