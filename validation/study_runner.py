@@ -18,12 +18,14 @@ from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
 from importlib.metadata import version
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import dask
 import numpy as np
-from distributed import Client, LocalCluster, as_completed
 
 from validation.files import as_json, write_json_atomic
+
+if TYPE_CHECKING:  # dask is imported when a sweep runs, not by every synptv command
+    from distributed import Client
 
 log = logging.getLogger(__name__)
 
@@ -132,7 +134,9 @@ def _load_point(path: Path, inputs: dict) -> dict | None:
 
 
 @contextmanager
-def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> Iterator[Client]:
+def dask_client(
+    *, workers: int | None = None, scheduler: str | None = None
+) -> Iterator["Client"]:
     """A Dask client: on an existing scheduler, or on a new local cluster.
 
     Parameters
@@ -148,6 +152,9 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
     ValueError
         Both or bad values given, or no scheduler answering at ``scheduler``.
     """
+    import dask
+    from distributed import Client, LocalCluster
+
     if workers is not None and scheduler is not None:
         raise ValueError("give --workers or --scheduler, not both")
     if scheduler is not None:
@@ -180,7 +187,7 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
 def run_sweep(
     sweep: Sweep,
     folder: Path,
-    connect: Callable[[int], AbstractContextManager[Client]],
+    connect: Callable[[int], AbstractContextManager["Client"]],
     *,
     progress: Callable[[int, int], None] | None = None,
     on_saved: Callable[[str], None] | None = None,
@@ -221,6 +228,8 @@ def run_sweep(
     total = len(ids)
     if progress is not None and reused:
         progress(len(reused), total)
+    from distributed import as_completed
+
     pending = [point for point in sweep.points if point.id not in results]
     computed = []
     if pending:
