@@ -2,8 +2,8 @@
 
 import json
 import uuid
-from importlib.metadata import version
 from contextlib import contextmanager
+from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
