@@ -56,9 +56,12 @@ import hashlib
 import logging
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.stats import chi2 as chi2_distribution
+from scipy.stats import f as f_distribution
 
 from ptv.camera_model import CameraModel
 from ptv.dataset import Dataset, DatasetError, Snapshot, cameras_in_order
@@ -72,8 +75,9 @@ from ptv.stats.dissipation import (
     plateau_epsilon,
 )
 from ptv.stats.eulerian import EulerianFit, Grid, UPrime, eulerian_fit, eulerian_moments, u_prime
-from ptv.stats.multidt import LineFit, gls_line, largest_dt, smallest_and_largest_dt, wls_line
+from ptv.stats.multidt import LineFit, largest_dt, smallest_and_largest_dt, wls_line
 from ptv.stats.pairs import LogBins
+from ptv.stats.snapshots import cluster_mean
 from ptv.stats.structure import (
     StructureFunction,
     double_frame_sums,
@@ -108,6 +112,8 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+T = TypeVar("T")
 
 Progress = Callable[[int, int], None]
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
@@ -405,18 +411,17 @@ class SharedFirstFrames:
 
     Each use checks that the images are the ones measured (a content digest per camera),
     so a dataset that declares a shared first frame wrongly is an error, not a silent mix
-    of frames.
+    of frames. What is stored is what the ``measure`` callable returns (the PTV stack
+    keeps :data:`FramePoints`).
     """
 
     def __init__(self) -> None:
-        self._frames: dict[int, tuple[tuple[bytes, ...], FramePoints]] = {}
+        self._frames: dict[int, tuple[tuple[bytes, ...], object]] = {}
 
     def __len__(self) -> int:
         return len(self._frames)
 
-    def measure(
-        self, snapshot: Snapshot, measure: Callable[[list[np.ndarray]], FramePoints]
-    ) -> FramePoints:
+    def measure(self, snapshot: Snapshot, measure: Callable[[list[np.ndarray]], T]) -> T:
         """Frame a of ``snapshot``: ``measure(images)`` the first time, the stored result after.
 
         Raises
@@ -701,8 +706,13 @@ class MeanDisplacement:
     fit : LineFit
         Per component (3 rows): c1 = α, the mean velocity, m/s; c2 = β0, m (zero
         within se_c2 for zero-mean noise); chi2_dof of the line. A WLS line for
-        independent runs; a GLS line with the snapshot covariance of the K means when
-        they share their particles.
+        independent runs; with shared particles, the least-squares line and the
+        snapshot covariance of the K means (:func:`_mean_displacement_joined`).
+    offset_covariance : ndarray, shape (3, 3), or None
+        Covariance of the three β0, m² (shared particles only: their components are
+        correlated through the snapshots).
+    snapshots : int or None
+        Snapshots M that covariance was estimated from.
     """
 
     dt: np.ndarray
@@ -710,6 +720,8 @@ class MeanDisplacement:
     se: np.ndarray
     count: np.ndarray
     fit: LineFit
+    offset_covariance: np.ndarray | None = None
+    snapshots: int | None = None
 
     @property
     def se_offset_scaled(self) -> np.ndarray:
@@ -720,6 +732,22 @@ class MeanDisplacement:
         """
         chi2 = np.nan_to_num(self.fit.chi2_dof, nan=1.0)
         return self.fit.se_c2 * np.sqrt(np.maximum(chi2, 1.0))
+
+    def offset_test(self, false_alarm: float = 0.01) -> tuple[float, float]:
+        """β0ᵀ C⁻¹ β0 and the limit it stays below when β0 = 0, but for ``false_alarm``.
+
+        C is ``offset_covariance`` when the K means share their particles: estimated
+        from M snapshots, so the statistic follows Hotelling's T², 3(M − 1)/(M − 3)
+        F(3, M − 3). Otherwise C = diag(``se_offset_scaled``²) and the limit is χ²₃'s.
+        """
+        if self.offset_covariance is None:
+            statistic = float(np.sum((self.fit.c2 / self.se_offset_scaled) ** 2))
+            return statistic, float(chi2_distribution.ppf(1 - false_alarm, 3))
+        beta = self.fit.c2
+        statistic = float(beta @ np.linalg.solve(self.offset_covariance, beta))
+        m = self.snapshots
+        limit = 3 * (m - 1) / (m - 3) * f_distribution.ppf(1 - false_alarm, 3, m - 3)
+        return statistic, float(limit)
 
 
 @dataclass(frozen=True, eq=False)
@@ -854,13 +882,11 @@ def _mean_displacement(runs: Sequence[RunParticles]) -> MeanDisplacement:
                 f"Δt_{run.k} = {run.dt:.4g} s: {len(d)} link(s) in the analysis volume; "
                 "too few for statistics"
             )
-        mean[i] = d.mean(axis=0)
         if len(per) >= 2:  # cluster (snapshot) standard error
             n = np.array([len(p) for p in per], dtype=np.float64)
-            dev = np.array([p.mean(axis=0) for p in per]) - mean[i]
-            m = len(per)
-            se[i] = np.sqrt(m / (m - 1) * np.sum((n[:, None] * dev) ** 2, axis=0)) / n.sum()
+            mean[i], se[i] = cluster_mean(n, np.array([p.mean(axis=0) for p in per]))
         else:
+            mean[i] = d.mean(axis=0)
             se[i] = d.std(axis=0, ddof=1) / np.sqrt(len(d))
     dt = np.array([r.dt for r in runs])
     sigma = np.where(se > 0, se, np.max(se) if np.max(se) > 0 else 1.0)
@@ -871,28 +897,52 @@ def _mean_displacement(runs: Sequence[RunParticles]) -> MeanDisplacement:
 def _mean_displacement_joined(joined, dt: np.ndarray) -> MeanDisplacement | None:
     """:class:`MeanDisplacement` of the particles followed over every Δt (shared frame a).
 
-    The K means then share their particles, so their errors are correlated: their
-    covariance comes from the scatter of the snapshot means (snapshots are the
-    independent units) and the line is fitted by GLS. None when there are too few
-    snapshots (M ≤ K) for that covariance to be positive definite.
+    The K means then share their particles, so their errors are correlated, across Δt
+    and across components: their covariance Σ comes from the scatter of the snapshot
+    means (snapshots are the independent units, :func:`ptv.stats.snapshots.cluster_mean`).
+    The line is the least-squares one, c = L·⟨ΔX⟩ with L = (XᵀX)⁻¹Xᵀ fixed by the Δt
+    alone, so Cov(c) = L Σ Lᵀ holds exactly and β0ᵀC⁻¹β0 follows Hotelling's T² (a
+    GLS line would weigh the Δt by the estimated Σ, and its χ² test raise 2-3 % false
+    alarms instead of 1 % at M = 30-40). None when there are too few snapshots (M ≤ K)
+    for Σ to be positive definite.
     """
     groups = [d for _, d in joined if len(d)]
     k = len(dt)
     if len(groups) <= k:
         return None
     n = np.array([len(d) for d in groups], dtype=np.float64)
-    snapshot_means = np.array([d.mean(axis=0) for d in groups])  # (M, K, 3)
-    total = n.sum()
-    mean = np.einsum("m,mkc->kc", n, snapshot_means) / total
-    dev = n[:, None, None] * (snapshot_means - mean)
-    m = len(groups)
-    cov = m / (m - 1) * np.einsum("mkc,mlc->ckl", dev, dev) / total**2  # (3, K, K)
-    try:
-        fit = gls_line(np.broadcast_to(dt, (3, k)), mean.T, cov)
-    except ValueError:  # not positive definite
+    mean, cov = cluster_mean(n, np.array([d.mean(axis=0) for d in groups]), full=True)
+    cov = cov.reshape(k, 3, k, 3)
+    per_component = np.stack([cov[:, c, :, c] for c in range(3)])  # (3, K, K)
+    if not np.all(np.linalg.eigvalsh(per_component) > 0):
         return None
-    se = np.sqrt(np.diagonal(cov, axis1=1, axis2=2)).T
-    return MeanDisplacement(dt=dt, mean=mean, se=se, count=np.full(k, int(total)), fit=fit)
+    design = np.stack([dt, np.ones_like(dt)], axis=1)
+    operator = np.linalg.pinv(design)  # (2, K): slope and intercept rows
+    coef = np.einsum("pk,kc->pc", operator, mean)  # (2, 3)
+    cov_coef = np.einsum("pk,kcld,ql->pcqd", operator, cov, operator)  # (2, 3, 2, 3)
+    residual = mean - design @ coef  # (K, 3)
+    chi2 = np.array(
+        [residual[:, c] @ np.linalg.solve(per_component[c], residual[:, c]) for c in range(3)]
+    )
+    fit = LineFit(
+        c1=coef[0],
+        c2=coef[1],
+        se_c1=np.sqrt(np.diagonal(cov_coef[0, :, 0, :])),
+        se_c2=np.sqrt(np.diagonal(cov_coef[1, :, 1, :])),
+        cov_c1c2=np.diagonal(cov_coef[0, :, 1, :]).copy(),
+        chi2_dof=chi2 / (k - 2) if k > 2 else np.full(3, np.nan),
+        n_points=k,
+        method="ols-cluster",
+    )
+    return MeanDisplacement(
+        dt=dt,
+        mean=mean,
+        se=np.sqrt(np.diagonal(per_component, axis1=1, axis2=2)).T,
+        count=np.full(k, int(n.sum())),
+        fit=fit,
+        offset_covariance=cov_coef[1, :, 1, :].copy(),
+        snapshots=len(groups),
+    )
 
 
 def _eulerian(runs: Sequence[RunParticles], dt: np.ndarray, settings: PipelineSettings):
@@ -1062,6 +1112,13 @@ def compute_statistics(
         n_snap = np.array([len(p) for p in per_run], dtype=np.int64)
         mean_displacement = population = None
     if mean_displacement is None:
+        if shared_first_frame:
+            log.warning(
+                "mean displacement: too few snapshots (%d) for the covariance of the %d "
+                "shared means; each Δt's links are averaged on their own",
+                len(joined),
+                len(usable),
+            )
         mean_displacement = _mean_displacement(usable)
     errors = "bootstrap"
     if n_snap.min() < 2:

@@ -202,6 +202,7 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
             "se_offset": _list(md.fit.se_c2),
             "se_offset_scaled": _list(md.se_offset_scaled),
             "chi2_dof": _list(md.fit.chi2_dof),
+            "offset_test": dict(zip(("statistic", "limit"), md.offset_test(), strict=True)),
         },
         "population": None
         if st.population is None

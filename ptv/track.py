@@ -415,9 +415,9 @@ def trajectory_residuals(dt, displacements) -> np.ndarray:
     For a particle followed from the same X(t) to every Δt_k (a shared first frame, or
     the skip-frame pairs of one track), the displacements lie on
     ΔX_k = c + u Δt_k + ½ a Δt_k² up to the position noise of each end (the constant c
-    absorbs the noise of the shared start). The Δt³ term, tens of nm at Δt ≈ 0.2 τ_η,
-    leaves a residual below a nanometre after the quadratic fit; a link to the wrong
-    particle at one Δt leaves one far above the noise.
+    absorbs the noise of the shared start). The Δt³ term, ~0.1 µm at Δt ≈ 0.2 τ_η,
+    leaves a residual of a few nm after the quadratic fit; a link to the wrong particle
+    at one Δt leaves one far above the noise.
 
     Parameters
     ----------

@@ -19,6 +19,7 @@ from scipy.spatial import cKDTree
 from ptv.pipeline import PipelineSettings, S2Population
 from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
 from ptv.stats.pairs import PairSums, pair_sums
+from ptv.stats.snapshots import cluster_mean
 from simulator.particles import Box
 from simulator.spectra import SPECTRA
 from simulator.truth import longitudinal_structure_function
@@ -99,13 +100,8 @@ def _pooled(per_snapshot: Sequence[PairSums]) -> tuple[np.ndarray, np.ndarray, n
     sums = per_snapshot[0]
     for s in per_snapshot[1:]:
         sums = sums + s
-    means = np.array([s.mean[:, 0] for s in per_snapshot])
     weights = np.array([s.count for s in per_snapshot], dtype=float)
-    s2 = sums.mean[:, 0]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        dev = np.where(weights > 0, weights * (np.nan_to_num(means) - s2), 0.0)
-        m = (weights > 0).sum(axis=0)
-        se = np.sqrt(m / np.maximum(m - 1, 1) * np.sum(dev**2, axis=0)) / weights.sum(axis=0)
+    s2, se = cluster_mean(weights, np.array([s.mean[:, 0] for s in per_snapshot]))
     return sums.mean_separation, s2, se
 
 
@@ -124,7 +120,7 @@ class PopulationTruth:
         Measured particles of the population.
     associated : int
         Those with a true particle within the association radius (the others, ghosts,
-        are left out).
+        are left out; two measured particles near one true particle count as one).
     """
 
     s2_sample: np.ndarray

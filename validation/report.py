@@ -130,8 +130,8 @@ def _must_hold(comparisons: dict, detection: dict, matching: dict, main: str) ->
     rows.append(
         (
             f"stats.mean_linear_in_dt ({main})",
-            c["mean_linear"]["chi2_offset"],
-            f"Σ(β0/σ)² < {c['mean_linear']['chi2_limit']:.3g} (χ²₃, 1 % false alarms)",
+            c["mean_linear"]["statistic"],
+            f"β0ᵀC⁻¹β0 < {c['mean_linear']['limit']:.3g} (1 % false alarms)",
             c["mean_linear"]["passed"],
         )
     )

@@ -134,9 +134,7 @@ def _load_point(path: Path, inputs: dict) -> dict | None:
 
 
 @contextmanager
-def dask_client(
-    *, workers: int | None = None, scheduler: str | None = None
-) -> Iterator["Client"]:
+def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> Iterator["Client"]:
     """A Dask client: on an existing scheduler, or on a new local cluster.
 
     Parameters

@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 from ptv.camera_model import CameraModel
 from ptv.dataset import Dataset
 from ptv.detect import detect_particles
-from ptv.pipeline import PipelineSettings, RunParticles, inside_box
+from ptv.pipeline import PipelineSettings, RunParticles, SharedFirstFrames, inside_box
 from ptv.triangulate import triangulate
 from simulator.rigs import Rig, rig_from_dict
 
@@ -266,28 +266,25 @@ def detected_runs(
     """
     names = dataset.cameras
     tally = _DetectionTally(names)
-    shared_a: dict[int, np.ndarray] = {}  # frame a of each snapshot, when every Δt shares it
+    shared_a = SharedFirstFrames() if dataset.shared_first_frame else None
     errors = []  # per Δt: {snapshot: (particle indices, position error, ΔX error)}
     runs = []
     for k, run in enumerate(truth):
         per_snapshot, run_errors = [], {}
         for snap in dataset.snapshots(k, limit=settings.snapshots):
 
-            def measured(f: int, snap=snap, run=run) -> np.ndarray:
-                images = [getattr(pair, "ab"[f]) for pair in snap.frames]
+            def measured(images, f: int, snap=snap, run=run) -> np.ndarray:
                 exact = [run.xy[name][snap.m, f] for name in names]
                 visible = [run.visible[name][snap.m, f] for name in names]
                 return _triangulated_particles(
                     images, exact, visible, cameras, settings, dataset.saturation, tally
                 )
 
-            if dataset.shared_first_frame:
-                if snap.m not in shared_a:
-                    shared_a[snap.m] = measured(0)
-                start = shared_a[snap.m]
+            if shared_a is not None:
+                start = shared_a.measure(snap, lambda images: measured(images, 0))
             else:
-                start = measured(0)
-            end = measured(1)
+                start = measured([pair.a for pair in snap.frames], 0)
+            end = measured([pair.b for pair in snap.frames], 1)
             both = np.isfinite(start[:, 0]) & np.isfinite(end[:, 0])
             ends = (start[both], end[both])
             true_ends = run.positions[snap.m][:, both]

@@ -1,6 +1,6 @@
 """Compiled (numba) kernels of the particle detector (private).
 
-Three passes:
+Three passes, and a refinement:
 
 1. :func:`local_maxima`: one raster scan; a pixel is a maximum when it is above the
    threshold, strictly brighter than its already-scanned 8-neighbours and at least as
@@ -16,6 +16,8 @@ Three passes:
    regions, refit each after subtracting the others' fits. The cost is linear in the
    pixels above threshold except in regions with several maxima (quadratic in their
    number, which is capped by :data:`MAX_SPLIT`).
+4. :func:`refine_integrated_gaussian`: the centres of isolated clean particles from a
+   fit of a pixel-integrated Gaussian to their 5 × 5 window, in linear intensity.
 
 Flag bits and estimator codes mirror :class:`ptv.detect.DetectionFlag` and the
 estimator names of :func:`ptv.detect.detect_particles`.
@@ -44,9 +46,11 @@ _DEBLEND_PASSES = 2
 #: Beyond this many px from its maximum a fitted spot is taken as dark (deblending).
 _MODEL_REACH = 4
 
-#: Entries of the packed normal equations of the log-quadratic fit: 15 of the
+#: Entries of the packed normal equations of the 5-parameter fits: 15 of the
 #: symmetric 5 × 5 matrix (upper triangle, row by row) and 5 of the right-hand side.
 _N_LSQ = 20
+#: Positions of the diagonal in that packing.
+_DIAGONAL = (0, 5, 9, 12, 14)
 
 
 @njit(cache=True, inline="always")
@@ -237,21 +241,16 @@ def _gauss3(lo, mid, hi):  # pragma: no cover (compiled)
 
 
 @njit(cache=True)
-def _lsq_add(acc, a, dx, dy, w, log_v):  # pragma: no cover (compiled)
-    """Add one pixel to the normal equations of ln I = c0 + c1 x + c2 y + c3 x² + c4 y²."""
-    phi0 = 1.0
-    phi1 = float(dx)
-    phi2 = float(dy)
-    phi3 = phi1 * phi1
-    phi4 = phi2 * phi2
-    phi = (phi0, phi1, phi2, phi3, phi4)
+def _lsq_add(acc, a, phi, w, y):  # pragma: no cover (compiled)
+    """Add one observation y of weight w, with the 5 basis values phi, to the packed
+    normal equations of row ``a``."""
     e = 0
     for u in range(5):
         wu = w * phi[u]
         for v in range(u, 5):
             acc[a, e] += wu * phi[v]
             e += 1
-        acc[a, 15 + u] += wu * log_v
+        acc[a, 15 + u] += wu * y
 
 
 @njit(cache=True)
@@ -325,7 +324,9 @@ def _fit_pixel(
         return
     if h > 0.0:
         w = h / ref
-        _lsq_add(acc, 0, c - max_c[kept[a]], r - max_r[kept[a]], w * w, log(h))
+        dx = float(c - max_c[kept[a]])
+        dy = float(r - max_r[kept[a]])
+        _lsq_add(acc, 0, (1.0, dx, dy, dx * dx, dy * dy), w * w, log(h))
 
 
 @njit(cache=True)
@@ -632,7 +633,8 @@ def refine_integrated_gaussian(img, x, y, width, level, candidate):  # pragma: n
     ``level``. Every pixel of the window counts, whatever its value, so no threshold or
     logarithm shapes the estimate (the log-quadratic fit's slight pull towards pixel
     centres at low signal). Particles whose fit fails (singular, a step beyond ½ px,
-    a width outside 0.3–3 px, no convergence) keep their input centre.
+    a width outside 0.3–3 px, no convergence, a centre more than 1 px from the window's
+    middle pixel) keep their input centre.
 
     Parameters
     ----------
@@ -656,6 +658,7 @@ def refine_integrated_gaussian(img, x, y, width, level, candidate):  # pragma: n
     refined = np.zeros(x.size, np.bool_)
     acc = np.zeros((1, _N_LSQ))
     step = np.empty(5)
+    scale = np.empty(5)
     ex = np.empty((2 * REFINE_HALF + 1, 3))
     ey = np.empty((2 * REFINE_HALF + 1, 3))
     for n in range(x.size):
@@ -663,9 +666,7 @@ def refine_integrated_gaussian(img, x, y, width, level, candidate):  # pragma: n
             continue
         c0 = int(x[n] + 0.5)  # nearest pixel (x, y >= -0.5 on an image)
         r0 = int(y[n] + 0.5)
-        if not (
-            REFINE_HALF <= c0 < cols - REFINE_HALF and REFINE_HALF <= r0 < rows - REFINE_HALF
-        ):
+        if not (REFINE_HALF <= c0 < cols - REFINE_HALF and REFINE_HALF <= r0 < rows - REFINE_HALF):
             continue
         x0, y0, s, b = x[n], y[n], width, level[n]
         mass0 = _pixel_mass(0.0, s)[0]
@@ -689,14 +690,21 @@ def refine_integrated_gaussian(img, x, y, width, level, candidate):  # pragma: n
                         a * (ex[i, 2] * ey[j, 0] + ex[i, 0] * ey[j, 2]),
                         1.0,
                     )
-                    e = 0
-                    for u in range(5):
-                        for v in range(u, 5):
-                            acc[0, e] += jac[u] * jac[v]
-                            e += 1
-                        acc[0, 15 + u] += jac[u] * resid
+                    _lsq_add(acc, 0, jac, 1.0, resid)
+            # Jacobi scaling: the centre and width columns grow as A², the background's
+            # stays at 25, and the solver's pivot test is relative to the largest.
+            for u in range(5):
+                scale[u] = sqrt(acc[0, _DIAGONAL[u]])
+            e = 0
+            for u in range(5):
+                for v in range(u, 5):
+                    acc[0, e] /= scale[u] * scale[v]
+                    e += 1
+                acc[0, 15 + u] /= scale[u]
             if not _lsq_solve(acc, 0, step):
                 break
+            for u in range(5):
+                step[u] /= scale[u]
             if abs(step[1]) > 0.5 or abs(step[2]) > 0.5:
                 break
             a += step[0]

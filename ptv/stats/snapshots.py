@@ -25,7 +25,7 @@ import numpy as np
 
 from ptv.stats.pairs import PairSums
 
-__all__ = ["SnapshotSums"]
+__all__ = ["SnapshotSums", "cluster_mean"]
 
 logger = logging.getLogger(__name__)
 
@@ -244,3 +244,45 @@ class SnapshotSums:
                 out[start : start + chunk] = (ws @ sq) / (ws @ cnt)
         logger.debug("bootstrap over %d snapshots: %d replicates of %d×%d", m, n_boot, b, k)
         return out.reshape(n_boot, b, k)
+
+
+def cluster_mean(
+    weights: np.ndarray, values: np.ndarray, *, full: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted mean over snapshots (axis 0) and its cluster-robust error.
+
+    Snapshots are the independent units: with w_m the weight (e.g. particles or pairs)
+    and x_m the mean of snapshot m, the mean is x̄ = Σ w_m x_m / Σ w_m and its
+    covariance M/(M − 1) Σ w_m²(x_m − x̄)(x_m − x̄)ᵀ / (Σ w_m)², M the snapshots with
+    weight.
+
+    Parameters
+    ----------
+    weights : ndarray, shape (M,) or (M, *S)
+        Weights ≥ 0 (broadcast against ``values``).
+    values : ndarray, shape (M, *S)
+        Snapshot means (NaN where the weight is 0).
+    full : bool
+        Return the covariance of the flattened mean instead of its standard error.
+
+    Returns
+    -------
+    (ndarray (*S), ndarray (*S) or (N, N))
+        The mean and its standard error, or its covariance with N = prod(S); NaN where
+        no snapshot has weight, and the error too where only one has.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    w = np.asarray(weights, dtype=np.float64)
+    w = np.broadcast_to(w.reshape(w.shape + (1,) * (values.ndim - w.ndim)), values.shape)
+    total = w.sum(axis=0)
+    x = np.where(w > 0, values, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.sum(w * x, axis=0) / total
+        dev = np.where(w > 0, w * (x - mean), 0.0)
+        m = (w > 0).sum(axis=0)
+        factor = np.where(m > 1, m / np.maximum(m - 1, 1), np.nan)
+        if not full:
+            return mean, np.sqrt(factor * np.sum(dev**2, axis=0)) / total
+        d = dev.reshape(len(values), -1)
+        scale = np.sqrt(factor.ravel()) / total.ravel()
+        return mean, (d.T @ d) * np.outer(scale, scale)

@@ -500,18 +500,22 @@ def _joined_experiment(rng, dt, *, offset=0.0, snapshots=30, particles=200, sigm
 
 
 def test_the_mean_displacement_offset_of_shared_frames_has_calibrated_errors():
-    """The K means share frame a, so their errors are correlated: the GLS line's β0 must
-    scatter over independent experiments as its error says (pulls of unit spread; with
-    the covariance estimated from M = 30 snapshots for K = 5 means, Hotelling's factor
-    √((M − 1)/(M − K − 1)) ≈ 1.1 is expected), and a 1 µm offset of frame b must stand
-    out of its ~0.1 µm error."""
+    """The K means share frame a, so their errors are correlated: β0 must scatter over
+    independent experiments as its error says (pulls of unit spread; Student's factor
+    √((M − 1)/(M − 3)) ≈ 1.04 at M = 30), the joint test must raise 1 % false alarms
+    (at most 9 of 300 is a 4σ binomial bound), and a 1 µm offset of frame b, ten times
+    its error, must stand out."""
     rng = np.random.default_rng(5)
     dt = np.array([1e-4, 2e-4, 3e-4, 4e-4, 5e-4])
-    pulls = []
-    for _ in range(200):
-        md = _mean_displacement_joined(_joined_experiment(rng, dt), dt)
-        pulls.append(md.fit.c2 / md.se_offset_scaled)
-    assert 0.9 < np.std(pulls) < 1.25
+    pulls, alarms = [], 0
+    for _ in range(300):
+        md = _mean_displacement_joined(_joined_experiment(rng, dt, particles=100), dt)
+        pulls.append(md.fit.c2 / md.fit.se_c2)
+        statistic, limit = md.offset_test()
+        alarms += statistic > limit
+    assert 0.9 < np.std(pulls) < 1.2
+    assert alarms <= 9
     md = _mean_displacement_joined(_joined_experiment(rng, dt, offset=1e-6), dt)
-    assert np.all(md.fit.c2 / md.se_offset_scaled > 5)
+    statistic, limit = md.offset_test()
+    assert statistic > 10 * limit
     assert np.allclose(md.fit.c2, 1e-6, rtol=0.3)

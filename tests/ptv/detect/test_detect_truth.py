@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from ptv.detect import DetectionFlag, detect_particles, estimate_background
+from ptv.detect import DetectionFlag, _kernels, detect_particles, estimate_background
 from simulator.render.particles import render_particles
 from simulator.render.sensor import Sensor
 
@@ -263,3 +263,17 @@ def test_same_result_for_every_input_dtype():
     small = (image // 16).astype(np.uint8)
     det8 = detect_particles(small)
     assert (match(xy, det8.xy) >= 0).mean() >= 0.95
+
+
+@pytest.mark.parametrize(("sigma", "electrons"), [(0.75, 3e3), (0.9, 2e5), (1.5, 1e6)])
+def test_the_refinement_fits_faint_bright_and_wide_spots(sigma, electrons):
+    """The integrated-Gaussian fit converges to the true centre whatever the scale of the
+    spot (its normal equations are scaled before they are solved)."""
+    truth = np.array([[20.37, 19.71]])
+    image = render_particles(truth, sigma, electrons, shape=(40, 40)).image + 5.0
+    x, y = np.array([20.0]), np.array([20.0])  # a start 0.4 px off
+    refined = _kernels.refine_integrated_gaussian(
+        image, x, y, 0.8, np.array([5.0]), np.array([True])
+    )
+    assert refined[0]
+    assert np.hypot(x[0] - truth[0, 0], y[0] - truth[0, 1]) < 1e-6
