@@ -5,7 +5,7 @@ import pytest
 
 from ptv.stats.multidt import fit_multi_dt, fit_multi_dt_bootstrap
 from ptv.stats.pairs import PairSums
-from ptv.stats.snapshots import SnapshotSums
+from ptv.stats.snapshots import SnapshotSums, cluster_mean
 
 DT = np.array([0.1, 0.2, 0.3, 0.4, 0.5]) * 1e-3  # s
 
@@ -156,3 +156,25 @@ def test_bad_input_is_rejected():
             np.ones((1, 2, 2)),
             np.zeros(1),
         )
+
+
+def test_cluster_mean_of_equal_weights_is_the_mean_and_its_standard_error():
+    rng = np.random.default_rng(8)
+    values = rng.normal(size=(12, 4, 3))
+    mean, se = cluster_mean(np.full(12, 7.0), values)
+    assert np.allclose(mean, values.mean(axis=0))
+    assert np.allclose(se, values.std(axis=0, ddof=1) / np.sqrt(12))
+    _, cov = cluster_mean(np.full(12, 7.0), values, full=True)
+    assert cov.shape == (12, 12)
+    assert np.allclose(cov, np.cov(values.reshape(12, -1), rowvar=False) / 12)
+
+
+def test_cluster_mean_ignores_snapshots_without_weight():
+    values = np.array([[1.0, np.nan], [3.0, 5.0], [np.nan, 7.0]])
+    weights = np.array([[1.0, 0.0], [3.0, 1.0], [0.0, 1.0]])
+    mean, se = cluster_mean(weights, values)
+    assert np.allclose(mean, [2.5, 6.0])
+    # Two snapshots per column: 2·Σ w²(x − x̄)² / (Σ w)².
+    assert np.allclose(se, np.sqrt([2 * (1.5**2 + 9 * 0.5**2) / 16, 2 * 2 / 4]))
+    _, lone = cluster_mean(np.array([1.0, 0.0]), np.array([4.0, np.nan]))
+    assert np.isnan(lone)
