@@ -1,6 +1,6 @@
 """Compiled (numba) kernels of the particle detector (private).
 
-Three passes, and a refinement:
+Three passes:
 
 1. :func:`local_maxima`: one raster scan; a pixel is a maximum when it is above the
    threshold, strictly brighter than its already-scanned 8-neighbours and at least as
@@ -16,14 +16,14 @@ Three passes, and a refinement:
    regions, refit each after subtracting the others' fits. The cost is linear in the
    pixels above threshold except in regions with several maxima (quadratic in their
    number, which is capped by :data:`MAX_SPLIT`).
-4. :func:`refine_integrated_gaussian`: the centres of isolated clean particles from a
-   fit of a pixel-integrated Gaussian to their 5 × 5 window, in linear intensity.
+
+The least-squares refinement that follows is in :mod:`ptv.detect._refine`.
 
 Flag bits and estimator codes mirror :class:`ptv.detect.DetectionFlag` and the
 estimator names of :func:`ptv.detect.detect_particles`.
 """
 
-from math import erf, exp, floor, log, sqrt
+from math import exp, floor, log, sqrt
 
 import numpy as np
 from numba import njit
@@ -49,8 +49,6 @@ _MODEL_REACH = 4
 #: Entries of the packed normal equations of the 5-parameter fits: 15 of the
 #: symmetric 5 × 5 matrix (upper triangle, row by row) and 5 of the right-hand side.
 _N_LSQ = 20
-#: Positions of the diagonal in that packing.
-_DIAGONAL = (0, 5, 9, 12, 14)
 
 
 @njit(cache=True, inline="always")
@@ -600,125 +598,3 @@ def measure(
         out_flags[:n_out],
     )
 
-
-#: Window half-width of the integrated-Gaussian refinement, px (a 5 × 5 window).
-REFINE_HALF = 2
-#: Gauss–Newton iterations of the refinement at most, and its convergence, px.
-_REFINE_ITERATIONS = 10
-_REFINE_TOLERANCE = 1e-5
-
-
-@njit(cache=True, inline="always")
-def _pixel_mass(u, s):  # pragma: no cover (compiled)
-    """∫ over the pixel [u − ½, u + ½] of the unit Gaussian of width s centred at 0, and
-    its derivatives with respect to the centre and to s."""
-    root2s = sqrt(2.0) * s
-    norm = 1.0 / (sqrt(2.0 * np.pi) * s)
-    hi, lo = u + 0.5, u - 0.5
-    g_hi = norm * exp(-0.5 * (hi / s) ** 2)
-    g_lo = norm * exp(-0.5 * (lo / s) ** 2)
-    mass = 0.5 * (erf(hi / root2s) - erf(lo / root2s))
-    d_centre = -(g_hi - g_lo)
-    d_width = -(hi * g_hi - lo * g_lo) / s
-    return mass, d_centre, d_width
-
-
-@njit(cache=True)
-def refine_integrated_gaussian(img, x, y, width, level, candidate):  # pragma: no cover
-    """Least-squares fit of a pixel-integrated Gaussian spot to the 5 × 5 window.
-
-    The model of pixel (i, j) is A·E(i − x₀)·E(j − y₀) + B, E the light of a Gaussian of
-    width s falling on the pixel (erf differences), fitted in linear intensity with
-    uniform weights by Gauss–Newton from (x, y), ``width`` and the local background
-    ``level``. Every pixel of the window counts, whatever its value, so no threshold or
-    logarithm shapes the estimate (the log-quadratic fit's slight pull towards pixel
-    centres at low signal). Particles whose fit fails (singular, a step beyond ½ px,
-    a width outside 0.3–3 px, no convergence, a centre more than 1 px from the window's
-    middle pixel) keep their input centre.
-
-    Parameters
-    ----------
-    img : ndarray (H, W)
-        The image, DN.
-    x, y : ndarray (N,)
-        Starting centres, px (updated in place for the particles refined).
-    width : float
-        Starting Gaussian width s, px.
-    level : ndarray (N,)
-        Background at each particle, DN.
-    candidate : ndarray of bool (N,)
-        The particles to refine (isolated and clean).
-
-    Returns
-    -------
-    ndarray of bool (N,)
-        The particles refined.
-    """
-    rows, cols = img.shape
-    refined = np.zeros(x.size, np.bool_)
-    acc = np.zeros((1, _N_LSQ))
-    step = np.empty(5)
-    scale = np.empty(5)
-    ex = np.empty((2 * REFINE_HALF + 1, 3))
-    ey = np.empty((2 * REFINE_HALF + 1, 3))
-    for n in range(x.size):
-        if not candidate[n]:
-            continue
-        c0 = int(x[n] + 0.5)  # nearest pixel (x, y >= -0.5 on an image)
-        r0 = int(y[n] + 0.5)
-        if not (REFINE_HALF <= c0 < cols - REFINE_HALF and REFINE_HALF <= r0 < rows - REFINE_HALF):
-            continue
-        x0, y0, s, b = x[n], y[n], width, level[n]
-        mass0 = _pixel_mass(0.0, s)[0]
-        a = (float(img[r0, c0]) - b) / (mass0 * mass0)
-        ok = False
-        for _ in range(_REFINE_ITERATIONS):
-            for k in range(2 * REFINE_HALF + 1):
-                m, dc, dw = _pixel_mass(c0 - REFINE_HALF + k - x0, s)
-                ex[k, 0], ex[k, 1], ex[k, 2] = m, dc, dw
-                m, dc, dw = _pixel_mass(r0 - REFINE_HALF + k - y0, s)
-                ey[k, 0], ey[k, 1], ey[k, 2] = m, dc, dw
-            acc[0, :] = 0.0
-            for j in range(2 * REFINE_HALF + 1):
-                for i in range(2 * REFINE_HALF + 1):
-                    model = a * ex[i, 0] * ey[j, 0] + b
-                    resid = float(img[r0 - REFINE_HALF + j, c0 - REFINE_HALF + i]) - model
-                    jac = (
-                        ex[i, 0] * ey[j, 0],
-                        a * ex[i, 1] * ey[j, 0],
-                        a * ex[i, 0] * ey[j, 1],
-                        a * (ex[i, 2] * ey[j, 0] + ex[i, 0] * ey[j, 2]),
-                        1.0,
-                    )
-                    _lsq_add(acc, 0, jac, 1.0, resid)
-            # Jacobi scaling: the centre and width columns grow as A², the background's
-            # stays at 25, and the solver's pivot test is relative to the largest.
-            for u in range(5):
-                scale[u] = sqrt(acc[0, _DIAGONAL[u]])
-            e = 0
-            for u in range(5):
-                for v in range(u, 5):
-                    acc[0, e] /= scale[u] * scale[v]
-                    e += 1
-                acc[0, 15 + u] /= scale[u]
-            if not _lsq_solve(acc, 0, step):
-                break
-            for u in range(5):
-                step[u] /= scale[u]
-            if abs(step[1]) > 0.5 or abs(step[2]) > 0.5:
-                break
-            a += step[0]
-            x0 += step[1]
-            y0 += step[2]
-            s += step[3]
-            b += step[4]
-            if not (0.3 < s < 3.0 and a > 0.0):
-                break
-            if abs(step[1]) < _REFINE_TOLERANCE and abs(step[2]) < _REFINE_TOLERANCE:
-                ok = abs(x0 - c0) <= 1.0 and abs(y0 - r0) <= 1.0
-                break
-        if ok:
-            x[n] = x0
-            y[n] = y0
-            refined[n] = True
-    return refined
