@@ -60,24 +60,77 @@ def _window_pixels(x, y, members, rows, cols):  # pragma: no cover (compiled)
 
 
 @njit(cache=True)
+def _solve(normal, rhs, out):  # pragma: no cover (compiled)
+    """Solve the symmetric system in place (Gaussian elimination with partial pivoting)
+    after Jacobi scaling; False when a pivot falls below 10⁻¹⁰ of the unit diagonal."""
+    n = rhs.size
+    scale = np.empty(n)
+    for u in range(n):
+        if not normal[u, u] > 0.0:
+            return False
+        scale[u] = sqrt(normal[u, u])
+    for u in range(n):
+        rhs[u] /= scale[u]
+        for v in range(n):
+            normal[u, v] /= scale[u] * scale[v]
+    for col in range(n):
+        piv = col
+        for u in range(col + 1, n):
+            if abs(normal[u, col]) > abs(normal[piv, col]):
+                piv = u
+        if abs(normal[piv, col]) < 1e-10:
+            return False
+        if piv != col:
+            for v in range(col, n):
+                normal[col, v], normal[piv, v] = normal[piv, v], normal[col, v]
+            rhs[col], rhs[piv] = rhs[piv], rhs[col]
+        for u in range(col + 1, n):
+            f = normal[u, col] / normal[col, col]
+            for v in range(col, n):
+                normal[u, v] -= f * normal[col, v]
+            rhs[u] -= f * rhs[col]
+    for u in range(n - 1, -1, -1):
+        t = rhs[u]
+        for v in range(u + 1, n):
+            t -= normal[u, v] * out[v]
+        out[u] = t / normal[u, u]
+    for u in range(n):
+        out[u] /= scale[u]
+    return True
+
+
+@njit(cache=True)
 def _fit_group(img, rr, cc, params):  # pragma: no cover (compiled)
     """Gauss–Newton on (A, x₀, y₀, s) per spot and one background; True if converged."""
     n_par = params.size
     n_spots = (n_par - 1) // 4
-    start_x = params[1:n_par:4].copy()
-    start_y = params[2:n_par:4].copy()
+    r_lo, c_lo = rr.min(), cc.min()
+    n_rows, n_cols = rr.max() - r_lo + 1, cc.max() - c_lo + 1
+    start_x = params[1 : n_par - 1 : 4].copy()
+    start_y = params[2 : n_par - 1 : 4].copy()
+    ex = np.empty((n_spots, n_cols, 3))  # pixel mass and its derivatives, per column
+    ey = np.empty((n_spots, n_rows, 3))  # and per row: the model is separable per spot
     jac = np.empty(n_par)
+    normal = np.empty((n_par, n_par))
+    rhs = np.empty(n_par)
+    step = np.empty(n_par)
     for _ in range(_ITERATIONS):
-        normal = np.zeros((n_par, n_par))
-        rhs = np.zeros(n_par)
+        for k in range(n_spots):
+            x0, y0, s = params[4 * k + 1], params[4 * k + 2], params[4 * k + 3]
+            for i in range(n_cols):
+                ex[k, i, 0], ex[k, i, 1], ex[k, i, 2] = _pixel_mass(c_lo + i - x0, s)
+            for j in range(n_rows):
+                ey[k, j, 0], ey[k, j, 1], ey[k, j, 2] = _pixel_mass(r_lo + j - y0, s)
+        normal[:, :] = 0.0
+        rhs[:] = 0.0
         for p in range(rr.size):
+            i, j = cc[p] - c_lo, rr[p] - r_lo
             model = params[n_par - 1]
-            jac[:] = 0.0
             jac[n_par - 1] = 1.0
             for k in range(n_spots):
-                a, x0, y0, s = params[4 * k : 4 * k + 4]
-                mx, dxc, dxw = _pixel_mass(cc[p] - x0, s)
-                my, dyc, dyw = _pixel_mass(rr[p] - y0, s)
+                a = params[4 * k]
+                mx, dxc, dxw = ex[k, i, 0], ex[k, i, 1], ex[k, i, 2]
+                my, dyc, dyw = ey[k, j, 0], ey[k, j, 1], ey[k, j, 2]
                 model += a * mx * my
                 jac[4 * k] = mx * my
                 jac[4 * k + 1] = a * dxc * my
@@ -91,29 +144,27 @@ def _fit_group(img, rr, cc, params):  # pragma: no cover (compiled)
         for u in range(n_par):
             for v in range(u + 1, n_par):
                 normal[v, u] = normal[u, v]
-        # Jacobi scaling: the centre and width columns grow as A², the background's
-        # stays at the pixel count.
-        scale = np.sqrt(np.diag(normal))
-        if not np.all(scale > 0.0):
+        if not _solve(normal, rhs, step):
             return False
-        scaled = normal / np.outer(scale, scale)
-        if np.linalg.cond(scaled) > 1e12:
+        move = 0.0
+        for k in range(n_spots):
+            move = max(move, abs(step[4 * k + 1]), abs(step[4 * k + 2]))
+        if move > 0.5:
             return False
-        step = np.linalg.solve(scaled, rhs / scale) / scale
-        moves = np.maximum(np.abs(step[1:n_par:4]), np.abs(step[2:n_par:4]))
-        if moves.max() > 0.5:
-            return False
-        params += step
-        widths = params[3:n_par:4]
-        if widths.min() <= _WIDTH_RANGE[0] or widths.max() >= _WIDTH_RANGE[1]:
-            return False
-        if params[0 : n_par - 1 : 4].min() <= 0.0:  # the amplitudes
-            return False
-        if moves.max() < _TOLERANCE:
-            shift = np.maximum(
-                np.abs(params[1:n_par:4] - start_x), np.abs(params[2:n_par:4] - start_y)
-            )
-            return shift.max() <= 1.0
+        for u in range(n_par):
+            params[u] += step[u]
+        for k in range(n_spots):
+            s = params[4 * k + 3]
+            if not (_WIDTH_RANGE[0] < s < _WIDTH_RANGE[1] and params[4 * k] > 0.0):
+                return False
+        if move < _TOLERANCE:
+            for k in range(n_spots):
+                if (
+                    max(abs(params[4 * k + 1] - start_x[k]), abs(params[4 * k + 2] - start_y[k]))
+                    > 1.0
+                ):
+                    return False
+            return True
     return False
 
 
