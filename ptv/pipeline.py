@@ -786,12 +786,15 @@ class S2Population:
     positions : tuple of S ndarray, shape (P_s, 3)
         X(t) of the particles linked at every Δt and not dropped by the trajectory test,
         m (in the calibration's frame).
+    displacements : tuple of S ndarray, shape (P_s, K, 3)
+        Their ΔX at every Δt, m.
     trajectory_outliers : int
         Particles linked at every Δt that the trajectory test dropped.
     """
 
     snapshot_ids: np.ndarray
     positions: tuple[np.ndarray, ...]
+    displacements: tuple[np.ndarray, ...]
     trajectory_outliers: int
 
     @property
@@ -1104,6 +1107,7 @@ def compute_statistics(
         population = S2Population(
             snapshot_ids=ids,
             positions=tuple(x for x, _ in joined),
+            displacements=tuple(d for _, d in joined),
             trajectory_outliers=linked - sum(len(x) for x, _ in joined),
         )
     else:

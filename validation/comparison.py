@@ -13,7 +13,8 @@ Checks on one variant (tolerances from the issue and PHYSICS.md §9):
 - ``epsilon``: plateau ε against the same estimator on the exact D_LL: within 5 %;
   the estimator's own gap to the input ε (finite-Reynolds plateau deficit) beside it;
 - ``c2``: c2 > 0 in every fitted bin of the check range; and consistent with the noise
-  measured on the detection rung (:class:`NoisePrediction`): the median of c2 over the
+  of the particles the variant's S2 used, measured against the truth (the detection
+  rung's when that is not known; :class:`NoisePrediction`): the median of c2 over the
   prediction lies between the two intercepts the measured noise allows, widened by
   :data:`C2_MARGIN` for the statistical error of c2 and of the noise measurement;
 - ``raw_s2``: raw ⟨q⟩/Δt² at the smallest Δt over the sample truth at the fitted bin
@@ -89,10 +90,11 @@ class NoisePrediction:
     For two particles with independent noise, ⟨((Δb_j − Δb_i)·e)²⟩ = 2 Σ_i σ_ΔX,i²
     ⟨e_i²⟩(r), with the direction moments ⟨e_i²⟩ of the pairs in the analysis box
     (:func:`direction_moments`) and σ_ΔX,i²(Δt) the displacement-noise variance measured
-    against the truth on the detection rung. For white noise σ_ΔX² is constant and
+    against the truth. For white noise σ_ΔX² is constant and
     c2 = 2 Σ σ_ΔX,i² ⟨e_i²⟩ (4σ² for isotropic noise). On rendered images part of the
-    detection error is common to frames a and b (a neighbour's overlapping image, which
-    moves away with Δt), so σ_ΔX² grows with Δt, concavely in Δt²: the intercept a fit
+    detection error is common to frames a and b (mostly the light of an unresolved
+    neighbour, which moves with respect to the particle), so σ_ΔX² grows with Δt,
+    concavely in Δt²: the intercept a fit
     finds then depends on how it weighs the Δt values, between that of the line through
     the two smallest Δt and that of the least-squares line through all.
 

@@ -227,7 +227,7 @@ def run_stages(
             return
         reference = population_truth(
             population,
-            truth_runs[0],
+            truth_runs,
             settings,
             radius=voxel,
             rotation=rotation,

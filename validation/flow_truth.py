@@ -107,7 +107,7 @@ def _pooled(per_snapshot: Sequence[PairSums]) -> tuple[np.ndarray, np.ndarray, n
 
 @dataclass(frozen=True)
 class PopulationTruth:
-    """The sample truth over the particle pairs one measurement's S2 used.
+    """The truth of the particles one measurement's S2 used.
 
     Attributes
     ----------
@@ -116,23 +116,37 @@ class PopulationTruth:
         m²/s² (NaN where no pair).
     se_s2_sample : ndarray, shape (B,)
         Its cluster standard error over the snapshots, m²/s².
+    dt : ndarray, shape (K,)
+        The time separations, s.
+    displacement_noise : ndarray, shape (K, 3)
+        RMS of measured − true ΔX per Δt and component over the associated particles,
+        m (in the world frame): the noise this S2's c2 should show.
     particles : int
         Measured particles of the population.
     associated : int
         Those with a true particle within the association radius (the others, ghosts,
-        are left out; two measured particles near one true particle count as one).
+        are left out; two measured particles near one true particle count as one in S2).
     """
 
     s2_sample: np.ndarray
     se_s2_sample: np.ndarray
+    dt: np.ndarray
+    displacement_noise: np.ndarray
     particles: int
     associated: int
 
     def as_dict(self) -> dict:
-        """JSON-able form (NaN → None)."""
+        """JSON-able form (NaN → None); ``dt`` and ``displacement_noise_m`` as in
+        ``detection.json``, so either feeds :func:`validation.comparison.predicted_noise`."""
+
+        def listed(a):
+            return [None if not np.isfinite(v) else float(v) for v in a]
+
         return {
-            "s2_sample": [None if not np.isfinite(v) else float(v) for v in self.s2_sample],
-            "se_s2_sample": [None if not np.isfinite(v) else float(v) for v in self.se_s2_sample],
+            "s2_sample": listed(self.s2_sample),
+            "se_s2_sample": listed(self.se_s2_sample),
+            "dt": self.dt.tolist(),
+            "displacement_noise_m": [listed(row) for row in self.displacement_noise],
             "particles": self.particles,
             "associated": self.associated,
         }
@@ -140,23 +154,23 @@ class PopulationTruth:
 
 def population_truth(
     population: S2Population,
-    truth: TruthRun,
+    truth: Sequence[TruthRun],
     settings: PipelineSettings,
     *,
     radius: float,
     rotation: np.ndarray | None = None,
     translation: np.ndarray | None = None,
 ) -> PopulationTruth:
-    """The sample truth of the pairs a measurement's S2 used (PHYSICS.md §2: the exact
-    velocities over the actual pairs isolate the method's error from the sampling).
+    """The truth of the particles a measurement's S2 used: the sample-truth S2 of their
+    pairs (PHYSICS.md §2: the exact velocities over the actual pairs isolate the
+    method's error from the sampling) and their displacement noise.
 
     Parameters
     ----------
     population : S2Population
-        The measured X(t) of S2's particles, per snapshot (calibration frame).
-    truth : TruthRun
-        A run of the dataset: its positions and velocities at t (the same in every run
-        when frame a is shared).
+        The measured X(t) and ΔX of S2's particles, per snapshot (calibration frame).
+    truth : sequence of K TruthRun
+        The runs of the dataset, sharing frame a (:func:`validation.truth_runs.read_truth`).
     settings : PipelineSettings
         The separation bins.
     radius : float
@@ -167,17 +181,33 @@ def population_truth(
     """
     rotation = np.eye(3) if rotation is None else np.asarray(rotation)
     translation = np.zeros(3) if translation is None else np.asarray(translation)
-    per_snapshot, associated = [], 0
-    for m, measured in zip(population.snapshot_ids, population.positions, strict=True):
-        true_x, true_u = truth.positions[m, 0], truth.velocity[m]
+    per_snapshot, errors, associated = [], [], 0
+    for m, measured, moved in zip(
+        population.snapshot_ids, population.positions, population.displacements, strict=True
+    ):
+        true_x, true_u = truth[0].positions[m, 0], truth[0].velocity[m]
         dist, nearest = cKDTree(true_x).query(
             measured @ rotation.T + translation, distance_upper_bound=radius
         )
-        found = np.unique(nearest[np.isfinite(dist)])
-        associated += len(found)
+        hit = np.isfinite(dist)
+        associated += int(hit.sum())
+        found = np.unique(nearest[hit])
         per_snapshot.append(pair_sums(true_x[found], true_u[found], settings.bins))
+        true_moves = np.stack(
+            [run.positions[m, 1, nearest[hit]] - true_x[nearest[hit]] for run in truth], axis=1
+        )
+        errors.append(moved[hit] @ rotation.T - true_moves)  # (N, K, 3)
     _, s2, se = _pooled(per_snapshot)
-    return PopulationTruth(s2, se, population.count, associated)
+    error = np.concatenate(errors) if errors else np.empty((0, len(truth), 3))
+    noise = np.sqrt(np.mean(error**2, axis=0)) if len(error) else np.full((len(truth), 3), np.nan)
+    return PopulationTruth(
+        s2_sample=s2,
+        se_s2_sample=se,
+        dt=np.array([run.dt for run in truth]),
+        displacement_noise=noise,
+        particles=population.count,
+        associated=associated,
+    )
 
 
 def flow_truth(
