@@ -190,12 +190,11 @@ def population_truth(
             measured @ rotation.T + translation, distance_upper_bound=radius
         )
         hit = np.isfinite(dist)
-        associated += int(hit.sum())
-        found = np.unique(nearest[hit])
+        partner = nearest[hit]
+        associated += len(partner)
+        found = np.unique(partner)
         per_snapshot.append(pair_sums(true_x[found], true_u[found], settings.bins))
-        true_moves = np.stack(
-            [run.positions[m, 1, nearest[hit]] - true_x[nearest[hit]] for run in truth], axis=1
-        )
+        true_moves = np.stack([run.positions[m, 1, partner] - true_x[partner] for run in truth], 1)
         errors.append(moved[hit] @ rotation.T - true_moves)  # (N, K, 3)
     _, s2, se = _pooled(per_snapshot)
     error = np.concatenate(errors) if errors else np.empty((0, len(truth), 3))

@@ -225,6 +225,7 @@ def refine_groups(img, x, y, width, level, members, offsets):  # pragma: no cove
     # Each chunk has its own scratch; groups are disjoint, so the chunks write disjoint
     # entries of x, y and refined.
     n_groups = offsets.size - 1
+    mass = _pixel_mass(0.0, width)[0]  # of the centre pixel, per unit amplitude and axis
     for chunk in prange(_CHUNKS):
         work = _workspace(largest)
         span = work[0].shape[1]
@@ -239,7 +240,6 @@ def refine_groups(img, x, y, width, level, members, offsets):  # pragma: no cove
                 continue
             p = params[: 4 * group.size + 1]
             background = 0.0
-            mass = _pixel_mass(0.0, width)[0]
             for k in range(group.size):
                 n = group[k]
                 c0, r0 = int(x[n] + 0.5), int(y[n] + 0.5)
