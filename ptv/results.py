@@ -93,28 +93,28 @@ def _plateau_dict(plateau: Plateau | None) -> dict | None:
 
 
 def _settings_dict(result: PtvResult) -> dict:
-    s = result.settings
+    s, st = result.settings, result.settings.statistics
     return {
         "volume": [list(v) for v in s.volume],
         "tolerance": s.tolerance,
         "max_speed": s.max_speed,
         "position_noise": s.position_noise,
-        "analysis_volume": [list(v) for v in s.analysis_volume],
-        "r_min": s.r_min,
-        "r_max": s.r_max,
-        "n_bins": s.n_bins,
-        "plateau": list(s.plateau),
-        "plateau_method": s.plateau_method,
-        "kolmogorov_c2": s.kolmogorov_c2,
-        "n_boot": s.n_boot,
-        "eulerian_cells": list(s.eulerian_cells),
-        "min_cell_count": s.min_cell_count,
-        "threshold": s.threshold,
+        "analysis_volume": [list(v) for v in st.analysis_volume],
+        "r_min": st.r_min,
+        "r_max": st.r_max,
+        "n_bins": st.n_bins,
+        "plateau": list(st.plateau),
+        "plateau_method": st.plateau_method,
+        "kolmogorov_c2": st.kolmogorov_c2,
+        "n_boot": st.n_boot,
+        "eulerian_cells": list(st.eulerian_cells),
+        "min_cell_count": st.min_cell_count,
+        "threshold": result.source.detector["threshold"],
         "outlier_threshold": s.outlier_threshold,
         "outlier_neighbours": s.outlier_neighbours,
-        "trajectory_threshold": s.trajectory_threshold,
+        "trajectory_threshold": st.trajectory_threshold,
         "snapshots": s.snapshots,
-        "seed": s.seed,
+        "seed": st.seed,
     }
 
 
@@ -169,11 +169,11 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     return {
         "format": FORMAT_NAME,
         "format_version": FORMAT_VERSION,
-        "dataset": str(result.dataset.folder),
+        "dataset": str(result.source.folder),
         "calibration": calibration,
         "cameras": list(result.cameras),
         "settings": _settings_dict(result),
-        "dt": [float(v) for v in result.dataset.dt],
+        "dt": [float(v) for v in result.source.dt],
         "statistics_dt": [float(v) for v in st.dt],
         "errors": st.errors,
         "counts": counts,
@@ -256,7 +256,7 @@ def _write_h5(path: Path, result: PtvResult, calibration: str | None) -> None:
     with h5py.File(path, "w") as f:
         f.attrs["format"] = FORMAT_NAME
         f.attrs["format_version"] = FORMAT_VERSION
-        f.attrs["dataset"] = str(result.dataset.folder)
+        f.attrs["dataset"] = str(result.source.folder)
         f.attrs["calibration"] = calibration or ""
         f.attrs["cameras"] = json.dumps(list(result.cameras))
         f.attrs["settings"] = json.dumps(_settings_dict(result))
@@ -278,7 +278,7 @@ def _write_h5(path: Path, result: PtvResult, calibration: str | None) -> None:
         s.attrs["errors"] = st.errors
         s.attrs["method"] = sf.method
         s.attrs["kolmogorov_c2"] = st.profile.kolmogorov_c2
-        s.attrs["analysis_volume"] = np.asarray(result.settings.analysis_volume)
+        s.attrs["analysis_volume"] = np.asarray(result.settings.statistics.analysis_volume)
         _put(s, "dt", st.dt, "s")
         _put(s, "dt_index", st.dt_index)
         _put(s, "n_snapshots", st.n_snapshots)

@@ -403,8 +403,8 @@ def _raw_biased(claim: Claim, ctx: ClaimContext) -> ClaimResult:
 
 def _subsets(claim: Claim, ctx: ClaimContext) -> ClaimResult:
     r = ctx.multi_dt
-    three = r.epsilon_subsets["three_largest"] / r.epsilon_fit - 1
-    two = r.epsilon_subsets["smallest_and_largest"] / r.epsilon_fit - 1
+    three = r.epsilon_subsets["3 largest dt"] / r.epsilon_fit - 1
+    two = r.epsilon_subsets["smallest and largest dt"] / r.epsilon_fit - 1
     return _result(
         claim,
         max(abs(three) / 0.10, abs(two) / 0.05),

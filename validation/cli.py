@@ -175,6 +175,7 @@ def _run_claims(args: argparse.Namespace) -> int:
 def _run_ptv(args: argparse.Namespace) -> int:
     from ptv.calibration.io import load_calibrations
     from ptv.dataset import open_dataset
+    from ptv.frames import ImageDetector
     from ptv.pipeline import PipelineSettings, run_pipeline
     from ptv.results import save_results, summary
     from validation.ptv_figures import save_ptv_figures
@@ -187,7 +188,7 @@ def _run_ptv(args: argparse.Namespace) -> int:
     settings = PipelineSettings(max_speed=args.max_speed, snapshots=args.snapshots)
     bar = ProgressBar("ptv", enabled=not args.quiet)
     try:
-        result = run_pipeline(dataset, calibrations, settings, progress=bar)
+        result = run_pipeline(ImageDetector(dataset), calibrations, settings, progress=bar)
     except FileNotFoundError as err:
         raise UsageError(str(err)) from None
     out = Path(args.out)

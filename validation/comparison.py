@@ -20,7 +20,8 @@ Checks on one variant (tolerances from the issue and PHYSICS.md §9):
 - ``raw_s2``: raw ⟨q⟩/Δt² at the smallest Δt over the sample truth at the fitted bin
   nearest 10η: > 2;
 - ``mean_linear``: the line ⟨ΔX⟩ = αΔt + β0 has β0 = 0 within its errors, jointly for
-  the three components, at 1 % false alarms (:meth:`ptv.pipeline.MeanDisplacement.offset_test`);
+  the three components, at 1 % false alarms
+  (:meth:`ptv.stats.mean_displacement.MeanDisplacement.offset_test`);
 - ``subsets``: plateau ε of the 3-largest-Δt and the smallest-and-largest fits over the
   all-Δt value (the paper: −5 % and +2 %; |Δ| < 10 % and < 5 %, PHYSICS.md §9 #13).
 """

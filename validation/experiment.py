@@ -4,6 +4,8 @@ Stages (each a folder of ``out``, reused when its inputs and the synptv version 
 unchanged, see :mod:`validation.stages`):
 
 ``dataset/``            simulate and render (:func:`validation.dataset.write_dataset`)
+``detections/``         the particles detected on every image, once for every rung that
+                        reads images (:mod:`ptv.detect.store`)
 ``truth/``              sample-truth S2, exact D_LL, reference ε (:mod:`validation.flow_truth`)
 ``calibrations/``       every calibration method from the plate images, Table 1, Fig. 3
 ``ptv/<variant>/``      statistics of each rung of the error budget:
@@ -29,8 +31,11 @@ import numpy as np
 from ptv.calibration.io import load_calibrations
 from ptv.dataset import open_dataset
 from ptv.detect.peaklocking import peak_locking
-from ptv.pipeline import PtvResult, compute_statistics, run_pipeline
+from ptv.detect.store import DetectionStore, chunk_name, write_chunk, write_index
+from ptv.frames import DetectorSettings, ImageDetector
+from ptv.pipeline import PtvResult, run_pipeline
 from ptv.results import save_results
+from ptv.stats.run_statistics import compute_statistics
 from simulator.presets import flow_preset
 from simulator.render.camera_frames import ParticleLighting, local_magnification
 from simulator.rigs import Rig, load_rig
@@ -87,10 +92,40 @@ class ExperimentStages:
     """The stage folders of a run and how long each took (0 when reused)."""
 
     dataset: StageOutcome
+    detections: StageOutcome
     truth: StageOutcome
     calibrations: StageOutcome
     ptv: dict
     seconds: dict
+
+
+def snapshot_chunks(frames: int) -> list[tuple[int, int]]:
+    """Ranges (m0, m1) of snapshots processed together: at most 10, at least 8 chunks
+    when there are that many snapshots (chunks depend on the frame count alone, so a
+    resumed run finds the same ones)."""
+    size = max(1, min(10, -(-frames // 8)))
+    return [(m0, min(m0 + size, frames)) for m0 in range(0, frames, size)]
+
+
+def _write_detections(detector: ImageDetector, target: Path, progress) -> None:
+    """Detect every image of a dataset into a detection store at ``target``."""
+    target.mkdir()
+    chunks = snapshot_chunks(max(detector.frames))
+    for i, (m0, m1) in enumerate(chunks):
+        chunk = detector.detect_chunk(m0, m1)
+        write_chunk(target / chunk_name(m0, m1), chunk, frames=detector.frames)
+        if progress is not None:
+            progress(i + 1, len(chunks))
+    write_index(
+        target,
+        cameras=detector.cameras,
+        dt=detector.dt,
+        frames=detector.frames,
+        shared_first_frame=detector.shared_first_frame,
+        detector=detector.detector,
+        chunks=chunks,
+        source=str(detector.folder),
+    )
 
 
 def _write_json(path: Path, data) -> None:
@@ -169,17 +204,27 @@ def run_stages(
             target, rig, preset, render_settings(scenario), progress=bar("render")
         ),
     )
+    data = open_dataset(dataset.folder)
+    detector = ImageDetector(data, DetectorSettings())
+    detections = timed(
+        "detect",
+        out / "detections",
+        {"synptv": version("synptv"), "dataset": dataset.key, "detector": detector.detector},
+        lambda target: _write_detections(detector, target, bar("detect")),
+    )
+    store = DetectionStore(detections.folder)
     # The PTV options every statistics stage reads; which calibrations run is not one.
     analysis = {k: v for k, v in scenario.as_dict()["ptv"].items() if k != "methods"}
     settings_inputs = {"synptv": version("synptv"), "ptv": analysis, "seed": scenario.seed}
     truth_rig, truth_runs = read_truth(dataset.folder)
-    data = open_dataset(dataset.folder)
     # With a shared first frame every run holds the same particles at t.
     sampled = truth_runs[:1] if data.shared_first_frame else truth_runs
 
     def build_truth(target: Path) -> None:
         target.mkdir()
-        reference = flow_truth(sampled, preset.parameters, scenario.flow.spectrum, settings)
+        reference = flow_truth(
+            sampled, preset.parameters, scenario.flow.spectrum, settings.statistics
+        )
         _write_json(target / "truth.json", reference.as_dict())
 
     truth = timed("truth", out / "truth", {"dataset": dataset.key, **settings_inputs}, build_truth)
@@ -211,10 +256,14 @@ def run_stages(
     )
     # The reference rungs have no links, so nothing for the trajectory test to catch; on
     # noise-free trajectories it would only drop the particles of largest jerk.
-    unlinked = replace(settings, trajectory_threshold=None)
+    unlinked = replace(
+        settings, statistics=replace(settings.statistics, trajectory_threshold=None)
+    )
 
     def statistics(runs):
-        return compute_statistics(runs, unlinked, shared_first_frame=data.shared_first_frame)
+        return compute_statistics(
+            runs, unlinked.statistics, shared_first_frame=data.shared_first_frame
+        )
 
     voxel = object_pixel(truth_rig)
 
@@ -228,7 +277,7 @@ def run_stages(
         reference = population_truth(
             population,
             truth_runs,
-            settings,
+            settings.statistics,
             radius=voxel,
             rotation=rotation,
             translation=translation,
@@ -238,7 +287,7 @@ def run_stages(
     cameras_true = dict(zip(truth_rig.camera_names, truth_rig.cameras, strict=True))
     ptv = {}
     for variant in (*REFERENCE_VARIANTS, *scenario.ptv.methods):
-        inputs = {"dataset": dataset.key, "variant": variant, **settings_inputs}
+        inputs = {"detections": detections.key, "variant": variant, **settings_inputs}
         if variant not in REFERENCE_VARIANTS:
             inputs["calibration"] = calibrations.key
 
@@ -247,7 +296,7 @@ def run_stages(
             tick = bar(f"ptv {variant}")
             if variant == "exact":
                 runs = exact_runs(truth_runs, unlinked)
-                result = PtvResult(data, data.cameras, unlinked, runs, statistics(runs))
+                result = PtvResult(store, data.cameras, unlinked, runs, statistics(runs))
                 _save_ptv(result, target, truth_dict, "none: true trajectories")
                 return
             if variant == "detection":
@@ -260,8 +309,8 @@ def run_stages(
                         tick(count[0], total)
 
                 cams = [cameras_true[name] for name in data.cameras]
-                runs, quality = detected_runs(data, truth_runs, cams, unlinked, tick=step)
-                result = PtvResult(data, data.cameras, unlinked, runs, statistics(runs))
+                runs, quality = detected_runs(store, truth_runs, cams, unlinked, tick=step)
+                result = PtvResult(store, data.cameras, unlinked, runs, statistics(runs))
                 _save_ptv(result, target, truth_dict, "true cameras, truth-paired detections")
                 _save_detection(quality, target)
                 save_population(result, target)
@@ -271,15 +320,15 @@ def run_stages(
             else:
                 path = calibrations.folder / f"{variant}.h5"
                 cams, label = load_calibrations(path), str(path)
-            result = run_pipeline(data, cams, settings, progress=tick)
+            result = run_pipeline(store, cams, settings, progress=tick)
             _save_ptv(result, target, truth_dict, label)
             ordered = [cams[name] for name in data.cameras]
-            quality = score_matching(data, truth_runs, ordered, settings, voxel=voxel)
+            quality = score_matching(store, truth_runs, ordered, settings, voxel=voxel)
             _write_json(target / "matching.json", quality.as_dict())
             save_population(result, target, quality.rotation, quality.translation)
 
         ptv[variant] = timed(f"ptv {variant}", out / "ptv" / variant, inputs, build)
-    return ExperimentStages(dataset, truth, calibrations, ptv, seconds)
+    return ExperimentStages(dataset, detections, truth, calibrations, ptv, seconds)
 
 
 def _save_detection(quality, folder: Path) -> None:

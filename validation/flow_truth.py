@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ptv.pipeline import PipelineSettings, S2Population
 from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
 from ptv.stats.pairs import PairSums, pair_sums
+from ptv.stats.run_statistics import S2Population, StatisticsSettings
 from ptv.stats.snapshots import cluster_mean
 from simulator.particles import Box
 from simulator.spectra import SPECTRA
@@ -84,7 +84,7 @@ class FlowTruth:
         }
 
 
-def _plateau(r, s2, settings: PipelineSettings) -> float:
+def _plateau(r, s2, settings: StatisticsSettings) -> float:
     profile = dissipation_profile(r, s2, kolmogorov_c2=settings.kolmogorov_c2)
     return plateau_epsilon(
         profile,
@@ -155,7 +155,7 @@ class PopulationTruth:
 def population_truth(
     population: S2Population,
     truth: Sequence[TruthRun],
-    settings: PipelineSettings,
+    settings: StatisticsSettings,
     *,
     radius: float,
     rotation: np.ndarray | None = None,
@@ -171,7 +171,7 @@ def population_truth(
         The measured X(t) and ΔX of S2's particles, per snapshot (calibration frame).
     truth : sequence of K TruthRun
         The runs of the dataset, sharing frame a (:func:`validation.truth_runs.read_truth`).
-    settings : PipelineSettings
+    settings : StatisticsSettings
         The separation bins.
     radius : float
         A measured particle is the true particle nearest to it within this distance, m
@@ -213,7 +213,7 @@ def flow_truth(
     truth: Sequence[TruthRun],
     parameters: TurbulenceParameters,
     spectrum: str,
-    settings: PipelineSettings,
+    settings: StatisticsSettings,
 ) -> FlowTruth:
     """Sample truth and exact D_LL in the bins of ``settings`` (module docstring)."""
     lower, upper = (np.asarray(v) for v in settings.analysis_volume)

@@ -15,8 +15,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ptv.camera_model import CameraModel
-from ptv.dataset import Dataset
-from ptv.pipeline import PipelineSettings, detect_and_match, inside_box
+from ptv.frames import FrameDetections
+from ptv.pipeline import PipelineSettings, match_frame
+from ptv.stats.links import inside_box
 from validation.truth_runs import TruthRun
 
 #: Nearest-neighbour distance within which pairs enter the rigid fit, m.
@@ -103,7 +104,7 @@ def rigid_fit(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def score_matching(
-    dataset: Dataset,
+    frames: FrameDetections,
     truth: Sequence[TruthRun],
     cameras: Sequence[CameraModel],
     settings: PipelineSettings,
@@ -115,14 +116,14 @@ def score_matching(
 
     Parameters
     ----------
-    dataset : Dataset
-        Rendered images.
+    frames : FrameDetections
+        The detections on the rendered images.
     truth : sequence of TruthRun
         The particles (:func:`validation.truth_runs.read_truth`).
     cameras : sequence of CameraModel
         Calibrations in the dataset's camera order.
     settings : PipelineSettings
-        Detection threshold, matching volume and tolerance.
+        Matching volume and tolerance, analysis volume.
     voxel : float
         Object-side pixel, m.
     snapshots : int
@@ -133,13 +134,11 @@ def score_matching(
     MatchingQuality
     """
     points, particles, measurable = [], [], []
-    for snap in dataset.snapshots(0, limit=snapshots):
-        images = [pair.a for pair in snap.frames]
-        _, matched = detect_and_match(images, cameras, settings, saturation=dataset.saturation)
-        points.append(matched.points)
-        particles.append(truth[0].positions[snap.m, 0])
+    for m in range(min(snapshots, frames.frames[0])):
+        points.append(match_frame(frames.detections(0, m, "a"), cameras, settings))
+        particles.append(truth[0].positions[m, 0])
         measurable.append(
-            np.all([truth[0].visible[name][snap.m, 0] for name in dataset.cameras], axis=0)
+            np.all([truth[0].visible[name][m, 0] for name in frames.cameras], axis=0)
         )
     rotation, translation = np.eye(3), np.zeros(3)
     for _ in range(2):  # refit once on the pairs the first fit brings together
@@ -151,17 +150,18 @@ def score_matching(
             src.append(p[ok])
             dst.append(t[nearest[ok]])
         rotation, translation = rigid_fit(np.concatenate(src), np.concatenate(dst))
+    box = settings.statistics.analysis_volume
     found, measured, particle_in, ghost, point_in = [], [], [], [], []
     for p, t, m in zip(points, particles, measurable, strict=True):
         moved = p @ rotation.T + translation
         ghost.append(cKDTree(t).query(moved)[0] > voxel)
-        point_in.append(inside_box(moved, settings.analysis_volume))
+        point_in.append(inside_box(moved, box))
         hit = np.zeros(len(t), dtype=bool)
         if len(p):
             hit[m] = cKDTree(moved).query(t[m])[0] <= voxel
         found.append(hit)
         measured.append(m)
-        particle_in.append(inside_box(t, settings.analysis_volume))
+        particle_in.append(inside_box(t, box))
     found, measured, particle_in, ghost, point_in = (
         np.concatenate(v) for v in (found, measured, particle_in, ghost, point_in)
     )

@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
-from ptv.stats.multidt import largest_dt, smallest_and_largest_dt, wls_line
+from ptv.stats.multidt import dt_subsets, wls_line
 from ptv.stats.pairs import LogBins, PairSums, pair_sums
 from ptv.stats.snapshots import SnapshotSums
 from ptv.stats.structure import StructureFunction, double_frame_sums, structure_function
@@ -79,8 +79,7 @@ class MultiDtResult:
         Plateau (maximum) of (S2/C₂)^{3/2}/r over the inertial range for the fit and for
         the exact D_LL, m²/s³.
     epsilon_subsets : dict
-        Plateau ε from the three largest Δt (K ≥ 4) and from the smallest and largest
-        only (K ≥ 3).
+        Plateau ε of each Δt subset of :func:`ptv.stats.multidt.dt_subsets`.
     mean_offset_pull : ndarray, shape (3,)
         β₀/σ(β₀) of the fit ⟨ΔX⟩ = αΔt + β₀ per component, with σ of ⟨ΔX⟩ from the
         scatter of per-snapshot means (particles of one snapshot share its large scales,
@@ -234,13 +233,9 @@ def analyse(
         ).epsilon
 
     subsets = {}
-    for name, use, needed in (
-        ("three_largest", lambda: largest_dt(sample.dt, 3), 4),
-        ("smallest_and_largest", lambda: smallest_and_largest_dt(sample.dt), 3),
-    ):
-        if sample.dt.size >= needed:  # only subsets smaller than the whole set
-            sub = structure_function(snapshot_sums, sample.dt, use=use(), n_boot=n_boot, rng=rng)
-            subsets[name] = plateau(sub.s2)
+    for name, use in dt_subsets(sample.dt).items():
+        sub = structure_function(snapshot_sums, sample.dt, use=use, n_boot=n_boot, rng=rng)
+        subsets[name] = plateau(sub.s2)
     mean = wls_line(sample.dt, np.array(mean_shift).T, np.array(se_shift).T)
     return MultiDtResult(
         fit=fit,

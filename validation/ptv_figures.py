@@ -257,7 +257,7 @@ def epsilon_figure(result: PtvResult, *, reference: float | None = None) -> Figu
         color="C1",
         label=f"S2^(3/2)/r (paper's caption, no C2: ×{c2**1.5:.2f})",
     )
-    lo, hi = (v * 1e3 for v in result.settings.plateau)
+    lo, hi = (v * 1e3 for v in result.settings.statistics.plateau)
     ax.axvspan(lo, hi, color="0.93", zorder=0, label="plateau range")
     p = st.plateau
     if p is not None and np.isfinite(p.epsilon) and np.isfinite(p.se_epsilon):

@@ -159,7 +159,7 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     dict
         The content of ``results.json``.
     """
-    settings = pipeline_settings(scenario)
+    settings = pipeline_settings(scenario).statistics
     truth = _read(stages.truth.folder / "truth.json")
     detection = _read(stages.ptv["detection"].folder / "detection.json")
     p = truth["parameters"]

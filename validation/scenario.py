@@ -27,6 +27,7 @@ import numpy as np
 
 from ptv.calibration.methods import CALIBRATION_METHODS
 from ptv.pipeline import PipelineSettings
+from ptv.stats.run_statistics import StatisticsSettings
 from simulator.presets import FLOW_PRESETS
 from simulator.render.sensor import Sensor
 from simulator.rigs import rig_presets
@@ -333,14 +334,16 @@ def pipeline_settings(scenario: Scenario) -> PipelineSettings:
     p = scenario.ptv
     half = np.asarray(p.analysis_volume) / 2
     return PipelineSettings(
-        analysis_volume=(-half, half),
-        r_min=p.r_range[0],
-        r_max=p.r_range[1],
-        n_bins=p.bins,
-        plateau=p.plateau,
-        kolmogorov_c2=p.kolmogorov_c2,
         max_speed=p.max_speed,
         tolerance=p.tolerance,
-        n_boot=p.n_boot,
-        seed=scenario.seed,
+        statistics=StatisticsSettings(
+            analysis_volume=(-half, half),
+            r_min=p.r_range[0],
+            r_max=p.r_range[1],
+            n_bins=p.bins,
+            plateau=p.plateau,
+            kolmogorov_c2=p.kolmogorov_c2,
+            n_boot=p.n_boot,
+            seed=scenario.seed,
+        ),
     )

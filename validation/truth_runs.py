@@ -8,7 +8,7 @@
   detection error in pixels, the detection yield, the fractional-position histogram
   and the position noise in 3-D.
 
-Both return :class:`ptv.pipeline.RunParticles`, so the same statistics run on them as
+Both return :class:`ptv.stats.links.RunParticles`, so the same statistics run on them as
 on the PTV stack's own links.
 """
 
@@ -23,9 +23,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ptv.camera_model import CameraModel
-from ptv.dataset import Dataset
-from ptv.detect import detect_particles
-from ptv.pipeline import PipelineSettings, RunParticles, SharedFirstFrames, inside_box
+from ptv.frames import FrameDetections
+from ptv.pipeline import PipelineSettings
+from ptv.stats.links import RunParticles, inside_box
 from ptv.triangulate import triangulate
 from simulator.rigs import Rig, rig_from_dict
 
@@ -107,7 +107,7 @@ def _run_particles(
         matches=np.repeat(sizes[:, None], 2, axis=1),
         links=sizes,
         processed=np.arange(m, dtype=np.int64),
-        in_analysis=inside_box(positions, settings.analysis_volume),
+        in_analysis=inside_box(positions, settings.statistics.analysis_volume),
         outlier=np.zeros(len(positions), dtype=bool),
     )
 
@@ -195,23 +195,17 @@ class _DetectionTally:
         self.xy[c].append(detected[row[hit]])
 
 
-def _triangulated_particles(
-    images, exact, visible, cameras, settings: PipelineSettings, saturation, tally
-) -> np.ndarray:
+def _triangulated_particles(detected, exact, visible, cameras, tally) -> np.ndarray:
     """Each particle's position from its detected centres in one frame of every camera.
 
     Parameters
     ----------
-    images : sequence of C ndarray
-        The frame of each camera.
+    detected : sequence of C ndarray, shape (N_c, 2)
+        The detected centres on the frame of each camera, px.
     exact, visible : sequences of C ndarray, shapes (P, 2) and (P,)
         The exact image of every particle and whether it is imaged, per camera.
     cameras : sequence of C CameraModel
         The true cameras.
-    settings : PipelineSettings
-        Detection threshold.
-    saturation : float or None
-        Saturation level of the images, DN.
     tally : _DetectionTally
         Receives the detection statistics.
 
@@ -221,11 +215,10 @@ def _triangulated_particles(
         Triangulated positions, m; NaN for particles not detected in every camera.
     """
     rows = []
-    for c, image in enumerate(images):
-        det = detect_particles(image, k=settings.threshold, saturation=saturation)
-        row = _associate(det.xy, exact[c], visible[c])
-        tally.add(c, det.xy, exact[c], visible[c], row)
-        rows.append((row, det.xy))
+    for c, xy in enumerate(detected):
+        row = _associate(xy, exact[c], visible[c])
+        tally.add(c, xy, exact[c], visible[c], row)
+        rows.append((row, xy))
     everywhere = np.all([row >= 0 for row, _ in rows], axis=0)
     points = np.full((len(everywhere), 3), np.nan)
     pixels = [xy[row[everywhere]] for row, xy in rows]
@@ -234,7 +227,7 @@ def _triangulated_particles(
 
 
 def detected_runs(
-    dataset: Dataset,
+    frames: FrameDetections,
     truth: Sequence[TruthRun],
     cameras: Sequence[CameraModel],
     settings: PipelineSettings,
@@ -243,20 +236,20 @@ def detected_runs(
 ) -> tuple[list[RunParticles], DetectionQuality]:
     """Detected centres, paired with their particles by the truth, through the true cameras.
 
-    With a shared first frame, frame a of each snapshot is detected and triangulated once
-    for every Δt, so X(t) is the same bits at every Δt (the statistics join the Δt on it)
-    and the detection figures count each image once.
+    With a shared first frame, frame a of each snapshot is triangulated once for every
+    Δt, so X(t) is the same bits at every Δt (the statistics join the Δt on it) and the
+    detection figures count each image once.
 
     Parameters
     ----------
-    dataset : Dataset
-        The rendered images.
+    frames : FrameDetections
+        The detections on the rendered images.
     truth : sequence of TruthRun
         From :func:`read_truth`, in the dataset's Δt order.
     cameras : sequence of CameraModel
         The true cameras in the dataset's camera order.
     settings : PipelineSettings
-        Detection threshold, analysis volume, snapshot limit.
+        Analysis volume, snapshot limit.
     tick : callable, optional
         Called after each snapshot.
 
@@ -264,32 +257,34 @@ def detected_runs(
     -------
     (list of RunParticles, DetectionQuality)
     """
-    names = dataset.cameras
+    names = frames.cameras
     tally = _DetectionTally(names)
-    shared_a = SharedFirstFrames() if dataset.shared_first_frame else None
+    shared_a: dict[int, np.ndarray] = {}
     errors = []  # per Δt: {snapshot: (particle indices, position error, ΔX error)}
     runs = []
+    box = settings.statistics.analysis_volume
     for k, run in enumerate(truth):
         per_snapshot, run_errors = [], {}
-        for snap in dataset.snapshots(k, limit=settings.snapshots):
+        for m in range(settings.snapshot_count(frames.frames[k])):
 
-            def measured(images, f: int, snap=snap, run=run) -> np.ndarray:
-                exact = [run.xy[name][snap.m, f] for name in names]
-                visible = [run.visible[name][snap.m, f] for name in names]
-                return _triangulated_particles(
-                    images, exact, visible, cameras, settings, dataset.saturation, tally
-                )
+            def measured(f: int, m=m, k=k, run=run) -> np.ndarray:
+                exact = [run.xy[name][m, f] for name in names]
+                visible = [run.visible[name][m, f] for name in names]
+                detected = frames.detections(k, m, "ab"[f])
+                return _triangulated_particles(detected, exact, visible, cameras, tally)
 
-            if shared_a is not None:
-                start = shared_a.measure(snap, lambda images: measured(images, 0))
+            if frames.shared_first_frame:
+                if m not in shared_a:
+                    shared_a[m] = measured(0)
+                start = shared_a[m]
             else:
-                start = measured([pair.a for pair in snap.frames], 0)
-            end = measured([pair.b for pair in snap.frames], 1)
+                start = measured(0)
+            end = measured(1)
             both = np.isfinite(start[:, 0]) & np.isfinite(end[:, 0])
             ends = (start[both], end[both])
-            true_ends = run.positions[snap.m][:, both]
-            inside = inside_box(true_ends[0], settings.analysis_volume)
-            run_errors[snap.m] = (
+            true_ends = run.positions[m][:, both]
+            inside = inside_box(true_ends[0], box)
+            run_errors[m] = (
                 np.flatnonzero(both)[inside],
                 ends[0][inside] - true_ends[0][inside],
                 (ends[1] - ends[0])[inside] - (true_ends[1] - true_ends[0])[inside],
@@ -299,7 +294,7 @@ def detected_runs(
                 tick()
         runs.append(_run_particles(k, run.dt, per_snapshot, settings, len(names)))
         errors.append(run_errors)
-    position_noise, displacement_noise = _noise_rms(errors, shared=dataset.shared_first_frame)
+    position_noise, displacement_noise = _noise_rms(errors, shared=frames.shared_first_frame)
     quality = DetectionQuality(
         cameras=tuple(names),
         rms_error_px=np.sqrt(tally.sq_err / np.maximum(tally.found, 1)[:, None]),
@@ -318,7 +313,7 @@ def _noise_rms(errors: Sequence[dict], *, shared: bool) -> tuple[np.ndarray, np.
 
     ``errors[k][m]`` holds (particle indices, position errors (N, 3), ΔX errors (N, 3)) of
     snapshot m at Δt_k. With a shared first frame the statistics use only the particles
-    found at every Δt (:func:`ptv.pipeline.shared_snapshots`), which are less often
+    found at every Δt (:func:`ptv.stats.links.shared_snapshots`), which are less often
     overlapped by a neighbour and so less noisy: the noise is measured on them too.
     """
     if shared:

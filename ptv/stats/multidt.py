@@ -15,7 +15,7 @@ fits that line in every bin at once (arrays of shape (B, K): B bins, K values of
 - `fit_multi_dt`: the same with x = Δt² and an optional subset of the Δt;
 - `fit_multi_dt_bootstrap`: weights (or covariance) and standard errors from bootstrap
   replicates of y, e.g. from `SnapshotSums.bootstrap_means` (resampled snapshots);
-- `largest_dt`, `smallest_and_largest_dt`: the paper's subset studies.
+- `largest_dt`, `smallest_and_largest_dt`, `dt_subsets`: the paper's subset studies.
 
 Every fit is linear in y, c = A·y with a (2, K) operator A per bin, so bootstrap
 replicates are refitted with one contraction and no loop over bins.
@@ -28,6 +28,7 @@ import numpy as np
 
 __all__ = [
     "LineFit",
+    "dt_subsets",
     "fit_multi_dt",
     "fit_multi_dt_bootstrap",
     "gls_line",
@@ -531,3 +532,33 @@ def smallest_and_largest_dt(dt: np.ndarray) -> np.ndarray:
     """Indices of the smallest and largest Δt (the paper's two-Δt study), shape (2,)."""
     dt = _check_dt(dt)
     return np.array([int(np.argmin(dt)), int(np.argmax(dt))])
+
+
+def dt_subsets(dt: np.ndarray) -> dict[str, np.ndarray]:
+    """The paper's Δt subset study: each subset smaller than the whole set, as a mask.
+
+    "3 largest dt" (:func:`largest_dt`, needs K ≥ 4) and "smallest and largest dt"
+    (:func:`smallest_and_largest_dt`, needs K ≥ 3), in that order.
+
+    Parameters
+    ----------
+    dt : ndarray, shape (K,)
+        Time separations, s.
+
+    Returns
+    -------
+    dict of str to ndarray of bool, shape (K,)
+        The Δt each subset uses.
+    """
+    dt = _check_dt(dt)
+    chosen = {}
+    if dt.size >= 4:
+        chosen["3 largest dt"] = largest_dt(dt, 3)
+    if dt.size >= 3:
+        chosen["smallest and largest dt"] = smallest_and_largest_dt(dt)
+    masks = {}
+    for name, idx in chosen.items():
+        mask = np.zeros(dt.size, dtype=bool)
+        mask[idx] = True
+        masks[name] = mask
+    return masks

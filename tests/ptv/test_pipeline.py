@@ -20,21 +20,20 @@ from scipy.spatial import cKDTree
 
 from ptv.calibration.io import load_calibrations
 from ptv.dataset import DatasetError, open_dataset
+from ptv.frames import ImageDetector
 from ptv.pipeline import (
-    ANALYSIS_VOLUME,
     PipelineSettings,
-    RunParticles,
-    SharedFirstFrames,
-    _mean_displacement_joined,
-    compute_statistics,
-    detect_and_match,
-    measure_run,
+    match_frame,
+    measure_snapshot,
+    measure_snapshots,
     median_test_outliers,
     run_pipeline,
-    shared_snapshots,
 )
 from ptv.results import save_results
-from ptv.stats.pairs import LogBins, pair_sums
+from ptv.stats.links import RunParticles, shared_snapshots
+from ptv.stats.mean_displacement import shared_mean_displacement
+from ptv.stats.pairs import pair_sums
+from ptv.stats.run_statistics import ANALYSIS_VOLUME, StatisticsSettings, compute_statistics
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign
@@ -60,7 +59,9 @@ PROGRESS: list[tuple[int, int]] = []
 @pytest.fixture(scope="module")
 def result(rendered):
     folder, _, calibrations = rendered
-    return run_pipeline(open_dataset(folder), calibrations, progress=lambda *p: PROGRESS.append(p))
+    return run_pipeline(
+        ImageDetector(open_dataset(folder)), calibrations, progress=lambda *p: PROGRESS.append(p)
+    )
 
 
 @pytest.fixture(scope="module")
@@ -112,29 +113,25 @@ def test_pipeline_runs_on_every_dt(result):
 
 def test_matched_points_lie_on_the_true_particles(rendered, to_calibration_frame):
     folder, _, calibrations = rendered
-    dataset = open_dataset(folder)
-    cameras = [calibrations[c] for c in dataset.cameras]
+    detector = ImageDetector(open_dataset(folder))
+    cameras = [calibrations[c] for c in detector.cameras]
     visible_total = found = found_raw = matched = ghosts = 0
     errors = []
-    for k in range(dataset.n_dt):
+    for k in range(len(detector.dt)):
         truth, visible = _truth(folder, k)
-        snap = dataset.snapshot(k, 0)
         for f, frame in enumerate("ab"):
-            images = [getattr(pair, frame) for pair in snap.frames]
-            _, matches = detect_and_match(
-                images, cameras, PipelineSettings(), saturation=dataset.saturation
-            )
+            points = match_frame(detector.detections(k, 0, frame), cameras, PipelineSettings())
             true_raw = truth[0, f][visible[0, f]]
             true_cal = to_calibration_frame(true_raw)
-            tree = cKDTree(matches.points)
+            tree = cKDTree(points)
             found += np.sum(tree.query(true_cal)[0] < 1e-4)
             found_raw += np.sum(tree.query(true_raw)[0] < 1e-4)
-            distance, nearest = cKDTree(to_calibration_frame(truth[0, f])).query(matches.points)
+            distance, nearest = cKDTree(to_calibration_frame(truth[0, f])).query(points)
             ghosts += np.sum(distance >= 1e-4)
             close = distance < 1e-4
-            errors.append(matches.points[close] - to_calibration_frame(truth[0, f])[nearest[close]])
+            errors.append(points[close] - to_calibration_frame(truth[0, f])[nearest[close]])
             visible_total += len(true_raw)
-            matched += len(matches)
+            matched += len(points)
     errors = np.concatenate(errors)
     rms = np.sqrt(np.mean(errors**2, axis=0))
     assert found / visible_total >= 0.90  # measured 0.95
@@ -228,7 +225,7 @@ def _synthetic_runs(dt, *, sigma, snapshots=16, particles=500, rng=0):
 def test_statistics_remove_injected_noise():
     dt = np.array([1e-4, 2e-4, 3e-4, 4e-4, 5e-4])
     sigma = 20e-6
-    settings = PipelineSettings(n_boot=60, r_min=2e-3, n_bins=10, plateau=(3e-3, 20e-3))
+    settings = StatisticsSettings(n_boot=60, r_min=2e-3, n_bins=10, plateau=(3e-3, 20e-3))
     runs, exact = _synthetic_runs(dt, sigma=sigma)
     st = compute_statistics(runs, settings)
     sf = st.structure
@@ -237,7 +234,7 @@ def test_statistics_remove_injected_noise():
     # White noise of σ per component: N = 4σ² in every bin, Δt-independent.
     assert np.all(sf.noise[fitted] > 0)
     assert np.median(sf.noise[fitted]) == pytest.approx(4 * sigma**2, rel=0.2)
-    bins = LogBins(settings.r_min, settings.r_max, settings.n_bins)
+    bins = settings.bins
     total = pair_sums(*exact[0], bins)
     for x, v in exact[1:]:
         total = total + pair_sums(x, v, bins)
@@ -284,7 +281,9 @@ def test_an_empty_frame_skips_its_snapshot(rendered, tmp_path, caplog):
         frame.unlink()
         tifffile.imwrite(frame, np.zeros(shape, dtype=np.uint16))
     with caplog.at_level(logging.WARNING, logger="ptv.pipeline"):
-        res = run_pipeline(open_dataset(copy), calibrations, PipelineSettings(snapshots=2))
+        res = run_pipeline(
+            ImageDetector(open_dataset(copy)), calibrations, PipelineSettings(snapshots=2)
+        )
     assert "snapshot 0 skipped: no matched particle in frame a" in caplog.text
     assert res.runs[0].skipped.tolist() == [0] and res.runs[0].snapshot_ids.tolist() == [1]
     assert res.runs[0].detections[0, 0, 0] == 0
@@ -316,7 +315,7 @@ def test_all_frames_empty_is_a_clear_error(rendered, tmp_path, caplog):
     calibrations = rendered[2]
     dataset = open_dataset(_tiny_dataset(tmp_path / "empty"))
     with pytest.raises(ValueError, match="multi-Δt method needs at least two"):
-        run_pipeline(dataset, calibrations)
+        run_pipeline(ImageDetector(dataset), calibrations)
     assert caplog.text.count("no matched particle") == 2
 
 
@@ -338,7 +337,7 @@ def test_bad_datasets_are_refused(tmp_path):
 
 def test_cameras_must_match_the_calibration(rendered):
     folder, _, calibrations = rendered
-    dataset = open_dataset(folder)
+    dataset = ImageDetector(open_dataset(folder))
     renamed = {"cam1": calibrations["cam1"], "camX": calibrations["cam2"]}
     with pytest.raises(DatasetError, match=r"cameras don't match the calibration.*cam2.*camX"):
         run_pipeline(dataset, renamed)
@@ -351,7 +350,7 @@ def test_settings_are_checked():
     with pytest.raises(ValueError, match="max_speed"):
         PipelineSettings(max_speed=0.0)
     with pytest.raises(ValueError, match="analysis_volume"):
-        PipelineSettings(analysis_volume=((0, 0, 0), (0, 1, 1)))
+        StatisticsSettings(analysis_volume=((0, 0, 0), (0, 1, 1)))
     with pytest.raises(ValueError, match="snapshots"):
         PipelineSettings(snapshots=0)
 
@@ -458,17 +457,16 @@ def test_shared_snapshots_of_runs_with_no_common_particle_are_empty():
 
 def test_a_shared_first_frame_is_measured_once_with_the_same_result(rendered):
     folder, _, calibrations = rendered
-    dataset = open_dataset(folder)
-    assert dataset.shared_first_frame
-    cameras = [calibrations[name] for name in dataset.cameras]
+    detector = ImageDetector(open_dataset(folder))
+    assert detector.shared_first_frame
+    cameras = [calibrations[name] for name in detector.cameras]
     settings = PipelineSettings()
-    first_frames = SharedFirstFrames()
-    measure_run(dataset, 0, cameras, settings, first_frames=first_frames)
-    assert len(first_frames) == dataset.frames[0]
-    cached = measure_run(dataset, 2, cameras, settings, first_frames=first_frames)
-    fresh = measure_run(dataset, 2, cameras, settings)
-    for name in ("positions", "displacements", "detections", "matches", "links", "outlier"):
-        assert np.array_equal(getattr(cached, name), getattr(fresh, name)), name
+    shared = measure_snapshots(detector, range(3), cameras, settings)
+    for m in range(3):
+        fresh = measure_snapshot(ImageDetector(open_dataset(folder)), 2, m, cameras, settings)
+        cached = shared[2][m]
+        for name in ("positions", "displacements", "detections", "matches", "outlier"):
+            assert np.array_equal(getattr(cached, name), getattr(fresh, name)), name
 
 
 def test_a_wrongly_declared_shared_first_frame_is_an_error_naming_the_file(rendered, tmp_path):
@@ -480,7 +478,7 @@ def test_a_wrongly_declared_shared_first_frame_is_an_error_naming_the_file(rende
     frame.unlink()  # a hard link: replace the file, not the shared content
     tifffile.imwrite(frame, other)
     with pytest.raises(DatasetError, match=r"000001_a\.tif.*shared first frame"):
-        run_pipeline(open_dataset(copy), calibrations)
+        run_pipeline(ImageDetector(open_dataset(copy)), calibrations)
 
 
 def _joined_experiment(rng, dt, *, offset=0.0, snapshots=30, particles=200, sigma=5e-6):
@@ -509,13 +507,13 @@ def test_the_mean_displacement_offset_of_shared_frames_has_calibrated_errors():
     dt = np.array([1e-4, 2e-4, 3e-4, 4e-4, 5e-4])
     pulls, alarms = [], 0
     for _ in range(300):
-        md = _mean_displacement_joined(_joined_experiment(rng, dt, particles=100), dt)
+        md = shared_mean_displacement(_joined_experiment(rng, dt, particles=100), dt)
         pulls.append(md.fit.c2 / md.fit.se_c2)
         statistic, limit = md.offset_test()
         alarms += statistic > limit
     assert 0.9 < np.std(pulls) < 1.2
     assert alarms <= 9
-    md = _mean_displacement_joined(_joined_experiment(rng, dt, offset=1e-6), dt)
+    md = shared_mean_displacement(_joined_experiment(rng, dt, offset=1e-6), dt)
     statistic, limit = md.offset_test()
     assert statistic > 10 * limit
     assert np.allclose(md.fit.c2, 1e-6, rtol=0.3)

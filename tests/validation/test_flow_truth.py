@@ -3,12 +3,12 @@
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ptv.pipeline import PipelineSettings, S2Population
 from ptv.stats.pairs import pair_sums
+from ptv.stats.run_statistics import S2Population, StatisticsSettings
 from validation.flow_truth import population_truth
 from validation.truth_runs import TruthRun
 
-SETTINGS = PipelineSettings(r_min=1e-3, r_max=30e-3, n_bins=8)
+SETTINGS = StatisticsSettings(r_min=1e-3, r_max=30e-3, n_bins=8)
 DT = (1e-4, 3e-4)
 
 

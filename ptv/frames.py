@@ -1,0 +1,262 @@
+"""Particle detections of a double-frame dataset, frame by frame: what the pipeline reads.
+
+The PTV pipeline (:mod:`ptv.pipeline`) needs, for every Δt_k and snapshot m, the
+particle image centres of frame a (time t) and frame b (t + Δt_k) on every camera. They
+come from a :class:`FrameDetections` source:
+
+- :class:`ImageDetector` reads the images of a dataset folder (:mod:`ptv.dataset`) and
+  detects the particles on them (:func:`ptv.detect.detect_particles`);
+- :class:`ptv.detect.store.DetectionStore` reads detections saved earlier
+  (:func:`ptv.detect.store.write_detections`), so that several analyses of the same
+  images (other calibrations, other statistics) detect them once.
+
+With a shared first frame (``shared_first_frame``: snapshot m of every Δt starts from
+the same frame a, as when a time-resolved recording is cut into pairs), frame a of
+snapshot m is the same exposure for every k: a source returns the same detections for
+it whatever k.
+"""
+
+import hashlib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from ptv.dataset import Dataset, DatasetError
+from ptv.detect import Detections, detect_particles
+
+__all__ = [
+    "ChunkDetections",
+    "DetectorSettings",
+    "FrameDetections",
+    "ImageDetector",
+    "exposures",
+]
+
+
+class FrameDetections(Protocol):
+    """Detected particle image centres of a double-frame dataset.
+
+    Attributes
+    ----------
+    folder : Path
+        What was measured (recorded in the results).
+    cameras : tuple of str
+        Camera names, in the order of the lists :meth:`detections` returns.
+    dt : ndarray, shape (K,)
+        Time separations, s.
+    frames : tuple of int, length K
+        Snapshots (frame pairs) of the run at each Δt.
+    shared_first_frame : bool
+        Snapshot m of every Δt shares its frame a.
+    detector : dict
+        How the particles were detected (:meth:`DetectorSettings.as_dict`).
+    """
+
+    folder: Path
+    cameras: tuple[str, ...]
+    dt: np.ndarray
+    frames: tuple[int, ...]
+    shared_first_frame: bool
+    detector: dict
+
+    def detections(self, k: int, m: int, frame: str) -> list[np.ndarray]:
+        """Centres (N_c, 2), px, on frame ``frame`` ("a" or "b") of snapshot m at Δt_k,
+        one array per camera."""
+        ...
+
+
+@dataclass(frozen=True)
+class DetectorSettings:
+    """How particles are detected on a dataset's images.
+
+    Attributes
+    ----------
+    threshold : float
+        Detection threshold in noise units above background (default 6), > 0.
+    saturation : float or None
+        Saturation level of the images, DN (None: the dtype's maximum).
+    """
+
+    threshold: float = 6.0
+    saturation: float | None = None
+
+    def __post_init__(self) -> None:
+        value = self.threshold
+        ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+            value, bool
+        )
+        if not (ok and np.isfinite(value) and value > 0):
+            raise ValueError(f"threshold must be a finite number > 0, got {value!r}")
+
+    def as_dict(self) -> dict:
+        """JSON-able form (what detections depend on besides the images)."""
+        return {"threshold": float(self.threshold), "saturation": self.saturation}
+
+
+def exposures(
+    frames: Sequence[int], snapshots: Sequence[int], *, shared_first_frame: bool
+) -> list[tuple[int, int, str]]:
+    """The distinct exposures (k, m, frame) of some snapshots, in a fixed order.
+
+    Per snapshot m: frame a (with a shared first frame once, as k = −1; otherwise once
+    per k), then frame b of every k; runs of fewer frame pairs than m + 1 have none.
+
+    Parameters
+    ----------
+    frames : sequence of int
+        Frame pairs of the run at each Δt (K entries).
+    snapshots : sequence of int
+        Snapshot numbers m.
+    shared_first_frame : bool
+        Frame a shared by every Δt (then every run has the same frame count).
+
+    Returns
+    -------
+    list of (int, int, str)
+    """
+    out = []
+    for m in snapshots:
+        runs = [k for k, n in enumerate(frames) if m < n]
+        if shared_first_frame and runs:
+            out.append((-1, m, "a"))
+        elif not shared_first_frame:
+            out.extend((k, m, "a") for k in runs)
+        out.extend((k, m, "b") for k in runs)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class ChunkDetections:
+    """:class:`FrameDetections` of a range of snapshots, held in memory.
+
+    What a chunk of a parallel run hands over: every exposure of snapshots m0 … m1 − 1
+    (:func:`exposures`) with the dataset's description.
+
+    Attributes
+    ----------
+    folder, cameras, dt, frames, shared_first_frame, detector :
+        As :class:`FrameDetections` (of the whole dataset).
+    snapshots : (int, int)
+        m0, m1.
+    found : dict of (int, int, str) to list of C detections
+        Per exposure (k, m, frame), with k = −1 for a shared frame a, the detections of
+        each camera: objects with ``xy`` (N, 2), px, and ``flags`` (N,)
+        (:class:`ptv.detect.Detections` or what a store gives back).
+    """
+
+    folder: Path
+    cameras: tuple[str, ...]
+    dt: np.ndarray
+    frames: tuple[int, ...]
+    shared_first_frame: bool
+    detector: dict
+    snapshots: tuple[int, int]
+    found: dict
+
+    def detections(self, k: int, m: int, frame: str) -> list[np.ndarray]:
+        """Centres (N_c, 2), px, per camera, of frame ``frame`` of snapshot m at Δt_k."""
+        key = (-1 if frame == "a" and self.shared_first_frame else k, m, frame)
+        try:
+            return [d.xy for d in self.found[key]]
+        except KeyError:
+            raise KeyError(f"no detections of Δt_{k}, snapshot {m}, frame {frame}") from None
+
+
+class ImageDetector:
+    """:class:`FrameDetections` of a dataset folder, detected from its images on demand.
+
+    With a shared first frame, frame a of snapshot m is detected once (for the first k
+    asked) and reused for the others; whenever a frame of snapshot m at Δt_k is asked
+    for, frame a of that k is checked to be the same images (a content digest per
+    camera): a dataset that declares a shared first frame wrongly is an error, not a
+    silent mix of frames. Only the last snapshot's frame a is kept.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        The folder (:func:`ptv.dataset.open_dataset`).
+    settings : DetectorSettings
+        Threshold; its saturation, when None, is the dataset's declared one.
+
+    Attributes
+    ----------
+    settings : DetectorSettings
+        The settings used, saturation resolved.
+    """
+
+    def __init__(self, dataset: Dataset, settings: DetectorSettings = DetectorSettings()) -> None:
+        self.dataset = dataset
+        self.folder = dataset.folder
+        self.cameras = dataset.cameras
+        self.dt = dataset.dt
+        self.frames = dataset.frames
+        self.shared_first_frame = dataset.shared_first_frame
+        saturation = settings.saturation
+        if saturation is None:
+            saturation = dataset.saturation
+        self.settings = DetectorSettings(settings.threshold, saturation)
+        self.detector = self.settings.as_dict()
+        self._frame_a: tuple[int, tuple[bytes, ...], list[Detections]] | None = None
+
+    def detect(self, k: int, m: int, frame: str) -> list[Detections]:
+        """Detections on frame ``frame`` of snapshot m at Δt_k, one per camera.
+
+        Raises
+        ------
+        DatasetError
+            Frame a of a dataset declaring a shared first frame differs between Δt
+            (checked whenever a frame of snapshot m at Δt_k is asked for).
+        """
+        if self.shared_first_frame:
+            shared = self._shared_frame_a(k, m)
+            if frame == "a":
+                return shared
+        return [self._detect(self.dataset.read_frame(k, c, m, frame)) for c in self.cameras]
+
+    def _shared_frame_a(self, k: int, m: int) -> list[Detections]:
+        """Frame a of snapshot m: detected the first time, checked against it after."""
+        images = [self.dataset.read_frame(k, c, m, "a") for c in self.cameras]
+        digest = tuple(
+            hashlib.blake2b(np.ascontiguousarray(image), digest_size=16).digest()
+            for image in images
+        )
+        if self._frame_a is None or self._frame_a[0] != m:
+            self._frame_a = (m, digest, [self._detect(image) for image in images])
+        elif self._frame_a[1] != digest:
+            raise DatasetError(
+                f"{self.dataset.frame_path(k, self.cameras[0], m, 'a')}: the dataset declares "
+                f"a shared first frame, but frame a of snapshot {m} at Δt_{k} is not the "
+                "one of the other Δt"
+            )
+        return self._frame_a[2]
+
+    def detections(self, k: int, m: int, frame: str) -> list[np.ndarray]:
+        """Centres (N_c, 2), px, per camera (see :meth:`detect`)."""
+        return [d.xy for d in self.detect(k, m, frame)]
+
+    def detect_chunk(self, m0: int, m1: int) -> ChunkDetections:
+        """Every exposure of snapshots m0 … m1 − 1 detected (:func:`exposures`)."""
+        found = {
+            (k, m, frame): self.detect(max(k, 0), m, frame)
+            for k, m, frame in exposures(
+                self.frames, range(m0, m1), shared_first_frame=self.shared_first_frame
+            )
+        }
+        return ChunkDetections(
+            self.folder,
+            self.cameras,
+            self.dt,
+            self.frames,
+            self.shared_first_frame,
+            self.detector,
+            (m0, m1),
+            found,
+        )
+
+    def _detect(self, image: np.ndarray) -> Detections:
+        return detect_particles(
+            image, k=self.settings.threshold, saturation=self.settings.saturation
+        )

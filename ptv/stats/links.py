@@ -1,0 +1,156 @@
+"""The links of a run, per Δt: the input of the run statistics.
+
+A link is one particle measured at t and t + Δt: its position X(t) and displacement
+ΔX = X(t + Δt) − X(t). :class:`RunParticles` holds every link of the run at one Δt,
+snapshot after snapshot, with the flags the statistics select on (inside the analysis
+box by X(t), not an outlier). The PTV pipeline (:mod:`ptv.pipeline`) produces them from
+images; anything else that yields positions at t and t + Δt (exact trajectories,
+truth-paired detections) can too, and the same statistics run on it.
+
+Boxes are axis-aligned, given by their (lower, upper) corners in m.
+"""
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Box", "RunParticles", "check_box", "inside_box", "shared_snapshots"]
+
+#: An axis-aligned box: (lower corner, upper corner), m.
+Box = tuple[tuple[float, float, float], tuple[float, float, float]]
+
+
+def check_box(name: str, value) -> Box:
+    """``value`` as a :data:`Box` of floats, or a ValueError naming ``name``.
+
+    Parameters
+    ----------
+    name : str
+        What the box is, for the message.
+    value : pair of sequences of 3 numbers
+        (lower, upper) corners, m; finite, lower < upper on every axis.
+
+    Returns
+    -------
+    Box
+    """
+    try:
+        lower, upper = (np.asarray(v, dtype=np.float64) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{name} must be (lower, upper) corners of 3 numbers, got {value!r}"
+        ) from None
+    if lower.shape != (3,) or upper.shape != (3,):
+        raise ValueError(f"{name} corners must have 3 entries each, got {value!r}")
+    if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper)) and np.all(lower < upper)):
+        raise ValueError(f"{name} needs finite corners with lower < upper, got {value!r}")
+    return (tuple(float(v) for v in lower), tuple(float(v) for v in upper))  # type: ignore[return-value]
+
+
+def inside_box(points: np.ndarray, box: Box) -> np.ndarray:
+    """Points (..., 3) inside ``box`` = (lower corner, upper corner), m, boundary included."""
+    lower, upper = (np.asarray(v) for v in box)
+    return np.all((points >= lower) & (points <= upper), axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class RunParticles:
+    """All links of the run at one Δt, snapshots concatenated.
+
+    Attributes
+    ----------
+    k : int
+        Δt index in the dataset.
+    dt : float
+        Δt, s.
+    positions : ndarray, shape (N, 3)
+        X(t), m.
+    displacements : ndarray, shape (N, 3)
+        ΔX, m.
+    offsets : ndarray of int, shape (M + 1,)
+        Rows offsets[i]:offsets[i + 1] belong to snapshot ``snapshot_ids[i]``.
+    snapshot_ids : ndarray of int, shape (M,)
+        Snapshot numbers kept (those with links).
+    detections : ndarray of int, shape (S, 2, C)
+        Detections per processed snapshot, frame (a, b) and camera.
+    matches : ndarray of int, shape (S, 2)
+        Matches per processed snapshot and frame.
+    links : ndarray of int, shape (S,)
+        Links per processed snapshot.
+    processed : ndarray of int, shape (S,)
+        Snapshot numbers processed (S ≥ M).
+    in_analysis : ndarray of bool, shape (N,)
+        X(t) inside the analysis volume.
+    outlier : ndarray of bool, shape (N,)
+        Links failing the normalised median test (not used by the statistics).
+    """
+
+    k: int
+    dt: float
+    positions: np.ndarray
+    displacements: np.ndarray
+    offsets: np.ndarray
+    snapshot_ids: np.ndarray
+    detections: np.ndarray
+    matches: np.ndarray
+    links: np.ndarray
+    processed: np.ndarray
+    in_analysis: np.ndarray
+    outlier: np.ndarray
+
+    @property
+    def used(self) -> np.ndarray:
+        """(N,) bool: links the statistics use (in the analysis volume, not outliers)."""
+        return self.in_analysis & ~self.outlier
+
+    @property
+    def skipped(self) -> np.ndarray:
+        """Snapshot numbers processed but skipped (no match or no link)."""
+        return np.setdiff1d(self.processed, self.snapshot_ids)
+
+    def snapshot_arrays(self, *, analysis: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(positions, displacements) per kept snapshot; with ``analysis``, the used links."""
+        out = []
+        for i in range(len(self.snapshot_ids)):
+            rows = slice(int(self.offsets[i]), int(self.offsets[i + 1]))
+            x, d = self.positions[rows], self.displacements[rows]
+            if analysis:
+                keep = self.used[rows]
+                x, d = x[keep], d[keep]
+            out.append((x, d))
+        return out
+
+
+def shared_snapshots(
+    runs: Sequence[RunParticles],
+) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
+    """The particles used at every Δt of runs that share their first frames.
+
+    With a shared frame a, a particle has the same measured X(t) in every run, so the
+    runs' used links are joined on X(t) (bit for bit), snapshot by snapshot.
+
+    Parameters
+    ----------
+    runs : sequence of K RunParticles
+        Runs whose snapshot m shares frame a.
+
+    Returns
+    -------
+    (ndarray of int (S,), list of S (ndarray (P, 3), ndarray (P, K, 3)))
+        The snapshots kept in every run, and per snapshot X(t), m, and ΔX at each Δt, m.
+    """
+    per_run = [
+        dict(zip(run.snapshot_ids.tolist(), run.snapshot_arrays(), strict=True)) for run in runs
+    ]
+    common = sorted(set.intersection(*(set(d) for d in per_run)))
+    out = []
+    for m in common:
+        arrays = [d[m] for d in per_run]
+        index = [{row.tobytes(): i for i, row in enumerate(x)} for x, _ in arrays]
+        keys = [key for key in index[0] if all(key in ix for ix in index[1:])]
+        rows = [[ix[key] for key in keys] for ix in index]
+        x = arrays[0][0][rows[0]].reshape(-1, 3)
+        d = np.stack([a[1][r].reshape(-1, 3) for a, r in zip(arrays, rows, strict=True)], axis=1)
+        out.append((x, d))
+    return np.array(common, dtype=np.int64), out

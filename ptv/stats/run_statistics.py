@@ -1,0 +1,502 @@
+"""Second-order statistics of a PTV run: S2(r), ε, the Δt subsets, the mean line, u′.
+
+From the links of every Δt (:class:`ptv.stats.links.RunParticles`), restricted to those
+whose X(t) lies in the analysis volume and that are not outliers (bin by X(t),
+PHYSICS.md §4):
+
+- S2(r) by the multi-Δt fit ⟨q⟩_k = S2·Δt_k² + N per log-spaced separation bin, errors
+  by bootstrap over snapshots (:func:`ptv.stats.structure.structure_function`); the raw
+  ⟨q⟩_k/Δt_k² per Δt and the noise term c2 = N(r) beside it. With a shared first frame
+  (every Δt measured from the same frame a) S2 uses the particles linked at every Δt,
+  less those whose displacements stray from a smooth path in Δt
+  (:func:`ptv.track.trajectory_residuals`), and the snapshots are resampled jointly over
+  the Δt; otherwise every run's links, each run resampled on its own;
+- ε(r) = (S2/C2)^{3/2}/r and the paper's uncorrected S2^{3/2}/r, and their plateau;
+- the same fit on the paper's Δt subsets (:func:`ptv.stats.multidt.dt_subsets`) and
+  their plateau ε;
+- the spatially averaged mean displacement against Δt with its line αΔt + β0
+  (:mod:`ptv.stats.mean_displacement`);
+- u′ from the Eulerian variance fit Var ΔX = u′²Δt² + 2σ_b² per cell
+  (:mod:`ptv.stats.eulerian`), whose intercept also estimates the position noise σ_b
+  per component. The cell mean is taken over the run's snapshots and subtracted, so
+  with few snapshots u′ comes out low by about the variance of a cell mean over them
+  (rendered lem-10hz data: −4 % with 30 snapshots per Δt, −25 % with 3).
+"""
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ptv.stats.dissipation import (
+    DEFAULT_C2,
+    DissipationProfile,
+    Plateau,
+    dissipation_profile,
+    plateau_epsilon,
+)
+from ptv.stats.eulerian import EulerianFit, Grid, UPrime, eulerian_fit, eulerian_moments, u_prime
+from ptv.stats.links import Box, RunParticles, check_box, shared_snapshots
+from ptv.stats.mean_displacement import (
+    MeanDisplacement,
+    mean_displacement,
+    shared_mean_displacement,
+)
+from ptv.stats.multidt import dt_subsets
+from ptv.stats.pairs import LogBins
+from ptv.stats.snapshots import SnapshotSums
+from ptv.stats.structure import (
+    StructureFunction,
+    double_frame_sums,
+    structure_function,
+    time_resolved_sums,
+)
+from ptv.track import trajectory_residuals
+
+__all__ = [
+    "ANALYSIS_VOLUME",
+    "PtvStatistics",
+    "S2Population",
+    "StatisticsSettings",
+    "Subset",
+    "compute_statistics",
+]
+
+log = logging.getLogger(__name__)
+
+#: The paper's 70 × 70 × 2 mm analysis volume centred in the sheet, m.
+ANALYSIS_VOLUME: Box = ((-0.035, -0.035, -0.001), (0.035, 0.035, 0.001))
+
+
+def _positive(name: str, value) -> float:
+    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
+    if not (ok and np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class StatisticsSettings:
+    """Options of :func:`compute_statistics` (SI units).
+
+    Attributes
+    ----------
+    analysis_volume : (lower, upper)
+        Box the statistics are restricted to by X(t), m (default :data:`ANALYSIS_VOLUME`).
+    r_min, r_max : float
+        Outer edges of the log-spaced separation bins, m (default 0.5 and 35 mm).
+    n_bins : int
+        Separation bins (default 24).
+    plateau : (float, float)
+        Range of r over which ε(r) is averaged, m (default 2–20 mm).
+    plateau_method : {"mean", "max"}
+        Mean of ε(r) over the range (the paper's Table 3) or its maximum.
+    kolmogorov_c2 : float
+        C2 of ε = (S2/C2)^{3/2}/r (default 2.0).
+    n_boot : int
+        Bootstrap replicates over snapshots (default 200).
+    eulerian_cells : (int, int, int)
+        Cells of the Eulerian grid over the analysis volume (default 4 × 4 × 1); one
+        cell is used when none of them holds enough displacements.
+    min_cell_count : int
+        Displacements a cell needs at every Δt to be fitted (default 10).
+    trajectory_threshold : float or None
+        With a shared first frame and K ≥ 4 Δt: particles whose displacements stray
+        from a smooth path in Δt by more than this many times the median residual of
+        all particles (:func:`ptv.track.trajectory_residuals`) are mislinked at some
+        Δt and left out of S2 (default 5; None keeps them).
+    seed : int
+        Seed of the bootstrap.
+    """
+
+    analysis_volume: Box = ANALYSIS_VOLUME
+    r_min: float = 0.5e-3
+    r_max: float = 35e-3
+    n_bins: int = 24
+    plateau: tuple[float, float] = (2e-3, 20e-3)
+    plateau_method: str = "mean"
+    kolmogorov_c2: float = DEFAULT_C2
+    n_boot: int = 200
+    eulerian_cells: tuple[int, int, int] = (4, 4, 1)
+    min_cell_count: int = 10
+    trajectory_threshold: float | None = 5.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self, "analysis_volume", check_box("analysis_volume", self.analysis_volume)
+        )
+        object.__setattr__(self, "kolmogorov_c2", _positive("kolmogorov_c2", self.kolmogorov_c2))
+        LogBins(self.r_min, self.r_max, self.n_bins)  # validates
+        lo, hi = self.plateau
+        if not 0 < lo < hi:
+            raise ValueError(
+                f"plateau must be (r_min, r_max) with 0 < r_min < r_max, got {self.plateau}"
+            )
+        if self.plateau_method not in ("mean", "max"):
+            raise ValueError(f"plateau_method must be 'mean' or 'max', got {self.plateau_method!r}")
+        if not isinstance(self.n_boot, int) or self.n_boot < 2:
+            raise ValueError(f"n_boot must be an integer >= 2, got {self.n_boot!r}")
+        Grid((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), self.eulerian_cells)  # validates the shape
+        if not isinstance(self.min_cell_count, int) or self.min_cell_count < 3:
+            raise ValueError(f"min_cell_count must be an integer >= 3, got {self.min_cell_count!r}")
+        if self.trajectory_threshold is not None:
+            object.__setattr__(
+                self,
+                "trajectory_threshold",
+                _positive("trajectory_threshold", self.trajectory_threshold),
+            )
+
+    @property
+    def bins(self) -> LogBins:
+        """The separation bins."""
+        return LogBins(self.r_min, self.r_max, self.n_bins)
+
+
+@dataclass(frozen=True, eq=False)
+class Subset:
+    """The multi-Δt fit on a subset of the Δt values.
+
+    Attributes
+    ----------
+    name : str
+        "3 largest dt" or "smallest and largest dt".
+    used : ndarray of bool, shape (K,)
+        Δt used.
+    structure : StructureFunction
+        The fit.
+    profile : DissipationProfile
+        ε(r) of the fit.
+    plateau : Plateau or None
+        Plateau ε (None when no bin of the range was fitted).
+    """
+
+    name: str
+    used: np.ndarray
+    structure: StructureFunction
+    profile: DissipationProfile
+    plateau: Plateau | None
+
+
+@dataclass(frozen=True, eq=False)
+class S2Population:
+    """The particles whose pairs enter S2 when every Δt shares frame a.
+
+    Attributes
+    ----------
+    snapshot_ids : ndarray of int, shape (S,)
+        Snapshots kept at every Δt.
+    positions : tuple of S ndarray, shape (P_s, 3)
+        X(t) of the particles linked at every Δt and not dropped by the trajectory test,
+        m (in the calibration's frame).
+    displacements : tuple of S ndarray, shape (P_s, K, 3)
+        Their ΔX at every Δt, m.
+    trajectory_outliers : int
+        Particles linked at every Δt that the trajectory test dropped.
+    """
+
+    snapshot_ids: np.ndarray
+    positions: tuple[np.ndarray, ...]
+    displacements: tuple[np.ndarray, ...]
+    trajectory_outliers: int
+
+    @property
+    def count(self) -> int:
+        """Particles in the population."""
+        return sum(len(x) for x in self.positions)
+
+
+@dataclass(frozen=True, eq=False)
+class PtvStatistics:
+    """Second-order statistics of the measured displacements.
+
+    Attributes
+    ----------
+    dt_index : ndarray of int, shape (K,)
+        Dataset Δt indices the statistics use (runs with links).
+    dt : ndarray, shape (K,)
+        Their Δt, s.
+    bins : LogBins
+        Separation bins.
+    structure : StructureFunction
+        S2 = c1 (m²/s²), noise c2 (m²), raw ⟨q⟩/Δt² per Δt, errors, pair counts.
+    profile : DissipationProfile
+        ε(r) = (S2/C2)^{3/2}/r and the paper's S2^{3/2}/r, m²/s³.
+    plateau : Plateau or None
+        Plateau ε over ``settings.plateau`` (None when no bin there was fitted).
+    subsets : dict of str to Subset
+        The paper's Δt subset study (only subsets smaller than the full set).
+    mean_displacement : MeanDisplacement
+        Linearity check of ⟨ΔX⟩ in Δt.
+    grid : Grid
+        Eulerian cells.
+    eulerian : EulerianFit
+        Per-cell fits of ⟨ΔX⟩ and Var ΔX against Δt.
+    u_prime : UPrime or None
+        u′ from the fitted variance (None when no cell could be fitted).
+    position_noise : ndarray, shape (3,)
+        σ_b per component from the variance intercept 2σ_b², averaged over cells, m
+        (NaN where the average intercept is negative).
+    errors : str
+        "bootstrap" or "pairs" (when a run has fewer than two snapshots).
+    n_snapshots : ndarray of int, shape (K,)
+        Snapshots per Δt used.
+    population : S2Population or None
+        The particles of S2 with a shared first frame (None: each run's own links).
+    """
+
+    dt_index: np.ndarray
+    dt: np.ndarray
+    bins: LogBins
+    structure: StructureFunction
+    profile: DissipationProfile
+    plateau: Plateau | None
+    subsets: dict[str, Subset]
+    mean_displacement: MeanDisplacement
+    grid: Grid
+    eulerian: EulerianFit
+    u_prime: UPrime | None
+    position_noise: np.ndarray
+    errors: str
+    n_snapshots: np.ndarray
+    population: S2Population | None = None
+
+
+def _plateau(
+    profile: DissipationProfile, settings: StatisticsSettings, what: str
+) -> Plateau | None:
+    """The plateau ε of ``profile`` over ``settings.plateau``; None (logged) if no bin there."""
+    try:
+        return plateau_epsilon(
+            profile,
+            r_min=settings.plateau[0],
+            r_max=settings.plateau[1],
+            method=settings.plateau_method,  # type: ignore[arg-type]
+        )
+    except ValueError as err:
+        log.warning("%s: no plateau ε (%s)", what, err)
+        return None
+
+
+def _eulerian(runs: Sequence[RunParticles], dt: np.ndarray, settings: StatisticsSettings):
+    """Grid, per-cell fit, u′ (or None) and σ_b per component (NaN where not measurable)."""
+    x, d = [], []
+    for run in runs:
+        sel = run.used
+        x.append(run.positions[sel])
+        d.append(run.displacements[sel])
+    lower, upper = settings.analysis_volume
+    grid = Grid(lower, upper, settings.eulerian_cells)
+    fit = eulerian_fit(eulerian_moments(x, d, dt, grid), min_count=settings.min_cell_count)
+    if not fit.valid.any() and grid.n_cells > 1:
+        log.warning(
+            "no Eulerian cell of %s holds %d displacements at every Δt; using one cell",
+            "×".join(map(str, settings.eulerian_cells)),
+            settings.min_cell_count,
+        )
+        grid = Grid(lower, upper, (1, 1, 1))
+        fit = eulerian_fit(eulerian_moments(x, d, dt, grid), min_count=settings.min_cell_count)
+    if fit.valid.any():
+        up = u_prime(fit)
+        noise = np.nanmean(fit.noise[fit.valid], axis=0)
+        with np.errstate(invalid="ignore"):
+            sigma_b = np.sqrt(np.where(noise >= 0, noise / 2.0, np.nan))
+    else:
+        log.warning("no Eulerian cell could be fitted: no u'")
+        up, sigma_b = None, np.full(3, np.nan)
+    return grid, fit, up, sigma_b
+
+
+def _consistent(joined, dt: np.ndarray, settings: StatisticsSettings):
+    """The joined particles whose trajectory residual is not an outlier.
+
+    Parameters
+    ----------
+    joined : list of (ndarray (P, 3), ndarray (P, K, 3))
+        X(t) and ΔX at every Δt per snapshot (:func:`shared_snapshots`), m.
+    dt : ndarray, shape (K,)
+        s.
+    settings : StatisticsSettings
+        ``trajectory_threshold``: the limit in multiples of the median residual.
+
+    Returns
+    -------
+    list of (ndarray, ndarray)
+        The same snapshots without the particles above the limit.
+    """
+    residuals = [trajectory_residuals(dt, d) for _, d in joined]
+    limit = settings.trajectory_threshold * np.median(np.concatenate(residuals))
+    kept = [(x[r <= limit], d[r <= limit]) for (x, d), r in zip(joined, residuals, strict=True)]
+    dropped = sum(len(x) for x, _ in joined) - sum(len(x) for x, _ in kept)
+    log.info(
+        "%d particle(s) dropped: trajectory residual above %.3g µm (%g × the median)",
+        dropped,
+        limit * 1e6,
+        settings.trajectory_threshold,
+    )
+    return kept
+
+
+def _usable(runs: Sequence[RunParticles], settings: StatisticsSettings) -> list[RunParticles]:
+    """The runs with at least two used links (the others dropped with a warning)."""
+    usable = []
+    for run in runs:
+        n = int(np.count_nonzero(run.used))
+        if n < 2:
+            log.warning(
+                "Δt_%d = %.4g s dropped from the statistics: %d link(s) in the analysis volume",
+                run.k,
+                run.dt,
+                n,
+            )
+        else:
+            usable.append(run)
+    if len(usable) < 2:
+        raise ValueError(
+            f"only {len(usable)} Δt value(s) with particle links in the analysis volume "
+            f"{settings.analysis_volume} m: the multi-Δt method needs at least two "
+            "(are the frames empty, or the calibration, volume or max speed wrong?)"
+        )
+    return usable
+
+
+@dataclass(frozen=True)
+class _Sample:
+    """What the multi-Δt fit is computed from: pair sums, their snapshots, the particles."""
+
+    sums: SnapshotSums
+    n_snapshots: np.ndarray
+    mean_displacement: MeanDisplacement
+    population: S2Population | None
+
+
+def _shared_sample(
+    usable: Sequence[RunParticles], dt: np.ndarray, settings: StatisticsSettings
+) -> _Sample:
+    """The particles linked at every Δt (shared frame a) and their pair sums."""
+    ids, joined = shared_snapshots(usable)
+    if not joined:
+        raise ValueError("no snapshot has particles linked at every Δt")
+    linked = sum(len(x) for x, _ in joined)
+    log.info(
+        "shared first frame: %d particles linked at every Δt in %d snapshots", linked, len(joined)
+    )
+    if settings.trajectory_threshold is not None and len(usable) >= 4:
+        joined = _consistent(joined, dt, settings)
+    line = shared_mean_displacement(joined, dt)
+    if line is None:
+        log.warning(
+            "mean displacement: too few snapshots (%d) for the covariance of the %d "
+            "shared means; each Δt's links are averaged on their own",
+            len(joined),
+            len(usable),
+        )
+        line = mean_displacement(usable)
+    return _Sample(
+        sums=time_resolved_sums(joined, settings.bins),
+        n_snapshots=np.full(len(usable), len(joined), dtype=np.int64),
+        mean_displacement=line,
+        population=S2Population(
+            snapshot_ids=ids,
+            positions=tuple(x for x, _ in joined),
+            displacements=tuple(d for _, d in joined),
+            trajectory_outliers=linked - sum(len(x) for x, _ in joined),
+        ),
+    )
+
+
+def _independent_sample(usable: Sequence[RunParticles], settings: StatisticsSettings) -> _Sample:
+    """Every run's own links (one independent experiment per Δt) and their pair sums."""
+    per_run = [r.snapshot_arrays() for r in usable]
+    return _Sample(
+        sums=double_frame_sums(per_run, settings.bins),
+        n_snapshots=np.array([len(p) for p in per_run], dtype=np.int64),
+        mean_displacement=mean_displacement(usable),
+        population=None,
+    )
+
+
+def compute_statistics(
+    runs: Sequence[RunParticles],
+    settings: StatisticsSettings,
+    *,
+    shared_first_frame: bool = False,
+) -> PtvStatistics:
+    """Multi-Δt statistics of the links in the analysis volume (module docstring).
+
+    Parameters
+    ----------
+    runs : sequence of RunParticles
+        One per Δt (runs without links are dropped with a warning).
+    settings : StatisticsSettings
+        Analysis volume, bins, plateau range, C2, bootstrap, Eulerian cells.
+    shared_first_frame : bool
+        The runs share their first frames (:attr:`ptv.dataset.Dataset.shared_first_frame`):
+        S2 then uses the particles linked at every Δt, with snapshots resampled jointly
+        over all Δt (:func:`ptv.stats.links.shared_snapshots`,
+        :func:`ptv.stats.structure.time_resolved_sums`); otherwise every run's links,
+        each run resampled on its own.
+
+    Returns
+    -------
+    PtvStatistics
+
+    Raises
+    ------
+    ValueError
+        Fewer than two Δt with links in the analysis volume.
+    """
+    usable = _usable(runs, settings)
+    dt = np.array([r.dt for r in usable])
+    bins = settings.bins
+    if shared_first_frame:
+        sample = _shared_sample(usable, dt, settings)
+    else:
+        sample = _independent_sample(usable, settings)
+    errors = "bootstrap"
+    if sample.n_snapshots.min() < 2:
+        log.warning(
+            "a Δt has a single snapshot: S2 errors from the pair count (they underestimate)"
+        )
+        errors = "pairs"
+
+    def fit(use=None) -> StructureFunction:
+        return structure_function(
+            sample.sums, dt, errors=errors, n_boot=settings.n_boot, use=use, rng=settings.seed
+        )
+
+    def profile_of(sf: StructureFunction) -> DissipationProfile:
+        return dissipation_profile(
+            np.where(np.isfinite(sf.r), sf.r, bins.centres),
+            sf.s2,
+            se_s2=sf.se_s2,
+            s2_boot=sf.s2_boot,
+            kolmogorov_c2=settings.kolmogorov_c2,
+        )
+
+    structure = fit()
+    profile = profile_of(structure)
+    subsets = {}
+    for name, use in dt_subsets(dt).items():
+        sf = fit(use)
+        prof = profile_of(sf)
+        subsets[name] = Subset(name, use, sf, prof, _plateau(prof, settings, name))
+    grid, eul, up, sigma_b = _eulerian(usable, dt, settings)
+    return PtvStatistics(
+        dt_index=np.array([r.k for r in usable], dtype=np.int64),
+        dt=dt,
+        bins=bins,
+        structure=structure,
+        profile=profile,
+        plateau=_plateau(profile, settings, "all Δt"),
+        subsets=subsets,
+        mean_displacement=sample.mean_displacement,
+        grid=grid,
+        eulerian=eul,
+        u_prime=up,
+        position_noise=sigma_b,
+        errors=errors,
+        n_snapshots=sample.n_snapshots,
+        population=sample.population,
+    )
