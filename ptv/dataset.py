@@ -15,7 +15,8 @@ integers), ``shared_first_frame`` (optional, default false: true when snapshot m
 every Δt starts from the same frame a, as when a time-resolved recording is cut into
 pairs; the statistics then follow the same particles over every Δt) and
 ``particle_images`` (optional pattern, default
-``particles/dt{k}/{camera}/{m:06d}_{a|b}.tif``). Nothing else of the folder (plate
+``particles/dt{k}/{camera}/{m:06d}_{a|b}.tif``; null for a dataset without particle
+images, which cannot be processed here). Nothing else of the folder (plate
 images, a ground truth) is read.
 
 :func:`open_dataset` checks the description and that every image file exists, so a
@@ -314,6 +315,8 @@ def open_dataset(folder: str | Path, *, check_files: bool = True) -> Dataset:
     dt = _dt(spec, path)
     frames = _frames(spec, path, dt.size)
     pattern = spec.get("particle_images", DEFAULT_PARTICLE_IMAGES)
+    if pattern is None:
+        raise _fail(path, "'particle_images' is null: this dataset holds no particle images")
     if not isinstance(pattern, str) or "{a|b}" not in pattern:
         raise _fail(path, f"'particle_images' must be a pattern with '{{a|b}}', got {pattern!r}")
     shared = spec.get("shared_first_frame", False)

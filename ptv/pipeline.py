@@ -40,7 +40,7 @@ results, ``validation`` draws and compares.
 
 import logging
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -213,26 +213,34 @@ class SnapshotMeasurement:
         Particles detected in frame a (row 0) and frame b (row 1) of each camera.
     matches : ndarray of int, shape (2,)
         3-D points matched in frames a and b.
+    links : int
+        Links made (whatever rows are kept below).
     positions : ndarray, shape (N, 3)
-        X(t) of the links, m.
+        X(t) of the links kept (all of them unless :meth:`within` dropped some), m.
     displacements : ndarray, shape (N, 3)
         ΔX = X(t + Δt) − X(t), m.
     outlier : ndarray of bool, shape (N,)
-        Links failing the normalised median test.
+        Links failing the normalised median test (made on all the links).
     """
 
     k: int
     m: int
     detections: np.ndarray
     matches: np.ndarray
+    links: int
     positions: np.ndarray
     displacements: np.ndarray
     outlier: np.ndarray
 
-    @property
-    def links(self) -> int:
-        """Number of links N."""
-        return len(self.positions)
+    def within(self, box: Box) -> "SnapshotMeasurement":
+        """The same measurement keeping only the links whose X(t) lies in ``box``."""
+        keep = inside_box(self.positions, box)
+        return replace(
+            self,
+            positions=self.positions[keep],
+            displacements=self.displacements[keep],
+            outlier=self.outlier[keep],
+        )
 
 
 def match_frame(
@@ -323,6 +331,7 @@ def measure_snapshot(
         m=m,
         detections=np.asarray(detections, dtype=np.int64),
         matches=np.asarray([len(p) for p in points], dtype=np.int64),
+        links=len(positions),
         positions=positions,
         displacements=displacements,
         outlier=outlier,
@@ -428,7 +437,7 @@ def run_particles(
             )
         else:
             kept.append(res)
-    sizes = [r.links for r in kept]
+    sizes = [len(r.positions) for r in kept]
     positions = np.concatenate([r.positions for r in kept]) if kept else np.empty((0, 3))
     displacements = np.concatenate([r.displacements for r in kept]) if kept else np.empty((0, 3))
     outlier = np.concatenate([r.outlier for r in kept]) if kept else np.empty(0, dtype=bool)

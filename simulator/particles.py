@@ -232,6 +232,8 @@ def follow_snapshots(
     unsteadiness: float = DEFAULT_UNSTEADINESS,
     rng: np.random.Generator | int | None = None,
     progress: Progress | None = None,
+    first: int = 0,
+    count: int | None = None,
 ) -> ParticleSnapshots:
     """Seed independent snapshots and follow their particles over ``times``.
 
@@ -251,25 +253,35 @@ def follow_snapshots(
     n_modes, unsteadiness :
         KS options, see :func:`simulator.flow.draw_ks_field`.
     rng : numpy.random.Generator, int or None
-        Randomness; snapshot j uses the j-th spawned child, so results do not depend
-        on how snapshots are chunked.
+        Randomness; snapshot j uses the j-th of ``snapshots`` spawned children, so
+        results do not depend on how snapshots are chunked (give an int seed, or a fresh
+        Generator, to get the same snapshots in separate calls).
     progress : callable(done, total), optional
         Called after each snapshot.
+    first, count : int
+        Follow only snapshots ``first`` … ``first + count − 1`` of the ``snapshots``
+        (default: all), e.g. one chunk of a run computed in parallel.
 
     Returns
     -------
     ParticleSnapshots
+        The ``count`` snapshots followed.
     """
     times = np.asarray(times, dtype=float)
     if times.ndim != 1 or times[0] != 0 or np.any(np.diff(times) <= 0):
         raise ValueError(f"times must start at 0 and increase strictly, got {times}")
     _check_count("particles", particles)
     _check_count("snapshots", snapshots)
+    count = snapshots - first if count is None else count
+    if not (isinstance(first, int) and 0 <= first and 1 <= count and first + count <= snapshots):
+        raise ValueError(
+            f"first = {first!r} and count = {count!r} must select snapshots of 0 … {snapshots - 1}"
+        )
     margin = MARGIN_IN_U_RMS * spectrum.parameters.u_rms * times[-1]
     seed_box = region.padded(margin)
     n_seed = round(particles * seed_box.volume / region.volume)
-    children = np.random.default_rng(rng).spawn(snapshots)
-    shape = (snapshots, len(times), n_seed, 3)
+    children = np.random.default_rng(rng).spawn(snapshots)[first : first + count]
+    shape = (count, len(times), n_seed, 3)
     positions, velocity, acceleration = np.empty(shape), np.empty(shape), np.empty(shape)
     for m, child in enumerate(children):
         flow = draw_ks_field(spectrum, n_modes=n_modes, unsteadiness=unsteadiness, rng=child)
@@ -284,7 +296,7 @@ def follow_snapshots(
             velocity[m, f] = u
             acceleration[m, f] = a
         if progress is not None:
-            progress(m + 1, snapshots)
+            progress(m + 1, count)
     travel = np.abs(positions - positions[:, :1]).max(initial=0.0)
     if travel > margin:
         # A particle from beyond the seeding box could then have entered the region.
@@ -305,6 +317,8 @@ def double_frame(
     unsteadiness: float = DEFAULT_UNSTEADINESS,
     rng: np.random.Generator | int | None = None,
     progress: Progress | None = None,
+    first: int = 0,
+    count: int | None = None,
 ) -> DoubleFrameSample:
     """Independent double-frame experiments, one per Δt, each of M snapshots.
 
@@ -325,7 +339,7 @@ def double_frame(
     def step(_: int, __: int) -> None:
         done[0] += 1
         if progress is not None:
-            progress(done[0], len(dt) * snapshots)
+            progress(done[0], len(dt) * (snapshots - first if count is None else count))
 
     runs = tuple(
         follow_snapshots(
@@ -338,6 +352,8 @@ def double_frame(
             unsteadiness=unsteadiness,
             rng=child,
             progress=step,
+            first=first,
+            count=count,
         )
         for d, child in zip(dt, children, strict=True)
     )
@@ -355,6 +371,8 @@ def shared_start(
     unsteadiness: float = DEFAULT_UNSTEADINESS,
     rng: np.random.Generator | int | None = None,
     progress: Progress | None = None,
+    first: int = 0,
+    count: int | None = None,
 ) -> DoubleFrameSample:
     """Frame pairs at every Δt from the same M snapshots: frame a is shared.
 
@@ -387,6 +405,8 @@ def shared_start(
         unsteadiness=unsteadiness,
         rng=rng,
         progress=progress,
+        first=first,
+        count=count,
     )
     runs = tuple(
         ParticleSnapshots(

@@ -83,14 +83,17 @@ def _run_flow(args: argparse.Namespace) -> int:
 
 def _run_render(args: argparse.Namespace) -> int:
     from validation.dataset import RenderSettings, write_dataset
+    from validation.parallel import check_parallel_options, executor
 
+    check_parallel_options(args.workers, args.scheduler)
     rig = load_rig(args.rig)
     preset = flow_preset(args.preset)
     settings = RenderSettings(
         frames=args.frames, particles=args.particles, planes=args.planes, seed=args.seed
     )
     bar = ProgressBar("render", enabled=not args.quiet)
-    out = write_dataset(Path(args.out), rig, preset, settings, progress=bar)
+    with executor(workers=args.workers, scheduler=args.scheduler) as ex:
+        out = write_dataset(Path(args.out), rig, preset, settings, executor=ex, progress=bar)
     print(f"dataset written to {out}")
     return 0
 
@@ -131,9 +134,11 @@ def _run_calibrate(args: argparse.Namespace) -> int:
 
 def _run_experiment(args: argparse.Namespace) -> int:
     from validation.experiment import run_stages
+    from validation.parallel import check_parallel_options, executor
     from validation.report import write_report
     from validation.scenario import load_scenario
 
+    check_parallel_options(args.workers, args.scheduler)
     scenario = load_scenario(args.scenario)
     if args.seed is not None:
         scenario = scenario.with_seed(args.seed)
@@ -142,7 +147,18 @@ def _run_experiment(args: argparse.Namespace) -> int:
     def bar(stage: str) -> ProgressBar:
         return ProgressBar(stage, enabled=not args.quiet)
 
-    stages = run_stages(scenario, out, progress=bar)
+    try:
+        with executor(workers=args.workers, scheduler=args.scheduler) as ex:
+            stages = run_stages(
+                scenario, out, progress=bar, executor=ex, keep_images=args.keep_images
+            )
+    except KeyboardInterrupt:
+        print(
+            f"\nsynptv run: interrupted; finished stages and chunks are kept in {out}: run "
+            "the same command to resume",
+            file=sys.stderr,
+        )
+        return 130
     html_path, json_path = write_report(scenario, stages, out)
     results = json.loads(json_path.read_text())
     for check in results["must_hold"]:
@@ -248,6 +264,19 @@ def _run_scene(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_parallel_options(parser: argparse.ArgumentParser) -> None:
+    """--workers and --scheduler, exclusive."""
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=int,
+        help="local Dask worker processes (default: one per CPU; 1: this process only)",
+    )
+    where.add_argument(
+        "--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786"
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``synptv`` and its subcommands."""
     parser = argparse.ArgumentParser(prog="synptv", description="A virtual 3D-PTV laboratory.")
@@ -271,6 +300,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--out", help="output folder (default ./synptv-<scenario>)")
     run.add_argument("--seed", type=int, help="override the scenario's seed")
+    run.add_argument(
+        "--keep-images",
+        action="store_true",
+        help="also write the particle images (16-bit TIFF) into DIR/dataset",
+    )
+    _add_parallel_options(run)
     run.add_argument("--quiet", action="store_true", help="no progress bars")
     run.set_defaults(run=_run_experiment)
 
@@ -311,6 +346,7 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--particles", type=int, default=1000, help="particles in the sheet")
     render.add_argument("--planes", type=int, default=13, help="calibration traverse positions")
     render.add_argument("--seed", type=int, default=0)
+    _add_parallel_options(render)
     render.add_argument("--quiet", action="store_true", help="no progress bar")
     render.set_defaults(run=_run_render)
 

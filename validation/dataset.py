@@ -9,24 +9,23 @@ Layout of a dataset folder (all lengths in m, times in s)::
     particles/dt<k>/<camera>/<mmmmmm>_a.tif   frame pair m of the double-frame run at Δt_k:
     particles/dt<k>/<camera>/<mmmmmm>_b.tif   frame a at t, frame b at t + Δt_k (with
                                           ``shared_first_frame``, frame a of snapshot m
-                                          is the same image for every k)
-    truth.h5                              the simulator's ground truth (ptv never reads it)
+                                          is the same image for every k, hard-linked);
+                                          only when the particle images are kept
+    truth.h5                              the simulator's ground truth (ptv never reads
+                                          it; layout in :mod:`validation.truth_file`)
 
-``truth.h5`` holds ``/cameras/<camera>`` (attributes: pupil centre, rotation, lens and
-window parameters), ``/flow`` (attributes: u', ε, ν, the preset, the spectrum),
-``/plate`` (``z_nominal`` (N_Z,), ``z_actual`` (N_Z,), ``dots_world`` (N_Z, D, 3) and per
-camera ``<camera>/dots_xy`` (N_Z, D, 2) image of each dot centre, ``<camera>/dots_centroid``
-(N_Z, D, 2) centroid of each dot's light, ``<camera>/dots_on_sensor`` (N_Z, D) whole dot
-on the sensor) and ``/particles/dt<k>`` (attribute ``dt``;
-``positions`` (M, 2, P, 3) at t and t + Δt, ``velocity`` (M, P, 3) at t, and per camera
-``<camera>/xy`` (M, 2, P, 2) and ``<camera>/visible`` (M, 2, P)).
-
-The folder is written under a temporary name beside the destination and renamed when
-complete, so an interrupted run leaves no half-written dataset.
+The plate images are rendered one task per camera and plane, the particles one task per
+chunk of snapshots (:mod:`validation.particle_chunks`), on any
+:class:`validation.parallel.Executor`; each task seeds its randomness from what it
+draws, so the dataset is the same whichever executor runs it. :func:`build_dataset`
+resumes a folder it left half-written (the parts done are recorded in truth.h5); it can
+also detect the particles of every chunk in memory and write them as a detection store
+(:mod:`ptv.detect.store`) instead of, or beside, the particle images.
+:func:`write_dataset` builds a complete dataset with images under a temporary name and
+renames it when complete, so an interrupted run leaves no half-written dataset.
 """
 
 import json
-import os
 import shutil
 import tempfile
 from collections.abc import Callable
@@ -35,19 +34,35 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-import tifffile
 
-from simulator.flow import DEFAULT_UNSTEADINESS
-from simulator.particles import double_frame, shared_start
+from ptv.detect.store import chunk_name, write_chunk
+from ptv.frames import DetectorSettings
 from simulator.presets import FlowPreset
-from simulator.render.camera_frames import ParticleLighting, record_particles
+from simulator.render.camera_frames import ParticleLighting
 from simulator.render.plate import render_plate
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig
 from simulator.spectra import SPECTRA
-from simulator.target import REALISTIC, Imperfections, PlateDesign, build_plate, traverse_positions
+from simulator.target import (
+    REALISTIC,
+    Imperfections,
+    PhysicalPlate,
+    PlateDesign,
+    build_plate,
+    traverse_positions,
+)
+from validation.parallel import Executor, InProcess
+from validation.particle_chunks import (
+    ParticleJob,
+    chunk_detections,
+    render_chunk,
+    snapshot_chunks,
+    write_tiff,
+)
+from validation.truth_file import TruthWriter
 
-FORMAT_VERSION = 1
+#: Version of the dataset layout (experiment.json and truth.h5).
+FORMAT_VERSION = 2
 
 Progress = Callable[[int, int], None]
 
@@ -124,100 +139,9 @@ def _camera_attributes(camera) -> dict:
     return attrs
 
 
-def _write_tiff(path: Path, image: np.ndarray) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tifffile.imwrite(
-        path, image, photometric="minisblack", compression="zlib", compressionargs={"level": 1}
-    )
-
-
-def _write_plates(staging: Path, truth: h5py.File, rig: Rig, plate, settings, tick) -> None:
-    """Plate images per camera and plane, and the dots' truth."""
-    group = truth.create_group("plate")
-    group.create_dataset("z_nominal", data=plate.z_nominal)
-    group.create_dataset("z_actual", data=np.array([p.z_actual for p in plate.poses]))
-    group.create_dataset(
-        "dots_world", data=np.stack([plate.dot_centres(j) for j in range(len(plate.poses))])
-    )
-    group.create_dataset("dot_indices", data=settings.plate.indices)
-    rng = np.random.default_rng(settings.seed + 1)
-    for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
-        projected, centroid, on_sensor = [], [], []
-        for j in range(len(plate.poses)):
-            rendered = render_plate(
-                plate, camera, j, full_brightness=settings.plate_brightness, defocus=True
-            )
-            image = settings.sensor.record(rendered.image, rng)
-            _write_tiff(staging / "calibration" / name / f"plane_{j:02d}.tif", image)
-            projected.append(rendered.projected)
-            centroid.append(rendered.centroid)
-            on_sensor.append(rendered.on_sensor)
-            tick()
-        group.create_dataset(f"{name}/dots_xy", data=np.stack(projected))
-        group.create_dataset(f"{name}/dots_centroid", data=np.stack(centroid))
-        group.create_dataset(f"{name}/dots_on_sensor", data=np.stack(on_sensor))
-
-
-def _link_or_copy(source: Path, target: Path) -> None:
-    """Hard-link ``target`` to ``source``, or copy it where links are not possible."""
-    target.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        os.link(source, target)
-    except OSError:
-        shutil.copyfile(source, target)
-
-
-def _write_particles(staging: Path, truth: h5py.File, rig: Rig, sample, settings, tick) -> None:
-    """Particle frame pairs per Δt and camera, and the particles' truth.
-
-    With a shared first frame, frame a of snapshot m is recorded once per camera (one
-    exposure, one noise draw), written for the first Δt and hard-linked for the others
-    (copied where the file system has no hard links).
-    """
-    rng = np.random.default_rng(settings.seed + 2)
-    groups = []
-    for k, (dt, run) in enumerate(zip(sample.dt, sample.runs, strict=True)):
-        group = truth.create_group(f"particles/dt{k}")
-        group.attrs["dt"] = dt
-        group.create_dataset("positions", data=run.positions, compression="gzip")
-        group.create_dataset("velocity", data=run.velocity[:, 0], compression="gzip")
-        groups.append(group)
-
-    def record(camera, points):
-        return record_particles(
-            camera, points, lighting=settings.lighting, sensor=settings.sensor, rng=rng
-        )
-
-    for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
-        # Independent runs seed different particle counts (the margin grows with Δt).
-        xy = [np.empty((*run.positions.shape[:3], 2)) for run in sample.runs]
-        visible = [np.empty(run.positions.shape[:3], dtype=bool) for run in sample.runs]
-        for m in range(settings.frames):
-            shared = shared_path = None
-            if sample.shared_first_frame:
-                shared = record(camera, sample.runs[0].positions[m, 0])
-                tick()
-            for k, run in enumerate(sample.runs):
-                for f, label in enumerate("ab"):
-                    path = staging / "particles" / f"dt{k}" / name / f"{m:06d}_{label}.tif"
-                    if f == 0 and shared is not None:
-                        frame = shared
-                        if shared_path is None:
-                            _write_tiff(path, frame.image)
-                            shared_path = path
-                        else:
-                            _link_or_copy(shared_path, path)
-                    else:
-                        frame = record(camera, run.positions[m, f])
-                        tick()
-                        _write_tiff(path, frame.image)
-                    xy[k][m, f], visible[k][m, f] = frame.xy, frame.visible
-        for k, group in enumerate(groups):
-            group.create_dataset(f"{name}/xy", data=xy[k], compression="gzip")
-            group.create_dataset(f"{name}/visible", data=visible[k], compression="gzip")
-
-
-def _experiment_description(rig: Rig, plate, dt: np.ndarray, settings: RenderSettings) -> dict:
+def _experiment_description(
+    rig: Rig, plate, dt: np.ndarray, settings: RenderSettings, *, images: bool
+) -> dict:
     """What a real experiment provides: the nominal target, the traverse, Δt, file layout."""
     return {
         "format_version": FORMAT_VERSION,
@@ -240,9 +164,210 @@ def _experiment_description(rig: Rig, plate, dt: np.ndarray, settings: RenderSet
         if settings.shared_first_frame
         else "double frame: one independent run per dt",
         "shared_first_frame": settings.shared_first_frame,
-        "particle_images": "particles/dt{k}/{camera}/{m:06d}_{a|b}.tif",
+        "particle_images": "particles/dt{k}/{camera}/{m:06d}_{a|b}.tif" if images else None,
         "bit_depth": settings.sensor.bit_depth,
     }
+
+
+
+def _header(rig: Rig, preset: FlowPreset, settings: RenderSettings):
+    """Writes the flow, the cameras and the rig into a new truth.h5."""
+
+    def write(truth: h5py.File) -> None:
+        truth.attrs["rig"] = json.dumps(rig.spec)
+        flow = truth.create_group("flow")
+        for key, value in preset.parameters.as_dict().items():
+            flow.attrs[key] = value
+        flow.attrs["preset"] = preset.name
+        flow.attrs["spectrum"] = settings.spectrum
+        flow.attrs["n_modes"] = settings.n_modes
+        for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
+            group = truth.create_group(f"cameras/{name}")
+            for key, value in _camera_attributes(camera).items():
+                group.attrs[key] = value
+
+    return write
+
+
+@dataclass(frozen=True)
+class PlateJob:
+    """What every plate image of a dataset shares (see :func:`render_plate_image`)."""
+
+    rig: Rig
+    plate: PhysicalPlate
+    brightness: float
+    sensor: Sensor
+    seed: int
+
+
+def render_plate_image(item: tuple[int, int], *, job: PlateJob):
+    """Plate image j of camera c, recorded by the sensor (noise seeded by c and j).
+
+    Returns
+    -------
+    (ndarray uint16 (H, W), ndarray (D, 2), ndarray (D, 2), ndarray bool (D,))
+        The image, the image of each dot centre, the centroid of its light, whether the
+        whole dot is on the sensor.
+    """
+    c, j = item
+    rendered = render_plate(
+        job.plate, job.rig.cameras[c], j, full_brightness=job.brightness, defocus=True
+    )
+    rng = np.random.default_rng(np.random.SeedSequence([job.seed, 1, c, j]))
+    image = job.sensor.record(rendered.image, rng)
+    return image, rendered.projected, rendered.centroid, rendered.on_sensor
+
+
+def particle_job(
+    rig: Rig,
+    preset: FlowPreset,
+    settings: RenderSettings,
+    *,
+    detector: DetectorSettings | None = None,
+    images: Path | None = None,
+) -> ParticleJob:
+    """The :class:`validation.particle_chunks.ParticleJob` of a dataset's particles."""
+    if settings.spectrum not in SPECTRA:
+        raise ValueError(f"unknown spectrum {settings.spectrum!r}; known: {', '.join(SPECTRA)}")
+    return ParticleJob(
+        rig=rig,
+        spectrum=SPECTRA[settings.spectrum](preset.parameters),
+        dt=np.asarray(preset.dt, dtype=float),
+        frames=settings.frames,
+        particles=settings.particles,
+        n_modes=settings.n_modes,
+        lighting=settings.lighting,
+        sensor=settings.sensor,
+        shared_first_frame=settings.shared_first_frame,
+        seed=settings.seed,
+        detector=detector,
+        images=images,
+    )
+
+
+@dataclass(frozen=True)
+class DetectionOutput:
+    """Where and how :func:`build_dataset` detects the particles of every chunk.
+
+    Attributes
+    ----------
+    folder : Path
+        The detection store's folder (chunk files written there as they finish).
+    detector : DetectorSettings
+        Threshold and saturation.
+    """
+
+    folder: Path
+    detector: DetectorSettings
+
+
+def build_dataset(
+    target: Path,
+    rig: Rig,
+    preset: FlowPreset,
+    settings: RenderSettings,
+    *,
+    images: bool = True,
+    detections: DetectionOutput | None = None,
+    executor: Executor | None = None,
+    progress: Progress | None = None,
+) -> Path:
+    """Simulate and render a dataset into ``target``, resuming what is there.
+
+    Parameters
+    ----------
+    target : Path
+        The dataset folder (created; a folder this function left unfinished is
+        completed: parts recorded as written are not computed again).
+    rig : Rig
+        Cameras and sheet.
+    preset : FlowPreset
+        Flow and Δt set.
+    settings : RenderSettings
+        Sizes, plate, lighting, sensor and seed.
+    images : bool
+        Write the particle images (the plate images and truth.h5 always are).
+    detections : DetectionOutput, optional
+        Also detect the particles of every exposure in memory and write the chunks of a
+        detection store (:mod:`ptv.detect.store`; its index is the caller's to write).
+    executor : Executor, optional
+        Where the images are rendered (default: this process).
+    progress : callable(done, total), optional
+        Called after each plate image and each chunk of snapshots.
+
+    Returns
+    -------
+    Path
+        ``target``.
+    """
+    executor = InProcess() if executor is None else executor
+    job = particle_job(
+        rig,
+        preset,
+        settings,
+        detector=None if detections is None else detections.detector,
+        images=target if images else None,
+    )
+    target.mkdir(parents=True, exist_ok=True)
+    plate = build_plate(
+        settings.plate,
+        traverse_positions(settings.planes),
+        imperfections=settings.imperfections,
+        rng=settings.seed,
+    )
+    chunks = snapshot_chunks(settings.frames)
+    names = rig.camera_names
+    truth = TruthWriter(
+        target / "truth.h5",
+        header=_header(rig, preset, settings),
+        cameras=names,
+        planes=settings.planes,
+        chunks=chunks,
+        frames=settings.frames,
+        shared_first_frame=settings.shared_first_frame,
+    )
+    plates_done, chunks_done = truth.done()
+    if detections is not None:
+        detections.folder.mkdir(parents=True, exist_ok=True)
+        chunks_done &= [(detections.folder / chunk_name(*c)).is_file() for c in chunks]
+    plates = [(c, j) for c in range(len(names)) for j in range(settings.planes)]
+    todo_plates = [p for p in plates if not plates_done[p]]
+    todo_chunks = [i for i in range(len(chunks)) if not chunks_done[i]]
+    total = len(plates) + len(chunks)
+    done = [total - len(todo_plates) - len(todo_chunks)]
+
+    def tick() -> None:
+        done[0] += 1
+        if progress is not None:
+            progress(done[0], total)
+
+    dots = {
+        "z_nominal": plate.z_nominal,
+        "z_actual": np.array([p.z_actual for p in plate.poses]),
+        "dots_world": np.stack([plate.dot_centres(j) for j in range(len(plate.poses))]),
+        "dot_indices": settings.plate.indices,
+    }
+    plate_job = PlateJob(rig, plate, settings.plate_brightness, settings.sensor, settings.seed)
+    for i, (image, *dot_truth) in executor.map(
+        render_plate_image, todo_plates, shared={"job": plate_job}
+    ):
+        c, j = todo_plates[i]
+        write_tiff(target / "calibration" / names[c] / f"plane_{j:02d}.tif", image)
+        truth.write_plate(c, j, *dot_truth, dots)
+        tick()
+    frames = (settings.frames,) * len(job.dt)
+    for i, rendered in executor.map(
+        render_chunk, [chunks[i] for i in todo_chunks], shared={"job": job}
+    ):
+        if detections is not None:
+            found = chunk_detections(rendered, job, target)
+            write_chunk(detections.folder / chunk_name(*rendered.snapshots), found, frames=frames)
+        truth.write_chunk(todo_chunks[i], rendered.truth)
+        tick()
+    truth.finish()
+    description = _experiment_description(rig, plate, job.dt, settings, images=images)
+    (target / "experiment.json").write_text(json.dumps(description, indent=2))
+    return target
 
 
 def write_dataset(
@@ -251,22 +376,18 @@ def write_dataset(
     preset: FlowPreset,
     settings: RenderSettings,
     *,
+    executor: Executor | None = None,
     progress: Progress | None = None,
 ) -> Path:
-    """Simulate, render and write a dataset folder (layout in the module docstring).
+    """Simulate, render and write a complete dataset folder, images included.
 
     Parameters
     ----------
     out : Path
-        Destination folder; must not exist.
-    rig : Rig
-        Cameras and sheet.
-    preset : FlowPreset
-        Flow and Δt set.
-    settings : RenderSettings
-        Sizes, plate, lighting, sensor and seed.
-    progress : callable(done, total), optional
-        Called after each simulated snapshot and each rendered image.
+        Destination folder; must not exist. Built under a temporary name beside it and
+        renamed when complete.
+    rig, preset, settings, executor, progress :
+        As :func:`build_dataset`.
 
     Returns
     -------
@@ -276,60 +397,13 @@ def write_dataset(
     out = Path(out)
     if out.exists():
         raise ValueError(f"output folder {str(out)!r} already exists; choose a new one")
-    if settings.spectrum not in SPECTRA:
-        raise ValueError(f"unknown spectrum {settings.spectrum!r}; known: {', '.join(SPECTRA)}")
     out.parent.mkdir(parents=True, exist_ok=True)
-    cameras = len(rig.cameras)
-    runs = len(preset.dt)
-    images = (runs + 1 if settings.shared_first_frame else 2 * runs) * settings.frames * cameras
-    simulated = settings.frames * (1 if settings.shared_first_frame else runs)
-    total = simulated + images + settings.planes * cameras
-    done = [0]
-
-    def tick() -> None:
-        done[0] += 1
-        if progress is not None:
-            progress(done[0], total)
-
-    plate = build_plate(
-        settings.plate,
-        traverse_positions(settings.planes),
-        imperfections=settings.imperfections,
-        rng=settings.seed,
-    )
-    simulate = shared_start if settings.shared_first_frame else double_frame
-    sample = simulate(
-        SPECTRA[settings.spectrum](preset.parameters),
-        preset.dt,
-        particles=settings.particles,
-        snapshots=settings.frames,
-        region=rig.sheet,
-        n_modes=settings.n_modes,
-        unsteadiness=DEFAULT_UNSTEADINESS,
-        rng=settings.seed,
-        progress=lambda _done, _total: tick(),
-    )
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     try:
-        with h5py.File(staging / "truth.h5", "w") as truth:
-            truth.attrs["format_version"] = FORMAT_VERSION
-            truth.attrs["rig"] = json.dumps(rig.spec)
-            flow = truth.create_group("flow")
-            for key, value in preset.parameters.as_dict().items():
-                flow.attrs[key] = value
-            flow.attrs["preset"] = preset.name
-            flow.attrs["spectrum"] = settings.spectrum
-            flow.attrs["n_modes"] = settings.n_modes
-            for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
-                group = truth.create_group(f"cameras/{name}")
-                for key, value in _camera_attributes(camera).items():
-                    group.attrs[key] = value
-            _write_plates(staging, truth, rig, plate, settings, tick)
-            _write_particles(staging, truth, rig, sample, settings, tick)
-        description = _experiment_description(rig, plate, sample.dt, settings)
-        (staging / "experiment.json").write_text(json.dumps(description, indent=2))
-        staging.rename(out)
-    except BaseException:
+        build_dataset(
+            staging / out.name, rig, preset, settings, executor=executor, progress=progress
+        )
+        (staging / out.name).rename(out)
+    finally:
         shutil.rmtree(staging, ignore_errors=True)
-        raise
     return out

@@ -3,9 +3,12 @@
 Stages (each a folder of ``out``, reused when its inputs and the synptv version are
 unchanged, see :mod:`validation.stages`):
 
-``dataset/``            simulate and render (:func:`validation.dataset.write_dataset`)
+``dataset/``            simulate and render: plate images, truth.h5, and the particle
+                        images only when they are kept (:func:`validation.dataset.build_dataset`)
 ``detections/``         the particles detected on every image, once for every rung that
-                        reads images (:mod:`ptv.detect.store`)
+                        reads images (:mod:`ptv.detect.store`); when the dataset is built
+                        in the same run they are detected in memory as the images are
+                        rendered
 ``truth/``              sample-truth S2, exact D_LL, reference ε (:mod:`validation.flow_truth`)
 ``calibrations/``       every calibration method from the plate images, Table 1, Fig. 3
 ``ptv/<variant>/``      statistics of each rung of the error budget:
@@ -14,12 +17,21 @@ unchanged, see :mod:`validation.stages`):
                         the true cameras; then the PTV stack with each calibration
 ``report.html``, ``results.json``, ``figures/``   the comparison with truth
 
-Each PTV folder holds ``results.h5`` and ``summary.json`` (:mod:`ptv.results`) and the
-paper's Fig. 5a/b and 6a/b with the truth overlaid.
+The images, the detections and the rungs are computed a chunk of snapshots at a time
+(:func:`validation.particle_chunks.snapshot_chunks`) on an executor
+(:mod:`validation.parallel`: this process, a local Dask cluster or a scheduler); the
+chunks are joined in snapshot order, so the results do not depend on the executor. The
+dataset, detection and rung stages keep their finished chunks when interrupted and the
+next run goes on from there.
+
+Each PTV folder holds ``results.h5`` and ``summary.json`` (:mod:`ptv.results`: the links
+kept are those in the analysis volume) and the paper's Fig. 5a/b and 6a/b with the truth
+overlaid.
 """
 
 import json
 import logging
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -33,7 +45,7 @@ from ptv.dataset import open_dataset
 from ptv.detect.peaklocking import peak_locking
 from ptv.detect.store import DetectionStore, chunk_name, write_chunk, write_index
 from ptv.frames import DetectorSettings, ImageDetector
-from ptv.pipeline import PtvResult, run_pipeline
+from ptv.pipeline import PtvResult
 from ptv.results import save_results
 from ptv.stats.run_statistics import compute_statistics
 from simulator.presets import flow_preset
@@ -41,15 +53,26 @@ from simulator.render.camera_frames import ParticleLighting, local_magnification
 from simulator.rigs import Rig, load_rig
 from simulator.target import REALISTIC, Imperfections
 from validation.calibrate_dataset import calibrate_dataset
-from validation.dataset import FORMAT_VERSION, RenderSettings, write_dataset
+from validation.chunk_map import map_chunks
+from validation.dataset import (
+    FORMAT_VERSION,
+    DetectionOutput,
+    RenderSettings,
+    build_dataset,
+    particle_job,
+)
 from validation.figures import error_maps, save_figure
 from validation.flow_truth import flow_truth, population_truth
 from validation.matching_quality import score_matching
+from validation.parallel import Executor, InProcess
+from validation.particle_chunks import chunk_detections, render_chunk, snapshot_chunks
 from validation.ptv_figures import save_ptv_figures
+from validation.ptv_rung import ptv_rung
 from validation.report_figures import peak_locking_figure
 from validation.scenario import Scenario, pipeline_settings
-from validation.stages import StageOutcome, run_stage
-from validation.truth_runs import detected_runs, exact_runs, read_truth
+from validation.stages import StageOutcome, is_built, run_stage, stage_key, staging_folder
+from validation.truth_file import TruthFile
+from validation.truth_runs import detected_runs, detection_chunk, exact_runs
 
 log = logging.getLogger(__name__)
 
@@ -99,37 +122,20 @@ class ExperimentStages:
     seconds: dict
 
 
-def snapshot_chunks(frames: int) -> list[tuple[int, int]]:
-    """Ranges (m0, m1) of snapshots processed together: at most 10, at least 8 chunks
-    when there are that many snapshots (chunks depend on the frame count alone, so a
-    resumed run finds the same ones)."""
-    size = max(1, min(10, -(-frames // 8)))
-    return [(m0, min(m0 + size, frames)) for m0 in range(0, frames, size)]
+def _write_json(path: Path, data) -> None:
+    path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
 
 
-def _write_detections(detector: ImageDetector, target: Path, progress) -> None:
-    """Detect every image of a dataset into a detection store at ``target``."""
-    target.mkdir()
-    chunks = snapshot_chunks(max(detector.frames))
-    for i, (m0, m1) in enumerate(chunks):
-        chunk = detector.detect_chunk(m0, m1)
-        write_chunk(target / chunk_name(m0, m1), chunk, frames=detector.frames)
-        if progress is not None:
-            progress(i + 1, len(chunks))
-    write_index(
-        target,
-        cameras=detector.cameras,
-        dt=detector.dt,
-        frames=detector.frames,
-        shared_first_frame=detector.shared_first_frame,
-        detector=detector.detector,
-        chunks=chunks,
-        source=str(detector.folder),
+def detect_images_chunk(snapshots: tuple[int, int], *, folder: Path, detector: DetectorSettings):
+    """Detections of one chunk of a dataset's particle images (read from its TIFF files)."""
+    return ImageDetector(open_dataset(folder, check_files=False), detector).detect_chunk(
+        *snapshots
     )
 
 
-def _write_json(path: Path, data) -> None:
-    path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
+def render_detections_chunk(snapshots: tuple[int, int], *, job, folder: Path):
+    """Detections of one chunk rendered again in memory (a dataset without images)."""
+    return chunk_detections(render_chunk(snapshots, job=job), job, folder)
 
 
 def _ptv_figures(result: PtvResult, folder: Path, truth: dict) -> None:
@@ -148,8 +154,290 @@ def _save_ptv(result: PtvResult, folder: Path, truth: dict, calibration: str) ->
     _ptv_figures(result, folder, truth)
 
 
+class _Run:
+    """One ``synptv run``: the scenario, where it goes, what runs it, the stage times."""
+
+    def __init__(self, scenario, out, executor, progress, keep_images) -> None:
+        self.scenario = scenario
+        self.out = Path(out)
+        self.executor = executor
+        self.progress = progress
+        self.images = keep_images or scenario.output.images
+        self.rig = load_rig(scenario.rig.name)
+        self.preset = flow_preset(scenario.flow.preset)
+        self.settings = pipeline_settings(scenario)
+        self.render = render_settings(scenario)
+        self.chunks = snapshot_chunks(self.render.frames)
+        self.detector = DetectorSettings(saturation=float(scenario.sensor.max_dn))
+        self.seconds: dict[str, float] = {}
+        # The PTV options every statistics stage reads; which calibrations run is not one.
+        analysis = {k: v for k, v in scenario.as_dict()["ptv"].items() if k != "methods"}
+        self.settings_inputs = {
+            "synptv": version("synptv"),
+            "ptv": analysis,
+            "seed": scenario.seed,
+        }
+
+    def bar(self, name: str):
+        return self.progress(name) if self.progress is not None else None
+
+    def timed(self, name, folder, inputs, build, *, resume=False) -> StageOutcome:
+        start = time.perf_counter()
+        outcome = run_stage(folder, inputs, build, name=name, resume=resume)
+        self.seconds[name] = 0.0 if outcome.reused else time.perf_counter() - start
+        log.info("stage %s %s", name, "reused" if outcome.reused else "built")
+        return outcome
+
+    def particle_inputs(self) -> dict:
+        """What the rendered particles (and plates) depend on."""
+        d = self.scenario.as_dict()
+        return {
+            "synptv": version("synptv"),
+            "format_version": FORMAT_VERSION,
+            "seed": self.scenario.seed,
+            "flow": d["flow"],
+            "rig": self.rig.spec,
+            "calibration": {k: v for k, v in d["calibration"].items() if k != "methods"},
+            "particles": d["particles"],
+            "sensor": d["sensor"],
+        }
+
+    def dataset_and_detections(self) -> tuple[StageOutcome, StageOutcome]:
+        """Render the dataset, detecting its particles on the way when the detection
+        stage is to be built too; then complete the detection stage."""
+        particles = self.particle_inputs()
+        detect_inputs = {
+            "synptv": version("synptv"),
+            "particles": stage_key(particles),
+            "detector": self.detector.as_dict(),
+        }
+        detect_folder = self.out / "detections"
+        detect_key = stage_key(detect_inputs)
+        fused = None
+        if not is_built(detect_folder, detect_key):
+            target = staging_folder(detect_folder, detect_key) / detect_folder.name
+            fused = DetectionOutput(target, self.detector)
+        dataset = self.timed(
+            "render",
+            self.out / "dataset",
+            {**particles, "images": self.images},
+            lambda target: build_dataset(
+                target,
+                self.rig,
+                self.preset,
+                self.render,
+                images=self.images,
+                detections=fused,
+                executor=self.executor,
+                progress=self.bar("render"),
+            ),
+            resume=True,
+        )
+        detections = self.timed(
+            "detect",
+            detect_folder,
+            detect_inputs,
+            lambda target: self.complete_detections(target, dataset.folder),
+            resume=True,
+        )
+        return dataset, detections
+
+    def complete_detections(self, target: Path, dataset: Path) -> None:
+        """Detect the chunks not detected yet (from the images when the dataset has
+        them, else rendering them again in memory) and write the store's index."""
+        target.mkdir(exist_ok=True)
+        todo = [c for c in self.chunks if not (target / chunk_name(*c)).is_file()]
+        if self.images:
+            fn, shared = detect_images_chunk, {"folder": dataset, "detector": self.detector}
+        else:
+            job = particle_job(self.rig, self.preset, self.render, detector=self.detector)
+            fn, shared = render_detections_chunk, {"job": job, "folder": dataset}
+        frames = (self.render.frames,) * len(self.preset.dt)
+        tick = self.bar("detect")
+        for i, found in self.executor.map(fn, todo, shared=shared):
+            write_chunk(target / chunk_name(*todo[i]), found, frames=frames)
+            if tick is not None:
+                tick(i + 1, len(todo))
+        write_index(
+            target,
+            cameras=self.rig.camera_names,
+            dt=np.asarray(self.preset.dt),
+            frames=frames,
+            shared_first_frame=self.render.shared_first_frame,
+            detector=self.detector.as_dict(),
+            chunks=self.chunks,
+            source=str(dataset),
+        )
+
+    def truth(self, dataset: StageOutcome, truth: TruthFile) -> StageOutcome:
+        """Sample truth, exact D_LL and the reference ε."""
+
+        def build(target: Path) -> None:
+            target.mkdir()
+            reference = flow_truth(
+                truth.snapshots_at_t(self.chunks),
+                self.preset.parameters,
+                self.scenario.flow.spectrum,
+                self.settings.statistics,
+            )
+            _write_json(target / "truth.json", reference.as_dict())
+
+        inputs = {"dataset": dataset.key, **self.settings_inputs}
+        return self.timed("truth", self.out / "truth", inputs, build)
+
+    def calibrations(self, dataset: StageOutcome) -> StageOutcome:
+        """Every calibration method, Table 1 and Fig. 3."""
+        methods = self.scenario.calibration.methods
+
+        def build(target: Path) -> None:
+            result = calibrate_dataset(
+                dataset.folder, methods=methods, out=target, progress=self.bar("calibrate")
+            )
+            _write_json(
+                target / "table1.json",
+                {"table1": result.table1, "max_plane_residual_px": result.max_plane_residual_px},
+            )
+            maps = {m: e["nominal"] for m, e in result.errors.items()}
+            title = "Triangulated dots against their nominal positions (the paper's Fig. 3)"
+            save_figure(error_maps(maps, title=title), target / "fig3_error_maps.png")
+
+        inputs = {"dataset": dataset.key, "methods": list(methods)}
+        return self.timed("calibrate", self.out / "calibrations", inputs, build)
+
+    def rungs(self, detections, truth_stage, calibrations, truth: TruthFile) -> dict:
+        """Every rung of the error budget, one stage each."""
+        store = DetectionStore(detections.folder)
+        truth_dict = json.loads((truth_stage.folder / "truth.json").read_text())
+        rung = _Rung(self, store, truth, truth_dict)
+        ptv = {}
+        for variant in (*REFERENCE_VARIANTS, *self.scenario.ptv.methods):
+            inputs = {"detections": detections.key, "variant": variant, **self.settings_inputs}
+            if variant not in REFERENCE_VARIANTS:
+                inputs["calibration"] = calibrations.key
+            ptv[variant] = self.timed(
+                f"ptv {variant}",
+                self.out / "ptv" / variant,
+                inputs,
+                lambda target, v=variant: rung.build(target, v, calibrations.folder),
+                resume=True,
+            )
+        return ptv
+
+
+class _Rung:
+    """Builds the stage of one rung of the error budget."""
+
+    def __init__(self, run: _Run, store: DetectionStore, truth: TruthFile, truth_dict: dict):
+        self.run = run
+        self.store = store
+        self.truth = truth
+        self.truth_dict = truth_dict
+        # The reference rungs have no links, so nothing for the trajectory test to catch;
+        # on noise-free trajectories it would only drop the particles of largest jerk.
+        settings = run.settings
+        self.unlinked = replace(
+            settings, statistics=replace(settings.statistics, trajectory_threshold=None)
+        )
+        self.voxel = object_pixel(truth.rig)
+        self.true_cameras = dict(zip(truth.rig.camera_names, truth.rig.cameras, strict=True))
+
+    def reference_result(self, runs) -> PtvResult:
+        """The statistics of a reference rung's runs, as a PtvResult."""
+        statistics = compute_statistics(
+            runs, self.unlinked.statistics, shared_first_frame=self.store.shared_first_frame
+        )
+        return PtvResult(self.store, self.store.cameras, self.unlinked, runs, statistics)
+
+    def build(self, target: Path, variant: str, calibrations: Path) -> None:
+        target.mkdir(exist_ok=True)
+        cache = target / "chunks"
+        tick = self.run.bar(f"ptv {variant}")
+        if variant == "exact":
+            runs = exact_runs(self.truth, self.run.chunks, self.unlinked)
+            result = self.reference_result(runs)
+            self.save(result, target, "none: true trajectories")
+        elif variant == "detection":
+            self.detection(target, cache, tick)
+        else:
+            if variant == "true-cameras":
+                cams, label = self.true_cameras, "true cameras"
+            else:
+                path = calibrations / f"{variant}.h5"
+                cams, label = load_calibrations(path), str(path)
+            ordered = [cams[name] for name in self.store.cameras]
+            result, frame_a = ptv_rung(
+                self.store,
+                ordered,
+                self.run.settings,
+                self.run.chunks,
+                executor=self.run.executor,
+                cache=cache,
+                progress=tick,
+            )
+            self.save(result, target, label)
+            scored = self.truth.runs(0, len(frame_a))[0]
+            quality = score_matching(
+                frame_a, scored, self.store.cameras, self.run.settings, voxel=self.voxel
+            )
+            _write_json(target / "matching.json", quality.as_dict())
+            self.save_population(result, target, quality.rotation, quality.translation)
+        shutil.rmtree(cache, ignore_errors=True)
+
+    def detection(self, target: Path, cache: Path, tick) -> None:
+        """Detected centres, truth-paired, through the true cameras."""
+        cams = [self.true_cameras[name] for name in self.store.cameras]
+        chunks = map_chunks(
+            self.run.executor,
+            detection_chunk,
+            self.run.chunks,
+            lambda c: (self.store.chunk(c[0]), self.truth.runs(*c)),
+            shared={"cameras": cams, "settings": self.unlinked},
+            cache=cache,
+            name="detection",
+            progress=tick,
+        )
+        runs, quality = detected_runs(
+            chunks,
+            self.truth.dt,
+            self.store.cameras,
+            self.unlinked,
+            shared_first_frame=self.store.shared_first_frame,
+        )
+        result = self.reference_result(runs)
+        self.save(result, target, "true cameras, truth-paired detections")
+        _save_detection(quality, target)
+        self.save_population(result, target)
+
+    def save(self, result: PtvResult, folder: Path, calibration: str) -> None:
+        save_results(result, folder, calibration=calibration)
+        _ptv_figures(result, folder, self.truth_dict)
+
+    def save_population(self, result: PtvResult, folder: Path, rotation=None, translation=None):
+        """population.json: the sample truth over the pairs this measurement's S2 used
+        (its X(t) brought from the calibration frame to the world by the rigid
+        ``rotation`` and ``translation`` the matching score found)."""
+        population = result.statistics.population
+        if population is None:
+            return
+        reference = population_truth(
+            population,
+            self.truth,
+            self.run.chunks,
+            self.run.settings.statistics,
+            radius=self.voxel,
+            rotation=rotation,
+            translation=translation,
+        )
+        _write_json(folder / "population.json", reference.as_dict())
+
+
 def run_stages(
-    scenario: Scenario, out: Path, *, progress: ProgressFactory | None = None
+    scenario: Scenario,
+    out: Path,
+    *,
+    progress: ProgressFactory | None = None,
+    executor: Executor | None = None,
+    keep_images: bool = False,
 ) -> ExperimentStages:
     """Run (or reuse) every stage of a scenario under ``out``.
 
@@ -161,174 +449,24 @@ def run_stages(
         Output folder (created).
     progress : callable(stage name) -> callable(done, total), optional
         A progress callback per stage.
+    executor : Executor, optional
+        Where the chunks are computed (default: this process).
+    keep_images : bool
+        Write the particle images into the dataset (also when the scenario's
+        ``[output] images`` is false).
 
     Returns
     -------
     ExperimentStages
     """
-
-    def bar(name: str):
-        return progress(name) if progress is not None else None
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    rig = load_rig(scenario.rig.name)
-    preset = flow_preset(scenario.flow.preset)
-    settings = pipeline_settings(scenario)
-    seconds = {}
-
-    def timed(name, folder, inputs, build) -> StageOutcome:
-        start = time.perf_counter()
-        outcome = run_stage(folder, inputs, build, name=name)
-        seconds[name] = 0.0 if outcome.reused else time.perf_counter() - start
-        log.info("stage %s %s", name, "reused" if outcome.reused else "built")
-        return outcome
-
-    render_inputs = {
-        "synptv": version("synptv"),
-        "format_version": FORMAT_VERSION,
-        "seed": scenario.seed,
-        "flow": scenario.as_dict()["flow"],
-        "rig": rig.spec,
-        "calibration": {
-            k: v for k, v in scenario.as_dict()["calibration"].items() if k != "methods"
-        },
-        "particles": scenario.as_dict()["particles"],
-        "sensor": scenario.as_dict()["sensor"],
-    }
-    dataset = timed(
-        "render",
-        out / "dataset",
-        render_inputs,
-        lambda target: write_dataset(
-            target, rig, preset, render_settings(scenario), progress=bar("render")
-        ),
-    )
-    data = open_dataset(dataset.folder)
-    detector = ImageDetector(data, DetectorSettings())
-    detections = timed(
-        "detect",
-        out / "detections",
-        {"synptv": version("synptv"), "dataset": dataset.key, "detector": detector.detector},
-        lambda target: _write_detections(detector, target, bar("detect")),
-    )
-    store = DetectionStore(detections.folder)
-    # The PTV options every statistics stage reads; which calibrations run is not one.
-    analysis = {k: v for k, v in scenario.as_dict()["ptv"].items() if k != "methods"}
-    settings_inputs = {"synptv": version("synptv"), "ptv": analysis, "seed": scenario.seed}
-    truth_rig, truth_runs = read_truth(dataset.folder)
-    # With a shared first frame every run holds the same particles at t.
-    sampled = truth_runs[:1] if data.shared_first_frame else truth_runs
-
-    def build_truth(target: Path) -> None:
-        target.mkdir()
-        reference = flow_truth(
-            sampled, preset.parameters, scenario.flow.spectrum, settings.statistics
-        )
-        _write_json(target / "truth.json", reference.as_dict())
-
-    truth = timed("truth", out / "truth", {"dataset": dataset.key, **settings_inputs}, build_truth)
-    truth_dict = json.loads((truth.folder / "truth.json").read_text())
-
-    def build_calibrations(target: Path) -> None:
-        result = calibrate_dataset(
-            dataset.folder,
-            methods=scenario.calibration.methods,
-            out=target,
-            progress=bar("calibrate"),
-        )
-        _write_json(
-            target / "table1.json",
-            {"table1": result.table1, "max_plane_residual_px": result.max_plane_residual_px},
-        )
-        maps = {m: e["nominal"] for m, e in result.errors.items()}
-        title = "Triangulated dots against their nominal positions (the paper's Fig. 3)"
-        save_figure(
-            error_maps(maps, title=title),
-            target / "fig3_error_maps.png",
-        )
-
-    calibrations = timed(
-        "calibrate",
-        out / "calibrations",
-        {"dataset": dataset.key, "methods": list(scenario.calibration.methods)},
-        build_calibrations,
-    )
-    # The reference rungs have no links, so nothing for the trajectory test to catch; on
-    # noise-free trajectories it would only drop the particles of largest jerk.
-    unlinked = replace(
-        settings, statistics=replace(settings.statistics, trajectory_threshold=None)
-    )
-
-    def statistics(runs):
-        return compute_statistics(
-            runs, unlinked.statistics, shared_first_frame=data.shared_first_frame
-        )
-
-    voxel = object_pixel(truth_rig)
-
-    def save_population(result: PtvResult, folder: Path, rotation=None, translation=None):
-        """population.json: the sample truth over the pairs this measurement's S2 used
-        (its X(t) brought from the calibration frame to the world by the rigid
-        ``rotation`` and ``translation`` the matching score found)."""
-        population = result.statistics.population
-        if population is None:
-            return
-        reference = population_truth(
-            population,
-            truth_runs,
-            settings.statistics,
-            radius=voxel,
-            rotation=rotation,
-            translation=translation,
-        )
-        _write_json(folder / "population.json", reference.as_dict())
-
-    cameras_true = dict(zip(truth_rig.camera_names, truth_rig.cameras, strict=True))
-    ptv = {}
-    for variant in (*REFERENCE_VARIANTS, *scenario.ptv.methods):
-        inputs = {"detections": detections.key, "variant": variant, **settings_inputs}
-        if variant not in REFERENCE_VARIANTS:
-            inputs["calibration"] = calibrations.key
-
-        def build(target: Path, variant=variant) -> None:
-            target.mkdir()
-            tick = bar(f"ptv {variant}")
-            if variant == "exact":
-                runs = exact_runs(truth_runs, unlinked)
-                result = PtvResult(store, data.cameras, unlinked, runs, statistics(runs))
-                _save_ptv(result, target, truth_dict, "none: true trajectories")
-                return
-            if variant == "detection":
-                count = [0]
-                total = sum(data.frames)
-
-                def step() -> None:
-                    count[0] += 1
-                    if tick is not None:
-                        tick(count[0], total)
-
-                cams = [cameras_true[name] for name in data.cameras]
-                runs, quality = detected_runs(store, truth_runs, cams, unlinked, tick=step)
-                result = PtvResult(store, data.cameras, unlinked, runs, statistics(runs))
-                _save_ptv(result, target, truth_dict, "true cameras, truth-paired detections")
-                _save_detection(quality, target)
-                save_population(result, target)
-                return
-            if variant == "true-cameras":
-                cams, label = cameras_true, "true cameras"
-            else:
-                path = calibrations.folder / f"{variant}.h5"
-                cams, label = load_calibrations(path), str(path)
-            result = run_pipeline(store, cams, settings, progress=tick)
-            _save_ptv(result, target, truth_dict, label)
-            ordered = [cams[name] for name in data.cameras]
-            quality = score_matching(store, truth_runs, ordered, settings, voxel=voxel)
-            _write_json(target / "matching.json", quality.as_dict())
-            save_population(result, target, quality.rotation, quality.translation)
-
-        ptv[variant] = timed(f"ptv {variant}", out / "ptv" / variant, inputs, build)
-    return ExperimentStages(dataset, detections, truth, calibrations, ptv, seconds)
+    run = _Run(scenario, out, InProcess() if executor is None else executor, progress, keep_images)
+    run.out.mkdir(parents=True, exist_ok=True)
+    dataset, detections = run.dataset_and_detections()
+    truth = TruthFile(dataset.folder)
+    truth_stage = run.truth(dataset, truth)
+    calibrations = run.calibrations(dataset)
+    ptv = run.rungs(detections, truth_stage, calibrations, truth)
+    return ExperimentStages(dataset, detections, truth_stage, calibrations, ptv, run.seconds)
 
 
 def _save_detection(quality, folder: Path) -> None:

@@ -10,7 +10,7 @@
   finite-Reynolds plateau deficit.
 """
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,7 +25,7 @@ from simulator.spectra import SPECTRA
 from simulator.truth import longitudinal_structure_function
 from simulator.turbulence import TurbulenceParameters
 from validation.sample_truth import sample_structure_function
-from validation.truth_runs import TruthRun
+from validation.truth_file import TruthFile
 
 
 @dataclass(frozen=True)
@@ -154,7 +154,8 @@ class PopulationTruth:
 
 def population_truth(
     population: S2Population,
-    truth: Sequence[TruthRun],
+    truth: TruthFile,
+    chunks: Iterable[tuple[int, int]],
     settings: StatisticsSettings,
     *,
     radius: float,
@@ -169,8 +170,10 @@ def population_truth(
     ----------
     population : S2Population
         The measured X(t) and ΔX of S2's particles, per snapshot (calibration frame).
-    truth : sequence of K TruthRun
-        The runs of the dataset, sharing frame a (:func:`validation.truth_runs.read_truth`).
+    truth : TruthFile
+        The dataset's truth (its runs share frame a).
+    chunks : iterable of (int, int)
+        Snapshot ranges covering the dataset, in order: the truth is read chunk by chunk.
     settings : StatisticsSettings
         The separation bins.
     radius : float
@@ -181,28 +184,41 @@ def population_truth(
     """
     rotation = np.eye(3) if rotation is None else np.asarray(rotation)
     translation = np.zeros(3) if translation is None else np.asarray(translation)
-    per_snapshot, errors, associated = [], [], 0
-    for m, measured, moved in zip(
-        population.snapshot_ids, population.positions, population.displacements, strict=True
-    ):
-        true_x, true_u = truth[0].positions[m, 0], truth[0].velocity[m]
-        dist, nearest = cKDTree(true_x).query(
-            measured @ rotation.T + translation, distance_upper_bound=radius
+    measured = dict(
+        zip(
+            population.snapshot_ids.tolist(),
+            zip(population.positions, population.displacements, strict=True),
+            strict=True,
         )
-        hit = np.isfinite(dist)
-        partner = nearest[hit]
-        associated += len(partner)
-        found = np.unique(partner)
-        per_snapshot.append(pair_sums(true_x[found], true_u[found], settings.bins))
-        true_moves = np.stack([run.positions[m, 1, partner] - true_x[partner] for run in truth], 1)
-        errors.append(moved[hit] @ rotation.T - true_moves)  # (N, K, 3)
+    )
+    per_snapshot, errors, associated = [], [], 0
+    for m0, m1 in chunks:
+        wanted = [m for m in range(m0, m1) if m in measured]
+        if not wanted:
+            continue
+        runs = truth.runs(m0, m1)
+        for m in wanted:
+            i = m - m0
+            positions, moved = measured[m]
+            true_x, true_u = runs[0].positions[i, 0], runs[0].velocity[i]
+            dist, nearest = cKDTree(true_x).query(
+                positions @ rotation.T + translation, distance_upper_bound=radius
+            )
+            hit = np.isfinite(dist)
+            partner = nearest[hit]
+            associated += len(partner)
+            found = np.unique(partner)
+            per_snapshot.append(pair_sums(true_x[found], true_u[found], settings.bins))
+            true_moves = np.stack([r.positions[i, 1, partner] - true_x[partner] for r in runs], 1)
+            errors.append(moved[hit] @ rotation.T - true_moves)  # (N, K, 3)
     _, s2, se = _pooled(per_snapshot)
-    error = np.concatenate(errors) if errors else np.empty((0, len(truth), 3))
-    noise = np.sqrt(np.mean(error**2, axis=0)) if len(error) else np.full((len(truth), 3), np.nan)
+    k = len(truth.dt)
+    error = np.concatenate(errors) if errors else np.empty((0, k, 3))
+    noise = np.sqrt(np.mean(error**2, axis=0)) if len(error) else np.full((k, 3), np.nan)
     return PopulationTruth(
         s2_sample=s2,
         se_s2_sample=se,
-        dt=np.array([run.dt for run in truth]),
+        dt=truth.dt,
         displacement_noise=noise,
         particles=population.count,
         associated=associated,
@@ -210,28 +226,36 @@ def population_truth(
 
 
 def flow_truth(
-    truth: Sequence[TruthRun],
+    snapshots: Iterable[tuple[np.ndarray, np.ndarray]],
     parameters: TurbulenceParameters,
     spectrum: str,
     settings: StatisticsSettings,
 ) -> FlowTruth:
-    """Sample truth and exact D_LL in the bins of ``settings`` (module docstring)."""
+    """Sample truth and exact D_LL in the bins of ``settings`` (module docstring).
+
+    Parameters
+    ----------
+    snapshots : iterable of (ndarray (P, 3), ndarray (P, 3))
+        Positions (m) and exact velocities (m/s) at t of every independent snapshot
+        (:meth:`validation.truth_file.TruthFile.snapshots_at_t`).
+    parameters : TurbulenceParameters
+        The flow.
+    spectrum : str
+        Its spectrum's name (for the exact D_LL).
+    settings : StatisticsSettings
+        Analysis volume, bins, plateau.
+    """
     lower, upper = (np.asarray(v) for v in settings.analysis_volume)
     region = Box(tuple(upper - lower), tuple((upper + lower) / 2))
-    per_snapshot = [
-        sample_structure_function(x[None], u[None], settings.bins, region=region)
-        for run in truth
-        for x, u in zip(run.positions[:, 0], run.velocity, strict=True)
-    ]
+    per_snapshot, inside = [], []
+    for x, u in snapshots:
+        sums = sample_structure_function(x[None], u[None], settings.bins, region=region)
+        per_snapshot.append(sums)
+        inside.append(u[region.contains(x)])
     r, s2, se = _pooled(per_snapshot)
     ok = np.isfinite(r)
     exact = np.full_like(r, np.nan)
     exact[ok] = longitudinal_structure_function(SPECTRA[spectrum](parameters), r[ok])
-    inside = [
-        u[region.contains(x)]
-        for run in truth
-        for x, u in zip(run.positions[:, 0], run.velocity, strict=True)
-    ]
     velocities = np.concatenate(inside)
     return FlowTruth(
         r=r,

@@ -14,11 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ptv.camera_model import CameraModel
-from ptv.frames import FrameDetections
-from ptv.pipeline import PipelineSettings, match_frame
+from ptv.pipeline import PipelineSettings
 from ptv.stats.links import inside_box
-from validation.truth_runs import TruthRun
+from validation.truth_file import TruthRun
 
 #: Nearest-neighbour distance within which pairs enter the rigid fit, m.
 _ALIGN_RADIUS = 0.5e-3
@@ -104,41 +102,38 @@ def rigid_fit(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def score_matching(
-    frames: FrameDetections,
-    truth: Sequence[TruthRun],
-    cameras: Sequence[CameraModel],
+    points: Sequence[np.ndarray],
+    truth: TruthRun,
+    cameras: Sequence[str],
     settings: PipelineSettings,
     *,
     voxel: float,
-    snapshots: int = 10,
 ) -> MatchingQuality:
-    """Match frame a of the first ``snapshots`` snapshots of Δt_0 and score the points.
+    """Score the matched points of frame a of the first snapshots against the truth.
 
     Parameters
     ----------
-    frames : FrameDetections
-        The detections on the rendered images.
-    truth : sequence of TruthRun
-        The particles (:func:`validation.truth_runs.read_truth`).
-    cameras : sequence of CameraModel
-        Calibrations in the dataset's camera order.
+    points : sequence of n ndarray, shape (N_m, 3)
+        Matched points of frame a of snapshots 0 … n − 1 (Δt_0), m, in the
+        calibration's frame.
+    truth : TruthRun
+        The truth of Δt_0 holding those snapshots (``first`` = 0).
+    cameras : sequence of str
+        Camera names (a particle counts when every camera images it).
     settings : PipelineSettings
-        Matching volume and tolerance, analysis volume.
+        Analysis volume.
     voxel : float
         Object-side pixel, m.
-    snapshots : int
-        Snapshots scored.
 
     Returns
     -------
     MatchingQuality
     """
-    points, particles, measurable = [], [], []
-    for m in range(min(snapshots, frames.frames[0])):
-        points.append(match_frame(frames.detections(0, m, "a"), cameras, settings))
-        particles.append(truth[0].positions[m, 0])
+    particles, measurable = [], []
+    for m in range(len(points)):
+        particles.append(truth.positions[m - truth.first, 0])
         measurable.append(
-            np.all([truth[0].visible[name][m, 0] for name in frames.cameras], axis=0)
+            np.all([truth.visible[name][m - truth.first, 0] for name in cameras], axis=0)
         )
     rotation, translation = np.eye(3), np.zeros(3)
     for _ in range(2):  # refit once on the pairs the first fit brings together

@@ -55,9 +55,11 @@ def _table3(summary: dict, truth: dict) -> list[dict]:
 
 
 def _portable(scenario: Scenario) -> dict:
-    """The scenario as a dict that does not depend on where its files lie: a rig file is
-    named by its file name and described by its content."""
+    """The scenario as a dict that does not depend on where its files lie (a rig file is
+    named by its file name and described by its content) nor on what is kept beside the
+    results (``[output]``)."""
     spec = scenario.as_dict()
+    spec.pop("output")
     rig = load_rig(scenario.rig.name)
     spec["rig"] = {"name": Path(scenario.rig.name).name, "spec": rig.spec}
     return spec
@@ -458,6 +460,7 @@ def write_report(scenario: Scenario, stages: ExperimentStages, out: Path) -> tup
             name: s.reused
             for name, s in (
                 ("render", stages.dataset),
+                ("detect", stages.detections),
                 ("truth", stages.truth),
                 ("calibrate", stages.calibrations),
                 *((f"ptv {v}", s) for v, s in stages.ptv.items()),

@@ -13,6 +13,7 @@ the tables (fields and defaults in :class:`Scenario`)::
     [ptv]          methods, analysis_volume, r_range, bins, plateau, kolmogorov_c2,
                    max_speed, tolerance, n_boot
     [checks]       c1_r_min_eta, c1_r_max_l_int
+    [output]       images
 
 Missing tables take their defaults; unknown tables or fields are errors that name the
 file and the field.
@@ -116,6 +117,15 @@ class ChecksSection:
 
 
 @dataclass(frozen=True)
+class OutputSection:
+    """What a run keeps beyond its results: ``images`` writes the particle images into
+    the dataset (16-bit TIFF; about 4 MB each) instead of detecting them in memory only.
+    The plate images and truth.h5 are always written."""
+
+    images: bool = False
+
+
+@dataclass(frozen=True)
 class Scenario:
     """One virtual experiment (module docstring for the file format)."""
 
@@ -129,6 +139,7 @@ class Scenario:
     sensor: Sensor = field(default_factory=Sensor)
     ptv: PtvSection = field(default_factory=PtvSection)
     checks: ChecksSection = field(default_factory=ChecksSection)
+    output: OutputSection = field(default_factory=OutputSection)
 
     def as_dict(self) -> dict:
         """JSON-able form, the inverse of :func:`scenario_from_dict`."""
@@ -147,6 +158,7 @@ _SECTIONS = {
     "sensor": Sensor,
     "ptv": PtvSection,
     "checks": ChecksSection,
+    "output": OutputSection,
 }
 
 

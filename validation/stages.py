@@ -5,8 +5,10 @@ A stage writes one folder. It is built under a temporary name beside its destina
 reads) is written into it, and it is renamed into place when complete. A later run with
 the same key reuses the folder; a different key, or a folder without a readable
 ``stage.json`` (not made by this module), rebuilds it. An interrupted build leaves only
-a hidden temporary folder, removed by the next run; so one output folder serves one run
-at a time.
+a hidden temporary folder. A resumable stage's temporary folder is named after its key
+(:func:`staging_folder`) and kept: the next run with the same key finds what the builder
+had finished there (its chunks) and goes on; any other temporary folder of the stage is
+removed. So one output folder serves one run at a time.
 """
 
 import hashlib
@@ -35,6 +37,17 @@ class StageOutcome:
     reused: bool
 
 
+def staging_folder(folder: Path, key: str) -> Path:
+    """Where a resumable stage of key ``key`` is built: ``staging_folder(...) / folder.name``."""
+    folder = Path(folder)
+    return folder.parent / f".{folder.name}.partial-{key[:16]}"
+
+
+def is_built(folder: Path, key: str) -> bool:
+    """Whether ``folder`` holds the complete stage of key ``key``."""
+    return Path(folder).is_dir() and _recorded_key(Path(folder)) == key
+
+
 def _recorded_key(folder: Path) -> str | None:
     try:
         return json.loads((folder / STAGE_FILE).read_text())["key"]
@@ -43,7 +56,12 @@ def _recorded_key(folder: Path) -> str | None:
 
 
 def run_stage(
-    folder: Path, inputs: dict, build: Callable[[Path], None], *, name: str
+    folder: Path,
+    inputs: dict,
+    build: Callable[[Path], None],
+    *,
+    name: str,
+    resume: bool = False,
 ) -> StageOutcome:
     """Reuse ``folder`` if it was built from the same inputs, else build it atomically.
 
@@ -55,9 +73,12 @@ def run_stage(
         JSON-able description of everything the output depends on.
     build : callable(Path)
         Writes the stage's files under the path it is given, which does not exist yet
-        (the builder creates it: a folder).
+        (the builder creates it: a folder); with ``resume``, it may exist, holding what
+        an interrupted build of the same inputs left.
     name : str
         The stage's name, recorded beside the key.
+    resume : bool
+        Build in :func:`staging_folder`, kept when the build is interrupted.
 
     Returns
     -------
@@ -65,12 +86,18 @@ def run_stage(
     """
     folder = Path(folder)
     key = stage_key(inputs)
-    if folder.is_dir() and _recorded_key(folder) == key:
+    if is_built(folder, key):
         return StageOutcome(folder, key, reused=True)
     folder.parent.mkdir(parents=True, exist_ok=True)
+    keep = staging_folder(folder, key) if resume else None
     for stale in folder.parent.glob(f".{folder.name}.partial-*"):
-        shutil.rmtree(stale, ignore_errors=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.partial-", dir=folder.parent))
+        if stale != keep:
+            shutil.rmtree(stale, ignore_errors=True)
+    if keep is not None:
+        keep.mkdir(exist_ok=True)
+        staging = keep
+    else:
+        staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.partial-", dir=folder.parent))
     try:
         target = staging / folder.name
         build(target)
@@ -80,6 +107,8 @@ def run_stage(
         if folder.exists():
             shutil.rmtree(folder)
         target.rename(folder)
-    finally:
         shutil.rmtree(staging, ignore_errors=True)
+    finally:
+        if keep is None:
+            shutil.rmtree(staging, ignore_errors=True)
     return StageOutcome(folder, key, reused=False)

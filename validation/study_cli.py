@@ -26,12 +26,13 @@ from simulator.presets import flow_preset
 from validation.calibration_study import relative_to_most_planes
 from validation.figures import obliquity_curves, plane_count_curves, save_figure
 from validation.files import write_json_atomic, write_text_atomic
+from validation.parallel import dask_client
 from validation.progress import ProgressBar
 from validation.scenario import Scenario, load_scenario, scenario_presets
 from validation.study_calibration import obliquity_sweep, planes_sweep
 from validation.study_figures import multi_dt_figure
 from validation.study_multi_dt import DEFAULT_NOISE_UM, dt_sweep, noise_sweep, seeding_sweep
-from validation.study_runner import Sweep, dask_client, run_sweep
+from validation.study_runner import Sweep, run_sweep
 
 
 @dataclass(frozen=True)

@@ -2,19 +2,19 @@
 
 A :class:`Sweep` is a top-level (picklable) task function, the plain inputs every point
 shares (the scenario's settings and the study's options) and the points. Each point
-runs as one Dask task on a :func:`dask_client` (a ``LocalCluster`` of single-threaded
-worker processes, or an existing scheduler). The parent process writes each result as
-``<folder>/<point id>.json`` the moment it arrives (temporary file, then rename), with
-the inputs it was computed from; a later run reuses a point only when its recorded
-inputs equal the current ones, so an interrupted sweep resumes where it stopped.
+runs as one Dask task on a :func:`validation.parallel.dask_client` (a ``LocalCluster``
+of single-threaded worker processes, or an existing scheduler). The parent process
+writes each result as ``<folder>/<point id>.json`` the moment it arrives (temporary
+file, then rename), with the inputs it was computed from; a later run reuses a point
+only when its recorded inputs equal the current ones, so an interrupted sweep resumes
+where it stopped.
 """
 
 import json
 import logging
-import os
 import zlib
-from collections.abc import Callable, Iterator
-from contextlib import AbstractContextManager, contextmanager
+from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from importlib.metadata import version
 from pathlib import Path
@@ -28,18 +28,6 @@ if TYPE_CHECKING:  # dask is imported when a sweep runs, not by every synptv com
     from distributed import Client
 
 log = logging.getLogger(__name__)
-
-#: Seconds to wait for an existing scheduler before giving up.
-CONNECT_TIMEOUT_S = 10
-
-#: Environment of local worker processes: one thread each for numba and OpenCV too (Dask
-#: already sets OMP/MKL/OpenBLAS to one), so N workers use N cores.
-SINGLE_THREADED = {"NUMBA_NUM_THREADS": "1", "OPENCV_FOR_THREADS_NUM": "1"}
-#: Dask's nannies set glibc's MALLOC_TRIM_THRESHOLD_, which turns off glibc's adaptive
-#: mmap threshold: every large NumPy temporary is then mapped and unmapped afresh, and
-#: the calibration tasks ran 2-3x slower (a third of their time in the kernel). Local
-#: workers go without it.
-TRIM_THRESHOLD = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
 
 Task = Callable[[dict, dict, dict], dict]
 
@@ -131,55 +119,6 @@ def _load_point(path: Path, inputs: dict) -> dict | None:
         log.info("%s was computed from other inputs: recomputing the point", path)
         return None
     return saved["result"]
-
-
-@contextmanager
-def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> Iterator["Client"]:
-    """A Dask client: on an existing scheduler, or on a new local cluster.
-
-    Parameters
-    ----------
-    workers : int or None
-        Worker processes of the local cluster, single-threaded (None: one per CPU).
-    scheduler : str or None
-        Address of a running scheduler (``tcp://host:port``); its workers must be able
-        to import synptv. Excludes ``workers``.
-
-    Raises
-    ------
-    ValueError
-        Both or bad values given, or no scheduler answering at ``scheduler``.
-    """
-    import dask
-    from distributed import Client, LocalCluster
-
-    if workers is not None and scheduler is not None:
-        raise ValueError("give --workers or --scheduler, not both")
-    if scheduler is not None:
-        try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError, TypeError) as err:
-            raise ValueError(
-                f"cannot connect to a Dask scheduler at {scheduler!r}: {err}"
-            ) from None
-        with client:
-            yield client
-        return
-    n = (os.cpu_count() or 1) if workers is None else workers
-    if not isinstance(n, int) or n < 1:
-        raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
-    with (
-        dask.config.set({TRIM_THRESHOLD: None}),
-        LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            env=SINGLE_THREADED,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        yield client
 
 
 def run_sweep(

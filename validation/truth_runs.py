@@ -2,23 +2,22 @@
 
 - :func:`exact_runs`: the true positions at t and t + Δt of every particle (no camera at
   all): what is left is the multi-Δt method's own error (finite Δt, sampling).
-- :func:`detected_runs`: the detected centres on the images, each paired with the
-  particle that made it (so no matching error), triangulated with the true cameras (so
-  no calibration error): what is added is the detection error. It also measures the
-  detection error in pixels, the detection yield, the fractional-position histogram
-  and the position noise in 3-D.
+- :func:`detection_chunk` and :func:`detected_runs`: the detected centres on the images,
+  each paired with the particle that made it (so no matching error), triangulated with
+  the true cameras (so no calibration error): what is added is the detection error.
+  They also measure the detection error in pixels, the detection yield, the
+  fractional-position histogram and the position noise in 3-D.
 
-Both return :class:`ptv.stats.links.RunParticles`, so the same statistics run on them as
-on the PTV stack's own links.
+Both give :class:`ptv.stats.links.RunParticles`, so the same statistics run on them as
+on the PTV stack's own links. Their rows are the particles whose X(t) lies in the
+analysis volume (the only ones the statistics use); the counts per snapshot are those
+of every particle.
 """
 
-import json
-from collections.abc import Callable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from functools import reduce
-from pathlib import Path
 
-import h5py
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -27,96 +26,70 @@ from ptv.frames import FrameDetections
 from ptv.pipeline import PipelineSettings
 from ptv.stats.links import RunParticles, inside_box
 from ptv.triangulate import triangulate
-from simulator.rigs import Rig, rig_from_dict
+from validation.truth_file import TruthFile, TruthRun
 
 #: Largest distance between a detection and the true image of its particle, px.
 ASSOCIATION_RADIUS = 1.0
 
 
-@dataclass(frozen=True)
-class TruthRun:
-    """The truth of the run at one Δt (``/particles/dt<k>`` of truth.h5).
-
-    Attributes
-    ----------
-    dt : float
-        s.
-    positions : ndarray, shape (M, 2, P, 3)
-        Particle positions at t and t + Δt, m.
-    velocity : ndarray, shape (M, P, 3)
-        Velocities at t, m/s.
-    xy : dict of str to ndarray, shape (M, 2, P, 2)
-        Exact image of every particle per camera, px.
-    visible : dict of str to ndarray of bool, shape (M, 2, P)
-        Particle lit and its spot on the sensor.
-    """
-
-    dt: float
-    positions: np.ndarray
-    velocity: np.ndarray
-    xy: dict
-    visible: dict
-
-
-def read_truth(folder: Path) -> tuple[Rig, list[TruthRun]]:
-    """The rig and the particle truth of a dataset written by ``synptv render``."""
-    path = Path(folder) / "truth.h5"
-    if not path.is_file():
-        raise ValueError(f"{folder} has no truth.h5: reference runs need a synthetic dataset")
-    with h5py.File(path) as truth:
-        rig = rig_from_dict(json.loads(truth.attrs["rig"]), source=str(path))
-        runs = []
-        for k in range(len(truth["particles"])):
-            g = truth[f"particles/dt{k}"]
-            runs.append(
-                TruthRun(
-                    dt=float(g.attrs["dt"]),
-                    positions=g["positions"][:],
-                    velocity=g["velocity"][:],
-                    xy={name: g[f"{name}/xy"][:] for name in rig.camera_names},
-                    visible={name: g[f"{name}/visible"][:] for name in rig.camera_names},
-                )
-            )
-    return rig, runs
-
-
-def _run_particles(
+def reference_run(
     k: int,
     dt: float,
+    snapshot_ids: Sequence[int],
     per_snapshot: Sequence[tuple[np.ndarray, np.ndarray]],
     settings: PipelineSettings,
-    n_cam: int,
+    n_cameras: int,
 ) -> RunParticles:
     """RunParticles from (X(t), X(t + Δt)) per snapshot; no outliers by construction.
 
-    Detections and matches per snapshot are recorded as the number of particles used.
+    Rows are the particles whose X(t) lies in the analysis volume; detections, matches
+    and links per snapshot are recorded as the number of particles given.
     """
-    x = [a for a, _ in per_snapshot]
-    d = [b - a for a, b in per_snapshot]
-    sizes = np.array([len(a) for a in x], dtype=np.int64)
-    positions = np.concatenate(x) if x else np.empty((0, 3))
+    box = settings.statistics.analysis_volume
+    kept = [(a[inside_box(a, box)], b[inside_box(a, box)]) for a, b in per_snapshot]
+    sizes = np.array([len(a) for a, _ in kept], dtype=np.int64)
+    counts = np.array([len(a) for a, _ in per_snapshot], dtype=np.int64)
     m = len(per_snapshot)
+    positions = np.concatenate([a for a, _ in kept]) if kept else np.empty((0, 3))
     return RunParticles(
         k=k,
         dt=dt,
         positions=positions,
-        displacements=np.concatenate(d) if d else np.empty((0, 3)),
+        displacements=np.concatenate([b - a for a, b in kept]) if kept else np.empty((0, 3)),
         offsets=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
-        snapshot_ids=np.arange(m, dtype=np.int64),
-        detections=np.broadcast_to(sizes[:, None, None], (m, 2, n_cam)).copy(),
-        matches=np.repeat(sizes[:, None], 2, axis=1),
-        links=sizes,
-        processed=np.arange(m, dtype=np.int64),
-        in_analysis=inside_box(positions, settings.statistics.analysis_volume),
+        snapshot_ids=np.asarray(snapshot_ids, dtype=np.int64),
+        detections=np.broadcast_to(counts[:, None, None], (m, 2, n_cameras)).copy(),
+        matches=np.repeat(counts[:, None], 2, axis=1),
+        links=counts,
+        processed=np.asarray(snapshot_ids, dtype=np.int64),
+        in_analysis=np.ones(len(positions), dtype=bool),
         outlier=np.zeros(len(positions), dtype=bool),
     )
 
 
-def exact_runs(truth: Sequence[TruthRun], settings: PipelineSettings) -> list[RunParticles]:
-    """The true positions of every particle at t and t + Δt, per Δt."""
+def exact_runs(
+    truth: TruthFile, chunks: Iterable[tuple[int, int]], settings: PipelineSettings
+) -> list[RunParticles]:
+    """The true positions of every particle at t and t + Δt, per Δt.
+
+    Parameters
+    ----------
+    truth : TruthFile
+        The dataset's truth, read chunk by chunk.
+    chunks : iterable of (int, int)
+        Snapshot ranges covering the snapshots to use, in order.
+    settings : PipelineSettings
+        Analysis volume.
+    """
+    per_k: list[list] = [[] for _ in truth.dt]
+    for m0, m1 in chunks:
+        for k, run in enumerate(truth.runs(m0, m1)):
+            per_k[k].extend((p[0], p[1]) for p in run.positions)
+    n_cam = len(truth.rig.camera_names)
+    ids = range(max(len(p) for p in per_k))
     return [
-        _run_particles(k, run.dt, [(p[0], p[1]) for p in run.positions], settings, len(run.xy))
-        for k, run in enumerate(truth)
+        reference_run(k, float(dt), ids, per_k[k], settings, n_cam)
+        for k, dt in enumerate(truth.dt)
     ]
 
 
@@ -194,6 +167,15 @@ class _DetectionTally:
         self.spurious[c] += len(detected) - hit.sum()
         self.xy[c].append(detected[row[hit]])
 
+    def merged(self, other: "_DetectionTally") -> "_DetectionTally":
+        """This tally followed by ``other`` (the xy lists in that order)."""
+        out = _DetectionTally([None] * len(self.found))
+        for name in ("sq_err", "found", "visible", "detected", "spurious"):
+            setattr(out, name, getattr(self, name) + getattr(other, name))
+        out.xy = [a + b for a, b in zip(self.xy, other.xy, strict=True)]
+        return out
+
+
 
 def _triangulated_particles(detected, exact, visible, cameras, tally) -> np.ndarray:
     """Each particle's position from its detected centres in one frame of every camera.
@@ -226,15 +208,34 @@ def _triangulated_particles(detected, exact, visible, cameras, tally) -> np.ndar
     return points
 
 
-def detected_runs(
-    frames: FrameDetections,
-    truth: Sequence[TruthRun],
+@dataclass(frozen=True, eq=False)
+class DetectionChunk:
+    """The truth-paired detections of a chunk of snapshots (:func:`detection_chunk`).
+
+    Attributes
+    ----------
+    ends : list of K lists of (ndarray (N, 3), ndarray (N, 3))
+        Per Δt and snapshot, X(t) and X(t + Δt) of the particles found in both frames
+        of every camera, m.
+    errors : list of K dicts
+        Per Δt, {snapshot: (particle indices, position error (N, 3), ΔX error (N, 3))}
+        of the particles whose true X(t) lies in the analysis volume, m.
+    tally : _DetectionTally
+        Detection against the exact images, summed over the chunk's frames.
+    """
+
+    ends: list
+    errors: list
+    tally: _DetectionTally
+
+
+def detection_chunk(
+    item: tuple[FrameDetections, Sequence[TruthRun]],
+    *,
     cameras: Sequence[CameraModel],
     settings: PipelineSettings,
-    *,
-    tick: Callable[[], None] | None = None,
-) -> tuple[list[RunParticles], DetectionQuality]:
-    """Detected centres, paired with their particles by the truth, through the true cameras.
+) -> DetectionChunk:
+    """Truth-paired detections of one chunk: its detections and its truth, per Δt.
 
     With a shared first frame, frame a of each snapshot is triangulated once for every
     Δt, so X(t) is the same bits at every Δt (the statistics join the Δt on it) and the
@@ -242,34 +243,33 @@ def detected_runs(
 
     Parameters
     ----------
-    frames : FrameDetections
-        The detections on the rendered images.
-    truth : sequence of TruthRun
-        From :func:`read_truth`, in the dataset's Δt order.
+    item : (FrameDetections, sequence of K TruthRun)
+        The detections on the rendered images and the truth of the same snapshots.
     cameras : sequence of CameraModel
-        The true cameras in the dataset's camera order.
+        The true cameras in the detections' camera order.
     settings : PipelineSettings
         Analysis volume, snapshot limit.
-    tick : callable, optional
-        Called after each snapshot.
 
     Returns
     -------
-    (list of RunParticles, DetectionQuality)
+    DetectionChunk
     """
+    frames, truth = item
     names = frames.cameras
     tally = _DetectionTally(names)
-    shared_a: dict[int, np.ndarray] = {}
-    errors = []  # per Δt: {snapshot: (particle indices, position error, ΔX error)}
-    runs = []
     box = settings.statistics.analysis_volume
+    shared_a: dict[int, np.ndarray] = {}
+    ends, errors = [], []
     for k, run in enumerate(truth):
-        per_snapshot, run_errors = [], {}
-        for m in range(settings.snapshot_count(frames.frames[k])):
+        run_ends, run_errors = [], {}
+        for m in run.snapshots:
+            if m >= settings.snapshot_count(frames.frames[k]):
+                continue
+            i = m - run.first
 
-            def measured(f: int, m=m, k=k, run=run) -> np.ndarray:
-                exact = [run.xy[name][m, f] for name in names]
-                visible = [run.visible[name][m, f] for name in names]
+            def measured(f: int, m=m, k=k, i=i, run=run) -> np.ndarray:
+                exact = [run.xy[name][i, f] for name in names]
+                visible = [run.visible[name][i, f] for name in names]
                 detected = frames.detections(k, m, "ab"[f])
                 return _triangulated_particles(detected, exact, visible, cameras, tally)
 
@@ -281,27 +281,64 @@ def detected_runs(
                 start = measured(0)
             end = measured(1)
             both = np.isfinite(start[:, 0]) & np.isfinite(end[:, 0])
-            ends = (start[both], end[both])
-            true_ends = run.positions[m][:, both]
+            pair = (start[both], end[both])
+            true_ends = run.positions[i][:, both]
             inside = inside_box(true_ends[0], box)
             run_errors[m] = (
                 np.flatnonzero(both)[inside],
-                ends[0][inside] - true_ends[0][inside],
-                (ends[1] - ends[0])[inside] - (true_ends[1] - true_ends[0])[inside],
+                pair[0][inside] - true_ends[0][inside],
+                (pair[1] - pair[0])[inside] - (true_ends[1] - true_ends[0])[inside],
             )
-            per_snapshot.append(ends)
-            if tick is not None:
-                tick()
-        runs.append(_run_particles(k, run.dt, per_snapshot, settings, len(names)))
+            run_ends.append(pair)
+        ends.append(run_ends)
         errors.append(run_errors)
-    position_noise, displacement_noise = _noise_rms(errors, shared=frames.shared_first_frame)
+    return DetectionChunk(ends, errors, tally)
+
+
+def detected_runs(
+    chunks: Sequence[DetectionChunk],
+    dt: np.ndarray,
+    cameras: Sequence[str],
+    settings: PipelineSettings,
+    *,
+    shared_first_frame: bool,
+) -> tuple[list[RunParticles], DetectionQuality]:
+    """The detection rung's runs and the detection quality, from its chunks in order.
+
+    Parameters
+    ----------
+    chunks : sequence of DetectionChunk
+        :func:`detection_chunk` of every chunk, in snapshot order.
+    dt : ndarray, shape (K,)
+        s.
+    cameras : sequence of str
+        Camera names.
+    settings : PipelineSettings
+        Analysis volume.
+    shared_first_frame : bool
+        The runs share frame a.
+
+    Returns
+    -------
+    (list of RunParticles, DetectionQuality)
+    """
+    tally = reduce(_DetectionTally.merged, (c.tally for c in chunks), _DetectionTally(cameras))
+    runs, errors = [], []
+    for k, step in enumerate(dt):
+        ends = [pair for c in chunks for pair in c.ends[k]]
+        run_errors = {m: e for c in chunks for m, e in c.errors[k].items()}
+        runs.append(
+            reference_run(k, float(step), list(run_errors), ends, settings, len(cameras))
+        )
+        errors.append(run_errors)
+    position_noise, displacement_noise = _noise_rms(errors, shared=shared_first_frame)
     quality = DetectionQuality(
-        cameras=tuple(names),
+        cameras=tuple(cameras),
         rms_error_px=np.sqrt(tally.sq_err / np.maximum(tally.found, 1)[:, None]),
         found=tally.found / np.maximum(tally.visible, 1),
         spurious=tally.spurious / np.maximum(tally.detected, 1),
-        detected_xy={n: np.concatenate(v) for n, v in zip(names, tally.xy, strict=True)},
-        dt=np.array([run.dt for run in truth]),
+        detected_xy={n: np.concatenate(v) for n, v in zip(cameras, tally.xy, strict=True)},
+        dt=np.asarray(dt),
         position_noise=position_noise,
         displacement_noise=displacement_noise,
     )

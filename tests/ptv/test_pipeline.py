@@ -40,6 +40,7 @@ from simulator.target import PlateDesign
 from validation.calibrate_dataset import calibrate_dataset
 from validation.calibration_accuracy import nominal_positions
 from validation.dataset import RenderSettings, write_dataset
+from validation.truth_file import TruthFile
 
 SETTINGS = RenderSettings(frames=3, planes=3, particles=800)
 
@@ -87,10 +88,9 @@ def to_calibration_frame(rendered):
 
 
 def _truth(folder, k):
-    with h5py.File(folder / "truth.h5") as truth:
-        group = truth[f"particles/dt{k}"]
-        visible = np.all([group[f"{c}/visible"][:] for c in ("cam1", "cam2")], axis=0)
-        return group["positions"][:], visible
+    run = TruthFile(folder).runs()[k]
+    visible = np.all([run.visible[c] for c in ("cam1", "cam2")], axis=0)
+    return run.positions, visible
 
 
 def test_pipeline_runs_on_every_dt(result):

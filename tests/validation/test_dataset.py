@@ -43,9 +43,11 @@ def test_a_shared_first_frame_is_one_exposure_for_every_dt(dataset):
     out, rig = dataset
     assert json.loads((out / "experiment.json").read_text())["shared_first_frame"] is True
     with h5py.File(out / "truth.h5") as truth:
-        first = truth["particles/dt0/positions"][:, 0]
-        for k in range(1, 5):
-            assert np.array_equal(truth[f"particles/dt{k}/positions"][:, 0], first)
+        first = truth["particles/dt0/positions_a"]
+        for k in range(1, 5):  # one dataset, linked into every Δt's group
+            for key in ("positions_a", "velocity", "cam1/xy_a", "cam1/visible_a"):
+                assert truth[f"particles/dt{k}/{key}"] == truth[f"particles/dt0/{key}"]
+            assert not np.array_equal(truth[f"particles/dt{k}/positions_b"][:], first[:])
     for name in rig.camera_names:
         frames = [out / "particles" / f"dt{k}" / name / "000000_a.tif" for k in range(5)]
         assert len({f.read_bytes() for f in frames}) == 1
@@ -59,10 +61,10 @@ def test_independent_runs_per_dt_are_rendered_too(tmp_path):
     write_dataset(out, load_rig("paper-stereo"), flow_preset("lem-10hz"), settings)
     assert json.loads((out / "experiment.json").read_text())["shared_first_frame"] is False
     with h5py.File(out / "truth.h5") as truth:
-        counts = [truth[f"particles/dt{k}/positions"].shape[2] for k in range(5)]
+        counts = [truth[f"particles/dt{k}/positions_a"].shape[1] for k in range(5)]
         assert counts[-1] > counts[0]
         for k, count in enumerate(counts):
-            assert truth[f"particles/dt{k}/cam1/xy"].shape == (1, 2, count, 2)
+            assert truth[f"particles/dt{k}/cam1/xy_b"].shape == (1, count, 2)
     frames = [out / "particles" / f"dt{k}" / "cam1" / "000000_a.tif" for k in range(5)]
     assert len({f.read_bytes() for f in frames}) == 5
 
@@ -76,10 +78,13 @@ def test_truth_is_consistent_with_the_cameras_and_the_images(dataset):
             assert np.allclose(dots_xy, camera.project(dots[1]), atol=1e-9, equal_nan=True)
             on_sensor = truth[f"plate/{name}/dots_on_sensor"][1]
             assert on_sensor.sum() > 300 and not on_sensor[~np.isfinite(dots_xy[:, 0])].any()
-            positions = truth["particles/dt2/positions"][0, 1]  # snapshot 0, frame b
-            xy = truth[f"particles/dt2/{name}/xy"][0, 1]
-            visible = truth[f"particles/dt2/{name}/visible"][0, 1]
-            assert np.allclose(xy[visible], camera.project(positions[visible]), atol=1e-9)
+            positions = truth["particles/dt2/positions_b"][0]  # snapshot 0, frame b
+            xy = truth[f"particles/dt2/{name}/xy_b"][0]
+            visible = truth[f"particles/dt2/{name}/visible_b"][0]
+            # Stored as float32: within half its spacing at the sensor's far edge.
+            half_spacing = np.spacing(np.float32(2048)) / 2
+            exact = camera.project(positions[visible])
+            assert np.allclose(xy[visible], exact, atol=half_spacing, rtol=0)
             image = tifffile.imread(out / "particles" / "dt2" / name / "000000_b.tif")
             # Lit particles are bright where the truth puts them (sheet-centre ones the most).
             lit = visible & (np.abs(positions[:, 2]) < 2e-3)

@@ -6,7 +6,7 @@ from scipy.spatial.transform import Rotation
 from ptv.stats.pairs import pair_sums
 from ptv.stats.run_statistics import S2Population, StatisticsSettings
 from validation.flow_truth import population_truth
-from validation.truth_runs import TruthRun
+from validation.truth_file import TruthRun
 
 SETTINGS = StatisticsSettings(r_min=1e-3, r_max=30e-3, n_bins=8)
 DT = (1e-4, 3e-4)
@@ -20,6 +20,26 @@ def _truth(rng, snapshots=3, particles=400) -> list[TruthRun]:
         TruthRun(dt=dt, positions=np.stack([x, x + u * dt], axis=1), velocity=u, xy={}, visible={})
         for dt in DT
     ]
+
+
+class _Truth:
+    """The runs in memory, read a range of snapshots at a time as a TruthFile is."""
+
+    def __init__(self, runs):
+        self._runs = runs
+        self.dt = np.array([run.dt for run in runs])
+
+    def runs(self, m0, m1):
+        return [
+            TruthRun(run.dt, run.positions[m0:m1], run.velocity[m0:m1], {}, {}, first=m0)
+            for run in self._runs
+        ]
+
+
+def _population_truth(population, truth, **kwargs):
+    """population_truth reading the truth one snapshot at a time."""
+    chunks = [(m, m + 1) for m in range(len(truth[0].positions))]
+    return population_truth(population, _Truth(truth), chunks, SETTINGS, **kwargs)
 
 
 def _moves(truth, m, rows):
@@ -38,7 +58,7 @@ def test_the_truth_of_a_subset_is_that_of_its_true_particles_without_the_ghosts(
         noisy = _moves(truth, m, rows) + rng.normal(size=(len(rows), len(DT), 3)) * 5e-6
         moved.append(np.concatenate([noisy, np.zeros((20, len(DT), 3))]))
     population = S2Population(np.arange(3), tuple(measured), tuple(moved), trajectory_outliers=0)
-    result = population_truth(population, truth, SETTINGS, radius=100e-6)
+    result = _population_truth(population, truth, radius=100e-6)
     bins = SETTINGS.bins
     expected = pair_sums(truth[0].positions[0, 0, kept[0]], truth[0].velocity[0, kept[0]], bins)
     for m in (1, 2):
@@ -63,9 +83,9 @@ def test_positions_in_another_frame_are_brought_to_the_world_first():
     measured = tuple((truth[0].positions[m, 0] - translation) @ rotation for m in range(2))
     moved = tuple(_moves(truth, m, slice(None)) @ rotation for m in range(2))
     population = S2Population(np.arange(2), measured, moved, trajectory_outliers=0)
-    lost = population_truth(population, truth, SETTINGS, radius=20e-6)
-    found = population_truth(
-        population, truth, SETTINGS, radius=20e-6, rotation=rotation, translation=translation
+    lost = _population_truth(population, truth, radius=20e-6)
+    found = _population_truth(
+        population, truth, radius=20e-6, rotation=rotation, translation=translation
     )
     assert found.associated == 800 and lost.associated < 100
     assert found.displacement_noise.max() < 1e-12  # exact displacements, rotated back

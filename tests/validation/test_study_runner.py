@@ -10,13 +10,8 @@ import numpy as np
 import pytest
 from distributed import Client, LocalCluster
 
-from validation.study_runner import (
-    Sweep,
-    SweepPoint,
-    dask_client,
-    run_sweep,
-    seed_sequence,
-)
+from validation.parallel import dask_client
+from validation.study_runner import Sweep, SweepPoint, run_sweep, seed_sequence
 
 
 def square_task(settings: dict, options: dict, point: dict) -> dict:

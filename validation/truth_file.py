@@ -1,0 +1,281 @@
+"""``truth.h5``: the simulator's ground truth of a rendered dataset (ptv never reads it).
+
+Layout (format version 2; lengths in m, times in s, pixels as OpenCV)::
+
+    /                       attrs: format_version, rig (the rig's JSON)
+    /flow                   attrs: u', ε, ν and the derived scales, preset, spectrum, n_modes
+    /cameras/<camera>       attrs: pupil centre, rotation, lens, tilt, window
+    /plate                  z_nominal (N_Z,), z_actual (N_Z,), dots_world (N_Z, D, 3),
+                            dot_indices (D, 2); per camera <camera>/dots_xy (N_Z, D, 2)
+                            image of each dot centre, <camera>/dots_centroid (N_Z, D, 2)
+                            centroid of its light, <camera>/dots_on_sensor (N_Z, D)
+    /particles              attrs: shared_first_frame, frames (M, snapshots per Δt)
+    /particles/dt<k>        attrs: dt
+        positions_a, positions_b (M, P, 3)   X(t) and X(t + Δt_k), float64
+        velocity (M, P, 3)                   u(X(t), t), m/s, float64
+        <camera>/xy_a, <camera>/xy_b (M, P, 2)     exact image of each particle centre,
+                                                   px, float32 (1e-4 px resolution); NaN
+                                                   where not imaged
+        <camera>/visible_a, <camera>/visible_b (M, P)   lit and on the sensor
+
+With a shared first frame, ``positions_a``, ``velocity``, ``xy_a`` and ``visible_a`` of
+every ``dt<k>`` are HDF5 hard links to those of ``dt0``: stored once. Without one, each
+Δt is an independent experiment with its own P.
+
+:class:`TruthWriter` fills the file part by part (plate images, particle chunks, in any
+order) and records each part as done only once its data are written, so a run
+interrupted half-way resumes from the parts recorded. :class:`TruthFile` reads it back
+one range of snapshots at a time.
+"""
+
+import json
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from simulator.rigs import Rig, rig_from_dict
+
+FORMAT_VERSION = 2
+
+#: Internal record of the parts written (deleted when the file is complete).
+_PROGRESS = "progress"
+
+
+@dataclass(frozen=True)
+class TruthRun:
+    """The truth of the run at one Δt over a range of snapshots.
+
+    Attributes
+    ----------
+    dt : float
+        s.
+    positions : ndarray, shape (n, 2, P, 3)
+        Particle positions at t and t + Δt, m.
+    velocity : ndarray, shape (n, P, 3)
+        Velocities at t, m/s.
+    xy : dict of str to ndarray, shape (n, 2, P, 2)
+        Exact image of every particle per camera, px.
+    visible : dict of str to ndarray of bool, shape (n, 2, P)
+        Particle lit and its spot on the sensor.
+    first : int
+        Snapshot number of row 0 (rows are snapshots first, first + 1, …).
+    """
+
+    dt: float
+    positions: np.ndarray
+    velocity: np.ndarray
+    xy: dict
+    visible: dict
+    first: int = 0
+
+    @property
+    def snapshots(self) -> range:
+        """The snapshot numbers held."""
+        return range(self.first, self.first + len(self.positions))
+
+
+class TruthWriter:
+    """Fills a truth.h5 part by part; every call opens, writes and closes the file.
+
+    Parameters
+    ----------
+    path : Path
+        The file; created with the header if it does not exist, else continued.
+    header : callable(h5py.File), optional
+        Writes the flow, cameras and rig when the file is created.
+    cameras : sequence of str
+        Camera names.
+    planes : int
+        Traverse positions of the plate.
+    chunks : sequence of (int, int)
+        The particle chunks (snapshot ranges) that will be written.
+    frames : int
+        Snapshots M per Δt.
+    shared_first_frame : bool
+        Frame a of snapshot m shared by every Δt.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        *,
+        header,
+        cameras: Sequence[str],
+        planes: int,
+        chunks: Sequence[tuple[int, int]],
+        frames: int,
+        shared_first_frame: bool,
+    ) -> None:
+        self.path = Path(path)
+        self.cameras = list(cameras)
+        self.chunks = list(chunks)
+        self.frames = frames
+        self.shared = shared_first_frame
+        if self.path.exists():
+            try:
+                with h5py.File(self.path, "r") as f:
+                    ok = f.attrs.get("format_version") == FORMAT_VERSION and _PROGRESS in f
+            except OSError:
+                ok = False
+            if ok:
+                return
+            self.path.unlink()  # unreadable (killed while writing): start again
+        with h5py.File(self.path, "w") as f:
+            f.attrs["format_version"] = FORMAT_VERSION
+            header(f)
+            progress = f.create_group(_PROGRESS)
+            progress.create_dataset("plates", data=np.zeros((len(cameras), planes), bool))
+            progress.create_dataset("chunks", data=np.zeros(len(self.chunks), bool))
+            group = f.create_group("particles")
+            group.attrs["shared_first_frame"] = shared_first_frame
+            group.attrs["frames"] = frames
+
+    def done(self) -> tuple[np.ndarray, np.ndarray]:
+        """Which plate images (C, N_Z) and particle chunks (n_chunks,) are written."""
+        with h5py.File(self.path, "r") as f:
+            return f[_PROGRESS]["plates"][:], f[_PROGRESS]["chunks"][:]
+
+    def write_plate(self, c: int, j: int, projected, centroid, on_sensor, dots) -> None:
+        """The truth of plate image j of camera c: dot images (D, 2), centroids (D, 2),
+        on-sensor flags (D,); ``dots`` holds z_nominal, z_actual, dots_world and
+        dot_indices (written with the first plate)."""
+        with h5py.File(self.path, "a") as f:
+            plate = f.require_group("plate")
+            for key, value in dots.items():
+                if key not in plate:
+                    plate.create_dataset(key, data=value)
+            planes = len(dots["z_nominal"])
+            g = plate.require_group(self.cameras[c])
+            for key, value, dtype in (
+                ("dots_xy", projected, np.float64),
+                ("dots_centroid", centroid, np.float64),
+                ("dots_on_sensor", on_sensor, bool),
+            ):
+                value = np.asarray(value, dtype=dtype)
+                ds = g.require_dataset(key, shape=(planes, *value.shape), dtype=dtype)
+                ds[j] = value
+            f[_PROGRESS]["plates"][c, j] = True
+
+    def write_chunk(self, i: int, runs: Sequence[TruthRun]) -> None:
+        """The particles of chunk i (one TruthRun per Δt)."""
+        with h5py.File(self.path, "a") as f:
+            for k, run in enumerate(runs):
+                self._write_run(f, k, run)
+            f[_PROGRESS]["chunks"][i] = True
+
+    def _write_run(self, f: h5py.File, k: int, run: TruthRun) -> None:
+        group = f.require_group(f"particles/dt{k}")
+        group.attrs["dt"] = run.dt
+        rows = slice(run.first, run.first + len(run.positions))
+        arrays = {
+            "positions_a": (run.positions[:, 0], np.float64),
+            "positions_b": (run.positions[:, 1], np.float64),
+            "velocity": (run.velocity, np.float64),
+        }
+        for camera in self.cameras:
+            for f_index, frame in enumerate("ab"):
+                arrays[f"{camera}/xy_{frame}"] = (run.xy[camera][:, f_index], np.float32)
+                arrays[f"{camera}/visible_{frame}"] = (run.visible[camera][:, f_index], bool)
+        for key, (value, dtype) in arrays.items():
+            at_t = key.endswith("_a") or key == "velocity"
+            if self.shared and k > 0 and at_t:  # frame a is dt0's: link it, once
+                if key not in group:
+                    group[key] = f[f"particles/dt0/{key}"]
+                continue
+            ds = group.require_dataset(
+                key,
+                shape=(self.frames, *value.shape[1:]),
+                dtype=dtype,
+                chunks=(1, *value.shape[1:]),
+                compression="gzip" if dtype is bool else None,
+            )
+            ds[rows] = np.asarray(value, dtype=dtype)
+
+    def finish(self) -> None:
+        """Check every part is written and drop the record of parts."""
+        plates, chunks = self.done()
+        if not (plates.all() and chunks.all()):
+            raise RuntimeError(
+                f"{self.path}: parts missing ({(~plates).sum()} plates, "
+                f"{(~chunks).sum()} particle chunks)"
+            )
+        with h5py.File(self.path, "a") as f:
+            del f[_PROGRESS]
+
+
+class TruthFile:
+    """Reads a truth.h5 (format version 2) a range of snapshots at a time.
+
+    Parameters
+    ----------
+    path : path-like
+        The file, or the dataset folder holding it.
+
+    Raises
+    ------
+    ValueError
+        No truth.h5, or one of another format version.
+    """
+
+    def __init__(self, path) -> None:
+        path = Path(path)
+        if path.is_dir():
+            path = path / "truth.h5"
+        if not path.is_file():
+            raise ValueError(
+                f"{path.parent} has no truth.h5: reference runs need a synthetic dataset"
+            )
+        self.path = path
+        with h5py.File(path, "r") as f:
+            version = f.attrs.get("format_version")
+            if version != FORMAT_VERSION:
+                raise ValueError(
+                    f"{path}: truth format version {version}, this synptv reads {FORMAT_VERSION}"
+                    " (render the dataset again)"
+                )
+            self.rig: Rig = rig_from_dict(json.loads(f.attrs["rig"]), source=str(path))
+            particles = f["particles"]
+            self.frames = int(particles.attrs["frames"])
+            self.shared_first_frame = bool(particles.attrs["shared_first_frame"])
+            self.dt = np.array([particles[f"dt{k}"].attrs["dt"] for k in range(len(particles))])
+
+    def runs(self, m0: int = 0, m1: int | None = None) -> list[TruthRun]:
+        """The truth of snapshots m0 … m1 − 1 (default: all), one TruthRun per Δt."""
+        m1 = self.frames if m1 is None else m1
+        rows = slice(m0, m1)
+        out = []
+        with h5py.File(self.path, "r") as f:
+            for k, dt in enumerate(self.dt):
+                g = f[f"particles/dt{k}"]
+
+                def pair(key, group=g):
+                    return np.stack([group[f"{key}_a"][rows], group[f"{key}_b"][rows]], axis=1)
+
+                out.append(
+                    TruthRun(
+                        dt=float(dt),
+                        positions=pair("positions"),
+                        velocity=g["velocity"][rows],
+                        xy={c: pair(f"{c}/xy").astype(np.float64) for c in self.rig.camera_names},
+                        visible={c: pair(f"{c}/visible") for c in self.rig.camera_names},
+                        first=m0,
+                    )
+                )
+        return out
+
+    def snapshots_at_t(
+        self, chunks: Sequence[tuple[int, int]]
+    ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """Positions (P, 3) and velocities (P, 3) at t of every independent snapshot:
+        those of Δt_0 with a shared first frame, of every Δt otherwise; read a chunk of
+        snapshots (ranges m0, m1) at a time."""
+        groups = range(1 if self.shared_first_frame else len(self.dt))
+        for k in groups:
+            for m0, m1 in chunks:
+                with h5py.File(self.path, "r") as f:
+                    g = f[f"particles/dt{k}"]
+                    x, u = g["positions_a"][m0:m1], g["velocity"][m0:m1]
+                yield from zip(x, u, strict=True)
