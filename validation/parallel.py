@@ -89,7 +89,10 @@ class DaskExecutor:
         """``fn(item, **shared)`` on the workers, at most :data:`IN_FLIGHT` per worker."""
         from distributed import as_completed
 
-        sent = {k: self.client.scatter([v], broadcast=True)[0] for k, v in (shared or {}).items()}
+        sent = {
+            k: self.client.scatter([v], broadcast=True, hash=False)[0]
+            for k, v in (shared or {}).items()
+        }
         pending = iter(enumerate(items))
         index: dict = {}
         running = as_completed()

@@ -16,14 +16,39 @@ from numba import njit, prange
 
 #: Window half-width around each particle, px (a 5 × 5 window).
 HALF = 2
-#: Gauss–Newton iterations at most, and the convergence of the centres, px (a
-#: hundredth of the best random error, ~0.01 px).
+#: Gauss–Newton iterations at most, and the convergence of the centres: the last step
+#: below 10⁻³ px. Each step shrinks by about ten on rendered spots (measured), so the
+#: centre is then within ~10⁻⁴ px of the optimum: a hundredth of the best random error
+#: (~0.01 px).
 _ITERATIONS = 12
-_TOLERANCE = 1e-4
+_TOLERANCE = 1e-3
 #: Groups are refined in this many interleaved chunks, in parallel.
 _CHUNKS = 64
 #: Accepted spot widths, px.
 _WIDTH_RANGE = (0.3, 3.0)
+
+
+@njit(cache=True, inline="always")
+def _axis_masses(first, n, centre, s, out):  # pragma: no cover (compiled)
+    """Pixel masses of a run of n pixels along one axis, and their derivatives.
+
+    For pixels first … first + n − 1 of the unit Gaussian of width s centred at
+    ``centre``, out[i] = (mass, d mass/d centre, d mass/d s); neighbouring pixels share
+    their boundary, so each boundary's erf and Gaussian are computed once.
+    """
+    root2s = sqrt(2.0) * s
+    norm = 1.0 / (sqrt(2.0 * np.pi) * s)
+    lo = first - 0.5 - centre
+    e_lo = erf(lo / root2s)
+    g_lo = norm * exp(-0.5 * (lo / s) ** 2)
+    for i in range(n):
+        hi = first + i + 0.5 - centre
+        e_hi = erf(hi / root2s)
+        g_hi = norm * exp(-0.5 * (hi / s) ** 2)
+        out[i, 0] = 0.5 * (e_hi - e_lo)
+        out[i, 1] = -(g_hi - g_lo)
+        out[i, 2] = -(hi * g_hi - lo * g_lo) / s
+        lo, e_lo, g_lo = hi, e_hi, g_hi
 
 
 @njit(cache=True, inline="always")
@@ -136,10 +161,8 @@ def _fit_group(img, rr, cc, params, work):  # pragma: no cover (compiled)
     for _ in range(_ITERATIONS):
         for k in range(n_spots):
             x0, y0, s = params[4 * k + 1], params[4 * k + 2], params[4 * k + 3]
-            for i in range(n_cols):
-                ex[k, i, 0], ex[k, i, 1], ex[k, i, 2] = _pixel_mass(c_lo + i - x0, s)
-            for j in range(n_rows):
-                ey[k, j, 0], ey[k, j, 1], ey[k, j, 2] = _pixel_mass(r_lo + j - y0, s)
+            _axis_masses(c_lo, n_cols, x0, s, ex[k])
+            _axis_masses(r_lo, n_rows, y0, s, ey[k])
         normal[:, :] = 0.0
         rhs[:] = 0.0
         for p in range(rr.size):
@@ -225,7 +248,6 @@ def refine_groups(img, x, y, width, level, members, offsets):  # pragma: no cove
     # Each chunk has its own scratch; groups are disjoint, so the chunks write disjoint
     # entries of x, y and refined.
     n_groups = offsets.size - 1
-    mass = _pixel_mass(0.0, width)[0]  # of the centre pixel, per unit amplitude and axis
     for chunk in prange(_CHUNKS):
         work = _workspace(largest)
         span = work[0].shape[1]
@@ -243,10 +265,12 @@ def refine_groups(img, x, y, width, level, members, offsets):  # pragma: no cove
             for k in range(group.size):
                 n = group[k]
                 c0, r0 = int(x[n] + 0.5), int(y[n] + 0.5)
+                s0 = _start_width(img, r0, c0, level[n], width)
+                mass = _pixel_mass(0.0, s0)[0]  # of the centre pixel, per unit amplitude
                 p[4 * k] = max(float(img[r0, c0]) - level[n], 1.0) / (mass * mass)
                 p[4 * k + 1] = x[n]
                 p[4 * k + 2] = y[n]
-                p[4 * k + 3] = width
+                p[4 * k + 3] = s0
                 background += level[n] / group.size
             p[-1] = background
             if _fit_group(img, rr[:count], cc[:count], p, work):
@@ -255,6 +279,30 @@ def refine_groups(img, x, y, width, level, members, offsets):  # pragma: no cove
                     y[group[k]] = p[4 * k + 2]
                     refined[group[k]] = True
     return refined
+
+
+@njit(cache=True)
+def _start_width(img, r0, c0, level, default):  # pragma: no cover (compiled)
+    """A starting Gaussian width from the log-curvature of the 3-pixel profiles through
+    the maximum pixel (r0, c0): 1/curvature is σ² plus the pixel's 1/12 px²; ``default``
+    where a value is not above ``level`` or the profile is not concave. Starting near
+    the solution saves the Gauss–Newton steps that would first move the width."""
+    centre = float(img[r0, c0]) - level
+    left = float(img[r0, c0 - 1]) - level
+    right = float(img[r0, c0 + 1]) - level
+    up = float(img[r0 - 1, c0]) - level
+    down = float(img[r0 + 1, c0]) - level
+    if min(centre, left, right, up, down) <= 0.0:
+        return default
+    log_c = np.log(centre)
+    curve_x = 2.0 * log_c - np.log(left) - np.log(right)
+    curve_y = 2.0 * log_c - np.log(up) - np.log(down)
+    if curve_x <= 0.0 or curve_y <= 0.0:
+        return default
+    variance = 0.5 * (1.0 / curve_x + 1.0 / curve_y) - 1.0 / 12.0
+    if not _WIDTH_RANGE[0] ** 2 < variance < _WIDTH_RANGE[1] ** 2:
+        return default
+    return sqrt(variance)
 
 
 @njit(cache=True)

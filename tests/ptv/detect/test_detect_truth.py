@@ -269,11 +269,12 @@ def test_same_result_for_every_input_dtype():
 @pytest.mark.parametrize(("sigma", "electrons"), [(0.75, 3e3), (0.9, 2e5), (1.5, 1e6)])
 def test_the_refinement_fits_faint_bright_and_wide_spots(sigma, electrons):
     """The integrated-Gaussian fit converges to the true centre whatever the scale of the
-    spot (its normal equations are scaled before they are solved)."""
+    spot (its normal equations are scaled before they are solved): noise-free, within a
+    tenth of the last step it stops at (its convergence test)."""
     truth = np.array([[20.37, 19.71]])
     image = render_particles(truth, sigma, electrons, shape=(40, 40)).image + 5.0
     x, y = np.array([20.0]), np.array([20.0])  # a start 0.4 px off
     one = np.array([0])
     refined = _refine.refine_groups(image, x, y, 0.8, np.array([5.0]), one, np.array([0, 1]))
     assert refined[0]
-    assert np.hypot(x[0] - truth[0, 0], y[0] - truth[0, 1]) < 1e-6
+    assert np.hypot(x[0] - truth[0, 0], y[0] - truth[0, 1]) < _refine._TOLERANCE / 10
