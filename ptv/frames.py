@@ -29,6 +29,7 @@ from ptv.detect import Detections, detect_particles
 
 __all__ = [
     "ChunkDetections",
+    "DetectedCentres",
     "DetectorSettings",
     "FrameDetections",
     "ImageDetector",
@@ -129,6 +130,27 @@ def exposures(
 
 
 @dataclass(frozen=True, eq=False)
+class DetectedCentres:
+    """What is kept of the detections on one image: centres and flags.
+
+    Attributes
+    ----------
+    xy : ndarray, shape (N, 2)
+        Centres, px (OpenCV convention).
+    flags : ndarray of uint8, shape (N,)
+        :class:`ptv.detect.DetectionFlag` bits.
+    """
+
+    xy: np.ndarray
+    flags: np.ndarray
+
+    @classmethod
+    def of(cls, detections: Detections) -> "DetectedCentres":
+        """The centres and flags of full detections."""
+        return cls(detections.xy, detections.flags)
+
+
+@dataclass(frozen=True, eq=False)
 class ChunkDetections:
     """:class:`FrameDetections` of a range of snapshots, held in memory.
 
@@ -144,7 +166,7 @@ class ChunkDetections:
     found : dict of (int, int, str) to list of C detections
         Per exposure (k, m, frame), with k = −1 for a shared frame a, the detections of
         each camera: objects with ``xy`` (N, 2), px, and ``flags`` (N,)
-        (:class:`ptv.detect.Detections` or what a store gives back).
+        (:class:`ptv.detect.Detections` or :class:`DetectedCentres`).
     """
 
     folder: Path

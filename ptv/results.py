@@ -5,12 +5,14 @@ dataset has a ``units`` attribute)::
 
     /                         attrs: format, format_version, dataset, calibration,
                               cameras, settings (JSON)
-    /particles/dt<k>          attrs: dt (s), link_radius (m)
-        positions (N, 3) m            X(t) of every link (whole matching volume)
+    /particles/dt<k>          attrs: dt (s), link_radius (m), links_kept
+        positions (N, 3) m            X(t) of every link kept (the whole matching volume
+                                      from ``synptv ptv``)
         displacements (N, 3) m        ΔX = X(t + Δt) − X(t)
         in_analysis (N,) bool         X(t) inside the analysis volume
         outlier (N,) bool             failed the normalised median test (not in statistics)
         offsets (M + 1,)              rows offsets[i]:offsets[i+1] are snapshot snapshot_ids[i]
+                                      (the five above only when the links are kept)
         snapshot_ids (M,)             snapshots kept
         processed (S,)                snapshots processed (kept or skipped)
         detections (S, 2, C)          per snapshot, frame (a, b) and camera
@@ -250,7 +252,7 @@ def _put_plateau(group: h5py.Group, plateau: Plateau | None) -> None:
     g.attrs["units"] = "epsilon: m^2/s^3; r_min, r_max: m"
 
 
-def _write_h5(path: Path, result: PtvResult, calibration: str | None) -> None:
+def _write_h5(path: Path, result: PtvResult, calibration: str | None, links: bool) -> None:
     st = result.statistics
     sf = st.structure
     with h5py.File(path, "w") as f:
@@ -264,11 +266,13 @@ def _write_h5(path: Path, result: PtvResult, calibration: str | None) -> None:
             g = f.create_group(f"particles/dt{run.k}")
             g.attrs["dt"] = run.dt
             g.attrs["link_radius"] = link_radius(run.dt, result.settings)
-            _put(g, "positions", run.positions, "m")
-            _put(g, "displacements", run.displacements, "m")
-            _put(g, "in_analysis", run.in_analysis)
-            _put(g, "outlier", run.outlier)
-            _put(g, "offsets", run.offsets, "row index")
+            g.attrs["links_kept"] = links
+            if links:
+                _put(g, "positions", run.positions, "m")
+                _put(g, "displacements", run.displacements, "m")
+                _put(g, "in_analysis", run.in_analysis)
+                _put(g, "outlier", run.outlier)
+                _put(g, "offsets", run.offsets, "row index")
             _put(g, "snapshot_ids", run.snapshot_ids)
             _put(g, "processed", run.processed)
             _put(g, "detections", run.detections, "count (snapshot, frame a/b, camera)")
@@ -341,7 +345,11 @@ def _write_h5(path: Path, result: PtvResult, calibration: str | None) -> None:
 
 
 def save_results(
-    result: PtvResult, folder: str | os.PathLike, *, calibration: str | None = None
+    result: PtvResult,
+    folder: str | os.PathLike,
+    *,
+    calibration: str | None = None,
+    links: bool = True,
 ) -> tuple[Path, Path]:
     """Write ``results.h5`` and ``summary.json`` into ``folder`` (created if needed).
 
@@ -353,6 +361,9 @@ def save_results(
         Output folder.
     calibration : str, optional
         The calibration file used, recorded in both files.
+    links : bool
+        Write every link's X(t) and ΔX (False: only the counts and the statistics, for
+        runs whose link tables would take gigabytes).
 
     Returns
     -------
@@ -365,7 +376,7 @@ def save_results(
     text = json.dumps(summary(result, calibration=calibration), indent=2, allow_nan=False)
     tmp_h5, tmp_json = _tmp(folder, h5_path.name), _tmp(folder, json_path.name)
     try:
-        _write_h5(tmp_h5, result, calibration)
+        _write_h5(tmp_h5, result, calibration, links)
         tmp_json.write_text(text + "\n")
         os.replace(tmp_h5, h5_path)
         os.replace(tmp_json, json_path)

@@ -311,7 +311,12 @@ class _Run:
         rung = _Rung(self, store, truth, truth_dict)
         ptv = {}
         for variant in (*REFERENCE_VARIANTS, *self.scenario.ptv.methods):
-            inputs = {"detections": detections.key, "variant": variant, **self.settings_inputs}
+            inputs = {
+                "detections": detections.key,
+                "variant": variant,
+                "links": self.scenario.output.links,
+                **self.settings_inputs,
+            }
             if variant not in REFERENCE_VARIANTS:
                 inputs["calibration"] = calibrations.key
             ptv[variant] = self.timed(
@@ -409,7 +414,8 @@ class _Rung:
         self.save_population(result, target)
 
     def save(self, result: PtvResult, folder: Path, calibration: str) -> None:
-        save_results(result, folder, calibration=calibration)
+        links = self.run.scenario.output.links
+        save_results(result, folder, calibration=calibration, links=links)
         _ptv_figures(result, folder, self.truth_dict)
 
     def save_population(self, result: PtvResult, folder: Path, rotation=None, translation=None):

@@ -33,15 +33,20 @@ log = logging.getLogger(__name__)
 CONNECT_TIMEOUT_S = 10
 
 #: Environment of local worker processes: one thread each for numba and OpenCV too (Dask
-#: already sets OMP/MKL/OpenBLAS to one), so N workers use N cores.
+#: already sets OMP/MKL/OpenBLAS to one), so N workers use N cores. It is set before the
+#: process starts ("pre-spawn"): a spawned process first runs the parent's main module,
+#: which may import numba, and numba reads its thread count at import. Set afterwards,
+#: two single-threaded workers on two cores each ran two OpenMP threads and rendered 30
+#: instead of 45 images/s.
 SINGLE_THREADED = {"NUMBA_NUM_THREADS": "1", "OPENCV_FOR_THREADS_NUM": "1"}
+_PRE_SPAWN = "distributed.nanny.pre-spawn-environ"
 #: Dask's nannies set glibc's MALLOC_TRIM_THRESHOLD_, which turns off glibc's adaptive
 #: mmap threshold: every large NumPy temporary is then mapped and unmapped afresh, and
 #: the calibration tasks ran 2-3x slower (a third of their time in the kernel). Local
 #: workers go without it.
-TRIM_THRESHOLD = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
+TRIM_THRESHOLD = f"{_PRE_SPAWN}.MALLOC_TRIM_THRESHOLD_"
 #: Items in flight per worker.
-IN_FLIGHT = 2
+IN_FLIGHT = 4
 
 
 class Executor(Protocol):
@@ -161,8 +166,11 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
     n = (os.cpu_count() or 1) if workers is None else workers
     if not isinstance(n, int) or n < 1:
         raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
+    environment = {f"{_PRE_SPAWN}.{key}": value for key, value in SINGLE_THREADED.items()}
     with (
-        dask.config.set({TRIM_THRESHOLD: None, "logging.distributed": "warning"}),
+        dask.config.set(
+            {TRIM_THRESHOLD: None, "logging.distributed": "warning", **environment}
+        ),
         LocalCluster(
             n_workers=n,
             threads_per_worker=1,

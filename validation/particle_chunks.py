@@ -21,7 +21,7 @@ import numpy as np
 import tifffile
 
 from ptv.detect import detect_particles
-from ptv.frames import ChunkDetections, DetectorSettings, exposures
+from ptv.frames import ChunkDetections, DetectedCentres, DetectorSettings, exposures
 from simulator.flow import DEFAULT_UNSTEADINESS
 from simulator.particles import double_frame, shared_start
 from simulator.render.camera_frames import ParticleLighting, record_particles
@@ -184,7 +184,8 @@ def render_chunk(snapshots: tuple[int, int], *, job: ParticleJob) -> RenderedChu
     names = job.rig.camera_names
     runs = sample.runs
     shape = {k: run.positions.shape[:3] for k, run in enumerate(runs)}  # (n, 2, P_k)
-    xy = [{c: np.empty((*shape[k], 2)) for c in names} for k in range(len(runs))]
+    # Image positions as truth.h5 keeps them (float32): half the data to send back.
+    xy = [{c: np.empty((*shape[k], 2), np.float32) for c in names} for k in range(len(runs))]
     visible = [{c: np.empty(shape[k], dtype=bool) for c in names} for k in range(len(runs))]
     found: dict = {}
     order = exposures(
@@ -206,13 +207,10 @@ def render_chunk(snapshots: tuple[int, int], *, job: ParticleJob) -> RenderedChu
             if job.images is not None:
                 _write_exposure(job.images, len(runs), k, name, m, frame, recorded.image)
             if job.detector is not None:
-                found.setdefault((k, m, frame), []).append(
-                    detect_particles(
-                        recorded.image,
-                        k=job.detector.threshold,
-                        saturation=job.detector.saturation,
-                    )
+                detected = detect_particles(
+                    recorded.image, k=job.detector.threshold, saturation=job.detector.saturation
                 )
+                found.setdefault((k, m, frame), []).append(DetectedCentres.of(detected))
     truth = [
         TruthRun(
             dt=float(dt),

@@ -13,7 +13,7 @@ the tables (fields and defaults in :class:`Scenario`)::
     [ptv]          methods, analysis_volume, r_range, bins, plateau, kolmogorov_c2,
                    max_speed, tolerance, n_boot
     [checks]       c1_r_min_eta, c1_r_max_l_int
-    [output]       images
+    [output]       images, links
 
 Missing tables take their defaults; unknown tables or fields are errors that name the
 file and the field.
@@ -118,11 +118,14 @@ class ChecksSection:
 
 @dataclass(frozen=True)
 class OutputSection:
-    """What a run keeps beyond its results: ``images`` writes the particle images into
-    the dataset (16-bit TIFF; about 4 MB each) instead of detecting them in memory only.
-    The plate images and truth.h5 are always written."""
+    """What a run keeps beyond its statistics: ``images`` writes the particle images into
+    the dataset (16-bit TIFF, about 4 MB each) instead of detecting them in memory only;
+    ``links`` writes every rung's links in the analysis volume into its results.h5
+    (about 0.3 GB per rung at the paper's size). The plate images and truth.h5 are
+    always written."""
 
     images: bool = False
+    links: bool = True
 
 
 @dataclass(frozen=True)

@@ -57,7 +57,8 @@ class TruthRun:
     velocity : ndarray, shape (n, P, 3)
         Velocities at t, m/s.
     xy : dict of str to ndarray, shape (n, 2, P, 2)
-        Exact image of every particle per camera, px.
+        Exact image of every particle per camera, px (float32 as rendered and stored:
+        1e-4 px resolution).
     visible : dict of str to ndarray of bool, shape (n, 2, P)
         Particle lit and its spot on the sensor.
     first : int
@@ -259,7 +260,7 @@ class TruthFile:
                         dt=float(dt),
                         positions=pair("positions"),
                         velocity=g["velocity"][rows],
-                        xy={c: pair(f"{c}/xy").astype(np.float64) for c in self.rig.camera_names},
+                        xy={c: pair(f"{c}/xy") for c in self.rig.camera_names},
                         visible={c: pair(f"{c}/visible") for c in self.rig.camera_names},
                         first=m0,
                     )

@@ -32,30 +32,37 @@ from validation.truth_file import TruthFile, TruthRun
 ASSOCIATION_RADIUS = 1.0
 
 
+def in_volume(
+    start: np.ndarray, end: np.ndarray, settings: PipelineSettings
+) -> tuple[int, np.ndarray, np.ndarray]:
+    """A snapshot's particles kept for a reference run: their count, and X(t) and
+    X(t + Δt), shapes (N, 3), of those whose X(t) lies in the analysis volume, m."""
+    keep = inside_box(start, settings.statistics.analysis_volume)
+    return len(start), start[keep], end[keep]
+
+
 def reference_run(
     k: int,
     dt: float,
     snapshot_ids: Sequence[int],
-    per_snapshot: Sequence[tuple[np.ndarray, np.ndarray]],
-    settings: PipelineSettings,
+    per_snapshot: Sequence[tuple[int, np.ndarray, np.ndarray]],
     n_cameras: int,
 ) -> RunParticles:
-    """RunParticles from (X(t), X(t + Δt)) per snapshot; no outliers by construction.
+    """RunParticles from :func:`in_volume` of each snapshot; no outliers by construction.
 
-    Rows are the particles whose X(t) lies in the analysis volume; detections, matches
-    and links per snapshot are recorded as the number of particles given.
+    Detections, matches and links per snapshot are recorded as the number of particles
+    the snapshot had.
     """
-    box = settings.statistics.analysis_volume
-    kept = [(a[inside_box(a, box)], b[inside_box(a, box)]) for a, b in per_snapshot]
-    sizes = np.array([len(a) for a, _ in kept], dtype=np.int64)
-    counts = np.array([len(a) for a, _ in per_snapshot], dtype=np.int64)
+    counts = np.array([n for n, _, _ in per_snapshot], dtype=np.int64)
+    sizes = np.array([len(a) for _, a, _ in per_snapshot], dtype=np.int64)
     m = len(per_snapshot)
-    positions = np.concatenate([a for a, _ in kept]) if kept else np.empty((0, 3))
+    positions = np.concatenate([a for _, a, _ in per_snapshot]) if m else np.empty((0, 3))
+    moves = [b - a for _, a, b in per_snapshot]
     return RunParticles(
         k=k,
         dt=dt,
         positions=positions,
-        displacements=np.concatenate([b - a for a, b in kept]) if kept else np.empty((0, 3)),
+        displacements=np.concatenate(moves) if m else np.empty((0, 3)),
         offsets=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
         snapshot_ids=np.asarray(snapshot_ids, dtype=np.int64),
         detections=np.broadcast_to(counts[:, None, None], (m, 2, n_cameras)).copy(),
@@ -84,11 +91,10 @@ def exact_runs(
     per_k: list[list] = [[] for _ in truth.dt]
     for m0, m1 in chunks:
         for k, run in enumerate(truth.runs(m0, m1)):
-            per_k[k].extend((p[0], p[1]) for p in run.positions)
+            per_k[k].extend(in_volume(p[0], p[1], settings) for p in run.positions)
     n_cam = len(truth.rig.camera_names)
-    ids = range(max(len(p) for p in per_k))
     return [
-        reference_run(k, float(dt), ids, per_k[k], settings, n_cam)
+        reference_run(k, float(dt), range(len(per_k[k])), per_k[k], n_cam)
         for k, dt in enumerate(truth.dt)
     ]
 
@@ -214,9 +220,10 @@ class DetectionChunk:
 
     Attributes
     ----------
-    ends : list of K lists of (ndarray (N, 3), ndarray (N, 3))
-        Per Δt and snapshot, X(t) and X(t + Δt) of the particles found in both frames
-        of every camera, m.
+    ends : list of K lists of (int, ndarray (N, 3), ndarray (N, 3))
+        Per Δt and snapshot, the number of particles found in both frames of every
+        camera, and X(t) and X(t + Δt) of those in the analysis volume
+        (:func:`in_volume`), m.
     errors : list of K dicts
         Per Δt, {snapshot: (particle indices, position error (N, 3), ΔX error (N, 3))}
         of the particles whose true X(t) lies in the analysis volume, m.
@@ -289,7 +296,7 @@ def detection_chunk(
                 pair[0][inside] - true_ends[0][inside],
                 (pair[1] - pair[0])[inside] - (true_ends[1] - true_ends[0])[inside],
             )
-            run_ends.append(pair)
+            run_ends.append(in_volume(*pair, settings))
         ends.append(run_ends)
         errors.append(run_errors)
     return DetectionChunk(ends, errors, tally)
@@ -327,9 +334,7 @@ def detected_runs(
     for k, step in enumerate(dt):
         ends = [pair for c in chunks for pair in c.ends[k]]
         run_errors = {m: e for c in chunks for m, e in c.errors[k].items()}
-        runs.append(
-            reference_run(k, float(step), list(run_errors), ends, settings, len(cameras))
-        )
+        runs.append(reference_run(k, float(step), list(run_errors), ends, len(cameras)))
         errors.append(run_errors)
     position_noise, displacement_noise = _noise_rms(errors, shared=shared_first_frame)
     quality = DetectionQuality(

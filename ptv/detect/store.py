@@ -21,14 +21,13 @@ import os
 import uuid
 from bisect import bisect_right
 from collections.abc import Sequence
-from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from ptv.frames import ChunkDetections, exposures
+from ptv.frames import ChunkDetections, DetectedCentres, exposures
 
 __all__ = [
     "FORMAT_NAME",
@@ -51,14 +50,6 @@ class StoreError(ValueError):
 def chunk_name(m0: int, m1: int) -> str:
     """File name of the chunk of snapshots m0 … m1 − 1."""
     return f"chunk-{m0:06d}-{m1:06d}.h5"
-
-
-@dataclass(frozen=True, eq=False)
-class _Stored:
-    """Detections read back from a store: centres and flags only."""
-
-    xy: np.ndarray
-    flags: np.ndarray
 
 
 def write_chunk(path: Path, chunk: ChunkDetections, *, frames: Sequence[int]) -> Path:
@@ -126,7 +117,9 @@ def _read_chunk(path: Path, cameras: Sequence[str]) -> tuple[tuple[int, int], di
                     raise StoreError(f"{path}: no detections of camera {camera!r}")
                 g = f[camera]
                 offsets, xy, flags = g["offsets"][:], g["xy"][:], g["flags"][:]
-                per_camera.append([_Stored(xy[a:b], flags[a:b]) for a, b in pairwise(offsets)])
+                per_camera.append(
+                    [DetectedCentres(xy[a:b], flags[a:b]) for a, b in pairwise(offsets)]
+                )
     except OSError as err:
         raise StoreError(f"{path}: not readable as a detection chunk ({err})") from None
     found = {

@@ -116,3 +116,47 @@ def test_stage_key_ignores_key_order_and_sees_every_value():
 def test_stage_key_refuses_nan():
     with pytest.raises(ValueError):
         stage_key({"x": float("nan")})
+
+
+class ChunkedBuilder:
+    """A resumable builder: one file per chunk, skipping the chunks already there, that
+    can be stopped after a given number of new chunks."""
+
+    def __init__(self, chunks: int, *, stop_after: int | None = None):
+        self.chunks = chunks
+        self.stop_after = stop_after
+        self.computed: list[int] = []
+
+    def __call__(self, target):
+        target.mkdir(exist_ok=True)
+        for i in range(self.chunks):
+            part = target / f"chunk-{i}.txt"
+            if part.exists():
+                continue
+            if self.stop_after is not None and len(self.computed) == self.stop_after:
+                raise KeyboardInterrupt
+            part.write_text(str(i * i))
+            self.computed.append(i)
+
+
+def test_a_resumable_stage_goes_on_from_the_chunks_an_interruption_left(tmp_path):
+    folder, inputs = tmp_path / "stage", {"n": 5}
+    first = ChunkedBuilder(5, stop_after=2)
+    with pytest.raises(KeyboardInterrupt):
+        run_stage(folder, inputs, first, name="render", resume=True)
+    kept = f".stage.partial-{stage_key(inputs)[:16]}"
+    assert not folder.exists() and leftovers(folder) == [kept]
+    second = ChunkedBuilder(5)
+    outcome = run_stage(folder, inputs, second, name="render", resume=True)
+    assert first.computed == [0, 1] and second.computed == [2, 3, 4]
+    assert not outcome.reused and leftovers(folder) == []
+    assert [(folder / f"chunk-{i}.txt").read_text() for i in range(5)] == ["0", "1", "4", "9", "16"]
+
+
+def test_other_inputs_discard_what_an_interrupted_build_left(tmp_path):
+    folder = tmp_path / "stage"
+    with pytest.raises(KeyboardInterrupt):
+        run_stage(folder, {"n": 5}, ChunkedBuilder(5, stop_after=2), name="render", resume=True)
+    other = ChunkedBuilder(5)
+    run_stage(folder, {"n": 6}, other, name="render", resume=True)
+    assert other.computed == [0, 1, 2, 3, 4] and leftovers(folder) == []
