@@ -43,7 +43,8 @@ dataset has a ``units`` attribute)::
                                      offset (G, 3) m; attrs u_prime, se_u_prime (m/s),
                                      position_noise (3,) m
 
-``summary.json``: :func:`summary` (SI units; NaN written as null).
+``summary.json``: :func:`summary` (SI units; NaN written as null). :func:`load_runs`
+reads the links back, so the statistics can be computed again (other bins, other Δt).
 
 Files are written under a temporary name in the target folder and renamed.
 """
@@ -59,8 +60,9 @@ import numpy as np
 
 from ptv.pipeline import PtvResult, link_radius
 from ptv.stats.dissipation import Plateau
+from ptv.stats.links import RunParticles
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "save_results", "summary"]
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load_runs", "save_results", "summary"]
 
 log = logging.getLogger(__name__)
 
@@ -385,3 +387,54 @@ def save_results(
         tmp_json.unlink(missing_ok=True)
     log.info("results written to %s and %s", h5_path, json_path)
     return h5_path, json_path
+
+
+def load_runs(path: str | os.PathLike) -> list[RunParticles]:
+    """The links of every Δt saved in a results.h5, as the statistics take them.
+
+    Parameters
+    ----------
+    path : path-like
+        A ``results.h5`` written with its links (:func:`save_results`, ``links=True``).
+
+    Returns
+    -------
+    list of RunParticles
+        One per Δt, in the order of the file's ``dt<k>`` groups.
+
+    Raises
+    ------
+    ValueError
+        Not a results file, or one written without its links.
+    """
+    with h5py.File(path, "r") as f:
+        if f.attrs.get("format") != FORMAT_NAME:
+            raise ValueError(f"{path}: not a {FORMAT_NAME} file")
+        groups = sorted(f["particles"], key=lambda name: int(name.removeprefix("dt")))
+        runs = []
+        for name in groups:
+            g = f["particles"][name]
+            if not g.attrs.get("links_kept", True) or "positions" not in g:
+                raise ValueError(f"{path}: written without its links (links_kept false)")
+            runs.append(
+                RunParticles(
+                    k=int(name.removeprefix("dt")),
+                    dt=float(g.attrs["dt"]),
+                    **{
+                        key: g[key][:]
+                        for key in (
+                            "positions",
+                            "displacements",
+                            "offsets",
+                            "snapshot_ids",
+                            "detections",
+                            "matches",
+                            "links",
+                            "processed",
+                            "in_analysis",
+                            "outlier",
+                        )
+                    },
+                )
+            )
+    return runs

@@ -74,11 +74,28 @@ def _true_positions(folder: Path) -> np.ndarray | None:
         return truth["plate/dots_world"][:]
 
 
+def dot_positions(folder: Path) -> tuple[np.ndarray, np.ndarray]:
+    """True and nominal centres of every dot of a rendered dataset, (N_Z, D, 3) each, m.
+
+    Raises
+    ------
+    ValueError
+        The folder holds no truth.h5 (a real experiment).
+    """
+    folder = Path(folder)
+    true = _true_positions(folder)
+    if true is None:
+        raise ValueError(f"{folder} has no truth.h5: the true dot centres are unknown")
+    spec = _read_experiment(folder)
+    return true, nominal_positions(_design(spec["target"]), spec["traverse_z"])
+
+
 def calibrate_dataset(
     folder: Path,
     *,
     methods: Sequence[str] = ("model-free", "tsai", "pinhole", "soloff"),
     out: Path | None = None,
+    fit_planes: Sequence[int] | None = None,
     progress: Progress | None = None,
 ) -> DatasetCalibration:
     """Find the dots, calibrate every camera with each method, save, and score.
@@ -91,6 +108,9 @@ def calibrate_dataset(
         Calibration methods (see ``ptv.calibration.methods``).
     out : Path, optional
         Folder for the calibration files (``<folder>/calibrations`` by default).
+    fit_planes : sequence of int, optional
+        Traverse positions the calibrations are fitted on (default: all); the Table 1
+        metric is measured on every plane.
     progress : callable(done, total), optional
         Called after each plate image and each calibration.
 
@@ -128,7 +148,8 @@ def calibrate_dataset(
             sheet = CameraSheet(
                 tuple(info["image_size"]), float(info["pixel_pitch"]), float(info["focal_length"])
             )
-            calibrations[name] = calibrate(method, [d.observation() for d in camera_dots], sheet)
+            fitted = camera_dots if fit_planes is None else [camera_dots[j] for j in fit_planes]
+            calibrations[name] = calibrate(method, [d.observation() for d in fitted], sheet)
             if method == "model-free":
                 residuals[name] = max(p.residual_px.max() for p in calibrations[name].planes)
             done += 1

@@ -34,7 +34,7 @@ import logging
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from importlib.metadata import version
 from pathlib import Path
 
@@ -50,6 +50,7 @@ from ptv.results import save_results
 from ptv.stats.run_statistics import compute_statistics
 from simulator.presets import flow_preset
 from simulator.render.camera_frames import ParticleLighting, local_magnification
+from simulator.render.sensor import Sensor
 from simulator.rigs import Rig, load_rig
 from simulator.target import REALISTIC, Imperfections
 from validation.calibrate_dataset import calibrate_dataset
@@ -154,16 +155,21 @@ def _save_ptv(result: PtvResult, folder: Path, truth: dict, calibration: str) ->
     _ptv_figures(result, folder, truth)
 
 
-class _Run:
-    """One ``synptv run``: the scenario, where it goes, what runs it, the stage times."""
+class ExperimentRun:
+    """The stages of one scenario under a folder: what runs them, their times.
 
-    def __init__(self, scenario, out, executor, progress, keep_images) -> None:
+    ``synptv run`` builds them all (:func:`run_stages`); the studies on the rendered
+    chain (:mod:`validation.rendered_study`) build the ones a point needs, under folder
+    names of their own, and reuse the others through their keys.
+    """
+
+    def __init__(self, scenario, out, executor, progress, keep_images, *, rig=None) -> None:
         self.scenario = scenario
         self.out = Path(out)
         self.executor = executor
         self.progress = progress
         self.images = keep_images or scenario.output.images
-        self.rig = load_rig(scenario.rig.name)
+        self.rig = load_rig(scenario.rig.name) if rig is None else rig
         self.preset = flow_preset(scenario.flow.preset)
         self.settings = pipeline_settings(scenario)
         self.render = render_settings(scenario)
@@ -202,17 +208,23 @@ class _Run:
             "sensor": d["sensor"],
         }
 
+    def detect_inputs(self, sensor: Sensor | None = None) -> dict:
+        """What a detection stage depends on (with ``sensor``: the particle images
+        rendered again with that sensor instead of the scenario's)."""
+        inputs = {
+            "synptv": version("synptv"),
+            "particles": stage_key(self.particle_inputs()),
+            "detector": self.detector.as_dict(),
+        }
+        if sensor is not None:
+            inputs["particle_sensor"] = asdict(sensor)
+        return inputs
+
     def dataset_and_detections(self) -> tuple[StageOutcome, StageOutcome]:
         """Render the dataset, detecting its particles on the way when the detection
         stage is to be built too; then complete the detection stage."""
-        particles = self.particle_inputs()
-        detect_inputs = {
-            "synptv": version("synptv"),
-            "particles": stage_key(particles),
-            "detector": self.detector.as_dict(),
-        }
         detect_folder = self.out / "detections"
-        detect_key = stage_key(detect_inputs)
+        detect_key = stage_key(self.detect_inputs())
         fused = None
         if not is_built(detect_folder, detect_key):
             target = staging_folder(detect_folder, detect_key) / detect_folder.name
@@ -220,7 +232,7 @@ class _Run:
         dataset = self.timed(
             "render",
             self.out / "dataset",
-            {**particles, "images": self.images},
+            {**self.particle_inputs(), "images": self.images},
             lambda target: build_dataset(
                 target,
                 self.rig,
@@ -233,24 +245,33 @@ class _Run:
             ),
             resume=True,
         )
-        detections = self.timed(
+        return dataset, self.detections(dataset)
+
+    def detections(
+        self, dataset: StageOutcome, *, sensor: Sensor | None = None, folder: str = "detections"
+    ) -> StageOutcome:
+        """The detection stage: the chunks not detected yet are detected, and the store
+        is indexed. With ``sensor``, the particle images are rendered again in memory
+        with it (same particles, same flow, plate images untouched)."""
+        return self.timed(
             "detect",
-            detect_folder,
-            detect_inputs,
-            lambda target: self.complete_detections(target, dataset.folder),
+            self.out / folder,
+            self.detect_inputs(sensor),
+            lambda target: self.complete_detections(target, dataset.folder, sensor),
             resume=True,
         )
-        return dataset, detections
 
-    def complete_detections(self, target: Path, dataset: Path) -> None:
+    def complete_detections(self, target: Path, dataset: Path, sensor: Sensor | None) -> None:
         """Detect the chunks not detected yet (from the images when the dataset has
-        them, else rendering them again in memory) and write the store's index."""
+        them and the sensor is the scenario's, else rendering them again in memory) and
+        write the store's index."""
         target.mkdir(exist_ok=True)
         todo = [c for c in self.chunks if not (target / chunk_name(*c)).is_file()]
-        if self.images:
+        if self.images and sensor is None:
             fn, shared = detect_images_chunk, {"folder": dataset, "detector": self.detector}
         else:
-            job = particle_job(self.rig, self.preset, self.render, detector=self.detector)
+            render = self.render if sensor is None else replace(self.render, sensor=sensor)
+            job = particle_job(self.rig, self.preset, render, detector=self.detector)
             fn, shared = render_detections_chunk, {"job": job, "folder": dataset}
         frames = (self.render.frames,) * len(self.preset.dt)
         tick = self.bar("detect")
@@ -285,13 +306,25 @@ class _Run:
         inputs = {"dataset": dataset.key, **self.settings_inputs}
         return self.timed("truth", self.out / "truth", inputs, build)
 
-    def calibrations(self, dataset: StageOutcome) -> StageOutcome:
-        """Every calibration method, Table 1 and Fig. 3."""
-        methods = self.scenario.calibration.methods
+    def calibrations(
+        self,
+        dataset: StageOutcome,
+        *,
+        methods: tuple[str, ...] | None = None,
+        planes: list[int] | None = None,
+        folder: str = "calibrations",
+    ) -> StageOutcome:
+        """Calibrations (default: every method of the scenario, from every plane),
+        Table 1 on every plane and Fig. 3."""
+        methods = self.scenario.calibration.methods if methods is None else methods
 
         def build(target: Path) -> None:
             result = calibrate_dataset(
-                dataset.folder, methods=methods, out=target, progress=self.bar("calibrate")
+                dataset.folder,
+                methods=methods,
+                out=target,
+                fit_planes=planes,
+                progress=self.bar("calibrate"),
             )
             _write_json(
                 target / "table1.json",
@@ -302,37 +335,61 @@ class _Run:
             save_figure(error_maps(maps, title=title), target / "fig3_error_maps.png")
 
         inputs = {"dataset": dataset.key, "methods": list(methods)}
-        return self.timed("calibrate", self.out / "calibrations", inputs, build)
+        if planes is not None:
+            inputs["planes"] = list(planes)
+        return self.timed("calibrate", self.out / folder, inputs, build)
+
+    def rung_builder(self, detections: StageOutcome, truth_stage: StageOutcome, truth):
+        """What builds the rungs on these detections, against this truth."""
+        store = DetectionStore(detections.folder)
+        truth_dict = json.loads((truth_stage.folder / "truth.json").read_text())
+        return RungBuilder(self, store, truth, truth_dict)
+
+    def rung(
+        self,
+        variant: str,
+        builder: "RungBuilder",
+        detections: StageOutcome,
+        calibrations: StageOutcome | None,
+        folder: Path,
+    ) -> StageOutcome:
+        """The stage of one rung (a reference variant, or the PTV stack with the
+        calibration method ``variant`` from ``calibrations``) in ``folder``."""
+        inputs = {
+            "detections": detections.key,
+            "variant": variant,
+            "links": self.scenario.output.links,
+            **self.settings_inputs,
+        }
+        if variant not in REFERENCE_VARIANTS:
+            inputs["calibration"] = calibrations.key
+        return self.timed(
+            f"ptv {variant}",
+            folder,
+            inputs,
+            lambda target: builder.build(
+                target, variant, None if calibrations is None else calibrations.folder
+            ),
+            resume=True,
+        )
 
     def rungs(self, detections, truth_stage, calibrations, truth: TruthFile) -> dict:
         """Every rung of the error budget, one stage each."""
-        store = DetectionStore(detections.folder)
-        truth_dict = json.loads((truth_stage.folder / "truth.json").read_text())
-        rung = _Rung(self, store, truth, truth_dict)
-        ptv = {}
-        for variant in (*REFERENCE_VARIANTS, *self.scenario.ptv.methods):
-            inputs = {
-                "detections": detections.key,
-                "variant": variant,
-                "links": self.scenario.output.links,
-                **self.settings_inputs,
-            }
-            if variant not in REFERENCE_VARIANTS:
-                inputs["calibration"] = calibrations.key
-            ptv[variant] = self.timed(
-                f"ptv {variant}",
-                self.out / "ptv" / variant,
-                inputs,
-                lambda target, v=variant: rung.build(target, v, calibrations.folder),
-                resume=True,
+        builder = self.rung_builder(detections, truth_stage, truth)
+        return {
+            variant: self.rung(
+                variant, builder, detections, calibrations, self.out / "ptv" / variant
             )
-        return ptv
+            for variant in (*REFERENCE_VARIANTS, *self.scenario.ptv.methods)
+        }
 
 
-class _Rung:
+class RungBuilder:
     """Builds the stage of one rung of the error budget."""
 
-    def __init__(self, run: _Run, store: DetectionStore, truth: TruthFile, truth_dict: dict):
+    def __init__(
+        self, run: ExperimentRun, store: DetectionStore, truth: TruthFile, truth_dict: dict
+    ):
         self.run = run
         self.store = store
         self.truth = truth
@@ -353,7 +410,7 @@ class _Rung:
         )
         return PtvResult(self.store, self.store.cameras, self.unlinked, runs, statistics)
 
-    def build(self, target: Path, variant: str, calibrations: Path) -> None:
+    def build(self, target: Path, variant: str, calibrations: Path | None) -> None:
         target.mkdir(exist_ok=True)
         cache = target / "chunks"
         tick = self.run.bar(f"ptv {variant}")
@@ -465,7 +522,8 @@ def run_stages(
     -------
     ExperimentStages
     """
-    run = _Run(scenario, out, InProcess() if executor is None else executor, progress, keep_images)
+    executor = InProcess() if executor is None else executor
+    run = ExperimentRun(scenario, out, executor, progress, keep_images)
     run.out.mkdir(parents=True, exist_ok=True)
     dataset, detections = run.dataset_and_detections()
     truth = TruthFile(dataset.folder)
@@ -477,7 +535,7 @@ def run_stages(
 
 def _save_detection(quality, folder: Path) -> None:
     """detection.json and the fractional-position histograms (peak-locking diagnostic)."""
-    locking = {name: peak_locking(xy) for name, xy in quality.detected_xy.items()}
+    locking = {name: peak_locking(sums) for name, sums in quality.fractions.items()}
     _write_json(
         folder / "detection.json",
         {

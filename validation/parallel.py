@@ -168,9 +168,7 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
         raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
     environment = {f"{_PRE_SPAWN}.{key}": value for key, value in SINGLE_THREADED.items()}
     with (
-        dask.config.set(
-            {TRIM_THRESHOLD: None, "logging.distributed": "warning", **environment}
-        ),
+        dask.config.set({TRIM_THRESHOLD: None, "logging.distributed": "warning", **environment}),
         LocalCluster(
             n_workers=n,
             threads_per_worker=1,

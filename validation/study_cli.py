@@ -1,23 +1,33 @@
-"""``synptv study``: parameter sweeps of a scenario on Dask, resumable, with a table and figure.
+"""``synptv study``: parameter sweeps of a scenario, resumable, with a table and figure.
 
-Studies: ``planes`` and ``obliquity`` (calibration, :mod:`validation.study_calibration`)
-and ``dt``, ``noise`` and ``seeding`` (multi-Δt statistics,
-:mod:`validation.study_multi_dt`). Every sweep point is one Dask task; its result is
-saved as it finishes, so an interrupted study run again with the same inputs computes
-only the missing points. Output, under ``<out>/<study>/``::
+Studies: ``planes``, ``dt``, ``noise``, ``seeding`` and ``obliquity``, on two chains:
 
-    points/<point id>.json   inputs and result of each point
-    <study>.json             the table: a list of rows
-    <study>.csv              the same table
-    <study>.png              the summary figure
+- ``rendered`` (default): every point through images, as ``synptv run`` measures
+  (:mod:`validation.rendered_study`); the points run one after the other, each
+  rendering, detecting and matching its chunks on the executor (this process, a local
+  Dask cluster or a scheduler), and reusing the stages it shares with other points;
+- ``ideal``: the fast stand-in without images, exact dot projections plus noise
+  (``planes``, ``obliquity``: :mod:`validation.study_calibration`) or KS positions plus
+  noise (``dt``, ``noise``, ``seeding``: :mod:`validation.study_multi_dt`), one Dask task
+  per point.
+
+``--seeds K`` repeats every point with K independent seeds. Each point is saved as it
+finishes, so an interrupted study run again with the same inputs computes only the
+missing points. The rendered chain's stages (datasets, detections, calibrations, PTV
+runs) go to ``<out>/work/``, where every study of ``<out>`` finds them. Output, under
+``<out>/<study>/``::
+
+    points/<point id>.json   inputs and result of each point (per seed)
+    study.json               {"study", "chain", "scenario", "points": the table}
+    study.csv                the same table (:mod:`validation.study_table`)
+    study.png                the summary figure
 """
 
-import csv
-import io
 import os
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
+from importlib.metadata import version
 from pathlib import Path
 
 from matplotlib.figure import Figure
@@ -25,14 +35,22 @@ from matplotlib.figure import Figure
 from simulator.presets import flow_preset
 from validation.calibration_study import relative_to_most_planes
 from validation.figures import obliquity_curves, plane_count_curves, save_figure
-from validation.files import write_json_atomic, write_text_atomic
-from validation.parallel import dask_client
+from validation.files import as_json, write_json_atomic, write_text_atomic
+from validation.parallel import Executor, check_parallel_options, dask_client, executor
 from validation.progress import ProgressBar
+from validation.rendered_study import evaluate_point, study_points
 from validation.scenario import Scenario, load_scenario, scenario_presets
 from validation.study_calibration import obliquity_sweep, planes_sweep
 from validation.study_figures import multi_dt_figure
-from validation.study_multi_dt import DEFAULT_NOISE_UM, dt_sweep, noise_sweep, seeding_sweep
-from validation.study_runner import Sweep, run_sweep
+from validation.study_multi_dt import (
+    DEFAULT_NOISE_UM,
+    R_OVER_ETA,
+    dt_sweep,
+    noise_sweep,
+    seeding_sweep,
+)
+from validation.study_runner import Sweep, load_point, run_sweep
+from validation.study_table import csv_text, study_figure
 
 
 @dataclass(frozen=True)
@@ -147,17 +165,132 @@ def _title(sweep: Sweep) -> str:
     )
 
 
-def _csv_text(rows: list[dict]) -> str:
-    """The rows as CSV (columns in order of first appearance; lists as JSON)."""
-    columns = list(dict.fromkeys(key for row in rows for key in row))
-    stream = io.StringIO()
-    writer = csv.DictWriter(stream, fieldnames=columns, lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow(
-            {k: " ".join(map(str, v)) if isinstance(v, list) else v for k, v in row.items()}
+def _common_row(study: str, row: dict, seed: int) -> dict:
+    """An ideal-chain row with the columns of every study table (null where the chain
+    does not measure them; see :mod:`validation.study_table`), its own columns kept."""
+    common = {
+        "seed": seed,
+        "table1_d_um": row.get("table1_d_um"),
+        "model_error_um": row.get("model_d_um", row.get("model_d_um_mean")),
+        "yield": None,
+        "ghosts": None,
+        "c1_rel_err": None,
+        "c1_rel_se": None,
+        "epsilon_rel_err": row.get("epsilon_error"),
+        "epsilon_rel_se": None,
+    }
+    if "c1_error_10eta" in row:
+        common["c1_rel_err"] = {str(n): row[f"c1_error_{n}eta"] for n in R_OVER_ETA}
+        common["c1_rel_se"] = {str(n): row[f"c1_se_{n}eta"] for n in R_OVER_ETA}
+    if study == "obliquity":
+        common["table1_d_um"] = row.get("table1_d_um")
+        common["model_error_um"] = row.get("model_d_um")
+    return {**common, **row}
+
+
+def _run_ideal(
+    study: str,
+    scenario: Scenario,
+    folder: Path,
+    *,
+    settings: StudySettings,
+    seeds: int,
+    workers: int | None,
+    scheduler: str | None,
+    quiet: bool,
+    on_saved: Callable[[str], None] | None,
+) -> tuple[list[dict], Figure, tuple, tuple]:
+    """The ideal chain (no images): the sweeps of every seed on Dask."""
+    spec = STUDIES[study]
+    rows, computed, reused, figure = [], [], [], None
+    for s in range(seeds):
+        seeded = scenario.with_seed(scenario.seed + s)
+        sweep = spec.sweep(seeded, settings)
+
+        def connect(pending: int):
+            if scheduler is not None:
+                return dask_client(scheduler=scheduler)
+            return dask_client(workers=min(workers or os.cpu_count() or 1, pending))
+
+        outcome = run_sweep(
+            sweep,
+            folder / "points" / f"seed-{seeded.seed}",
+            connect,
+            progress=ProgressBar(f"study {study} seed {seeded.seed}", enabled=not quiet),
+            on_saved=on_saved,
         )
-    return stream.getvalue()
+        results = list(outcome.results.values())
+        table = spec.table([row for result in results for row in result["rows"]])
+        rows += [_common_row(study, row, seeded.seed) for row in table]
+        computed += [f"seed-{seeded.seed}/{p}" for p in outcome.computed]
+        reused += [f"seed-{seeded.seed}/{p}" for p in outcome.reused]
+        if figure is None:
+            figure = spec.figure(sweep, table, results)
+            figure.suptitle(_title(sweep), fontsize=9)
+    return rows, figure, tuple(computed), tuple(reused)
+
+
+def _point_inputs(study: str, point) -> dict:
+    """What a rendered point's result depends on, as recorded in its file."""
+    return as_json(
+        {
+            "synptv": version("synptv"),
+            "study": study,
+            "chain": "rendered",
+            "scenario": point.scenario.as_dict(),
+            "point": point.params,
+        }
+    )
+
+
+def _run_rendered(
+    study: str,
+    scenario: Scenario,
+    folder: Path,
+    *,
+    seeds: int,
+    values: list | None,
+    ex: Executor,
+    quiet: bool,
+    on_saved: Callable[[str], None] | None,
+) -> tuple[list[dict], Figure, tuple, tuple]:
+    """The rendered chain: each point through images, points saved as they finish."""
+    points = study_points(study, scenario, seeds, values)
+    saved_folder = folder / "points"
+    saved_folder.mkdir(parents=True, exist_ok=True)
+    rows, computed, reused = [], [], []
+    todo = []
+    for point in points:
+        saved = load_point(saved_folder / f"{point.id}.json", _point_inputs(study, point))
+        if saved is None:
+            todo.append(point)
+        else:
+            rows.append((point.id, saved))
+            reused.append(point.id)
+    bar = ProgressBar(f"study {study}", enabled=not quiet)
+    for point in todo:
+        result = evaluate_point(
+            point,
+            folder.parent / "work",
+            ex,
+            progress=lambda name, p=point.id: ProgressBar(f"  {p}: {name}", enabled=not quiet),
+        )
+        record = as_json({"inputs": _point_inputs(study, point), "result": result})
+        write_json_atomic(saved_folder / f"{point.id}.json", record)
+        rows.append((point.id, record["result"]))
+        computed.append(point.id)
+        bar(len(rows), len(points))
+        if on_saved is not None:
+            on_saved(point.id)
+    order = {p.id: i for i, p in enumerate(points)}
+    table = [row for _, result in sorted(rows, key=lambda r: order[r[0]]) for row in result]
+    title = (
+        f"study {study} on rendered images: scenario {scenario.name} "
+        f"(flow {scenario.flow.preset}, {scenario.particles.count} tracers, "
+        f"{scenario.particles.frames} frame pairs per Δt), seeds {scenario.seed}…"
+        f"{scenario.seed + seeds - 1}"
+    )
+    return table, study_figure(study, table, title=title), tuple(computed), tuple(reused)
 
 
 def run_study(
@@ -165,13 +298,16 @@ def run_study(
     scenario: str | Path | Scenario,
     out: Path,
     *,
+    chain: str = "rendered",
+    seeds: int = 1,
+    values: list | None = None,
     settings: StudySettings = StudySettings(),
     workers: int | None = None,
     scheduler: str | None = None,
     quiet: bool = False,
     on_saved: Callable[[str], None] | None = None,
 ) -> StudyFiles:
-    """Run (or resume) one study and write its table, CSV and figure.
+    """Run (or resume) one study and write ``study.json``, ``study.csv`` and ``study.png``.
 
     Parameters
     ----------
@@ -181,16 +317,22 @@ def run_study(
         A scenario preset name, a scenario file, or a scenario.
     out : Path
         Output folder; the study writes ``<out>/<study>/`` (module docstring).
+    chain : {"rendered", "ideal"}
+        Through images (every stage of ``synptv run``) or the fast stand-in.
+    seeds : int
+        Independent repetitions of every point (seeds scenario.seed, +1, …).
+    values : list, optional
+        The swept values to run (rendered chain): plane counts, or Δt index lists.
     settings : StudySettings
-        Noise levels and sizes beyond the scenario.
+        Noise levels and sizes of the ideal chain.
     workers : int or None
-        Local worker processes (None: one per CPU, at most one per point to compute).
+        Local worker processes (None: one per CPU).
     scheduler : str or None
         Address of a running Dask scheduler instead of a local cluster.
     quiet : bool
         No progress bar.
     on_saved : callable(point id), optional
-        Called after each point is saved (see :func:`validation.study_runner.run_sweep`).
+        Called after each point is saved.
 
     Returns
     -------
@@ -199,56 +341,92 @@ def run_study(
     Raises
     ------
     ValueError
-        Unknown study or scenario, both ``workers`` and ``scheduler``, bad options,
-        an unreachable scheduler.
+        Unknown study, chain or scenario, bad options or values, an unreachable
+        scheduler: before any work starts.
     """
     if study not in STUDIES:
         raise ValueError(f"unknown study {study!r}; known: {', '.join(STUDIES)}")
-    if workers is not None and scheduler is not None:
-        raise ValueError("give --workers or --scheduler, not both")
-    if workers is not None and workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {workers}")
+    if chain not in ("rendered", "ideal"):
+        raise ValueError(f"--chain must be 'rendered' or 'ideal', got {chain!r}")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise ValueError(f"--seeds must be an integer >= 1, got {seeds!r}")
+    check_parallel_options(workers, scheduler)
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
-    spec = STUDIES[study]
-    sweep = spec.sweep(scenario, settings)
+    if chain == "rendered":
+        study_points(study, scenario, 1, values)  # checks the values
+    elif values is not None:
+        raise ValueError("--planes and --dt-subsets choose points of the rendered chain only")
+    else:
+        STUDIES[study].sweep(scenario, settings)  # checks the options
     folder = Path(out) / study
-    folder.mkdir(parents=True, exist_ok=True)
-
-    def connect(pending: int):
-        if scheduler is not None:
-            return dask_client(scheduler=scheduler)
-        return dask_client(workers=min(workers or os.cpu_count() or 1, pending))
-
-    outcome = run_sweep(
-        sweep,
-        folder / "points",
-        connect,
-        progress=ProgressBar(f"study {study}", enabled=not quiet),
-        on_saved=on_saved,
-    )
-    results = list(outcome.results.values())
-    rows = spec.table([row for result in results for row in result["rows"]])
-    figure = spec.figure(sweep, rows, results)
-    figure.suptitle(_title(sweep), fontsize=9)
+    if chain == "rendered":
+        with executor(workers=workers, scheduler=scheduler) as ex:
+            folder.mkdir(parents=True, exist_ok=True)
+            rows, figure, computed, reused = _run_rendered(
+                study,
+                scenario,
+                folder,
+                seeds=seeds,
+                values=values,
+                ex=ex,
+                quiet=quiet,
+                on_saved=on_saved,
+            )
+    else:
+        folder.mkdir(parents=True, exist_ok=True)
+        rows, figure, computed, reused = _run_ideal(
+            study,
+            scenario,
+            folder,
+            settings=settings,
+            seeds=seeds,
+            workers=workers,
+            scheduler=scheduler,
+            quiet=quiet,
+            on_saved=on_saved,
+        )
+    table = {"study": study, "chain": chain, "scenario": scenario.name, "points": rows}
     return StudyFiles(
-        table=write_json_atomic(folder / f"{study}.json", rows),
-        csv=write_text_atomic(folder / f"{study}.csv", _csv_text(rows)),
-        figure=save_figure(figure, folder / f"{study}.png"),
-        computed=outcome.computed,
-        reused=outcome.reused,
+        table=write_json_atomic(folder / "study.json", table),
+        csv=write_text_atomic(folder / "study.csv", csv_text(rows)),
+        figure=save_figure(figure, folder / "study.png"),
+        computed=computed,
+        reused=reused,
     )
+
+
+def _values(text: str | None, study: str) -> list | None:
+    """--planes "3,5,7,13" or --dt-subsets "0,1,2,3,4;2,3,4;0,4" as a list."""
+    if text is None:
+        return None
+    try:
+        if study == "planes":
+            return [int(v) for v in text.split(",")]
+        return [[int(v) for v in part.split(",")] for part in text.split(";")]
+    except ValueError:
+        raise ValueError(
+            f"cannot read the values {text!r}: integers separated by , (and ;)"
+        ) from None
 
 
 def _run_study_command(args) -> int:
     settings = StudySettings(
         dot_noise_px=args.noise, position_noise_um=args.position_noise, snapshots=args.snapshots
     )
+    given = {"planes": args.planes, "dt": args.dt_subsets}
+    extra = [name for name, v in given.items() if v is not None and name != args.study]
+    if extra:
+        option = "--planes" if "planes" in extra else "--dt-subsets"
+        raise ValueError(f"{option} is an option of the {extra[0]} study, not of {args.study}")
     try:
         files = run_study(
             args.study,
             args.scenario,
             Path(args.out),
+            chain=args.chain,
+            seeds=args.seeds,
+            values=_values(given.get(args.study), args.study),
             settings=settings,
             workers=args.workers,
             scheduler=args.scheduler,
@@ -273,9 +451,12 @@ def add_study_parser(subparsers) -> None:
     about = "; ".join(f"{name}: {s.about}" for name, s in STUDIES.items())
     study = subparsers.add_parser(
         "study",
-        help="parameter sweeps on Dask (planes, obliquity, dt, noise, seeding): table + figure",
-        description=f"Sweep one parameter of a scenario, one Dask task per point, saving each "
-        f"point as it finishes (run again to resume). {about}.",
+        help="parameter sweeps (planes, obliquity, dt, noise, seeding): table + figure",
+        description="Sweep one parameter of a scenario, on rendered images (--chain "
+        "rendered, default: every point renders or reuses images, detects, calibrates, "
+        "matches and compares with the truth) or on the fast stand-in without images "
+        f"(--chain ideal: {about}). Each point is saved as it finishes (run again to "
+        "resume); --seeds K repeats every point with independent seeds.",
     )
     study.add_argument("study", metavar="STUDY", help=f"one of {', '.join(STUDIES)}")
     study.add_argument(
@@ -290,6 +471,22 @@ def add_study_parser(subparsers) -> None:
         "--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786"
     )
     study.add_argument("--out", default="synptv-study", help="output folder")
+    study.add_argument(
+        "--chain",
+        default="rendered",
+        choices=("rendered", "ideal"),
+        help="through images (default) or the fast stand-in without images",
+    )
+    study.add_argument(
+        "--seeds", type=int, default=1, help="independent seeds per point (error bars)"
+    )
+    study.add_argument(
+        "--planes", help="plane counts of the planes study, e.g. 3,5,7,13 (rendered chain)"
+    )
+    study.add_argument(
+        "--dt-subsets",
+        help="Δt index subsets of the dt study, e.g. '0,1,2,3,4;2,3,4;0,4' (rendered chain)",
+    )
     study.add_argument(
         "--noise", type=float, default=0.05, help="dot-centre noise, px (planes, obliquity)"
     )

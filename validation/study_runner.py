@@ -106,7 +106,7 @@ def seed_sequence(seed: int, *keys: object) -> np.random.SeedSequence:
     return np.random.SeedSequence([int(seed), *words])
 
 
-def _load_point(path: Path, inputs: dict) -> dict | None:
+def load_point(path: Path, inputs: dict) -> dict | None:
     """The saved result of a point if its file records exactly ``inputs``, else None."""
     try:
         saved = json.loads(path.read_text())
@@ -158,7 +158,7 @@ def run_sweep(
         raise ValueError(f"{sweep.study}: point ids must be unique, got {ids}")
     results = {}
     for point in sweep.points:
-        saved = _load_point(folder / f"{point.id}.json", sweep.inputs(point))
+        saved = load_point(folder / f"{point.id}.json", sweep.inputs(point))
         if saved is not None:
             results[point.id] = saved
     reused = tuple(i for i in ids if i in results)

@@ -22,6 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ptv.camera_model import CameraModel
+from ptv.detect import FractionSums
 from ptv.frames import FrameDetections
 from ptv.pipeline import PipelineSettings
 from ptv.stats.links import RunParticles, inside_box
@@ -114,8 +115,9 @@ class DetectionQuality:
         :data:`ASSOCIATION_RADIUS`.
     spurious : ndarray, shape (C,)
         Fraction of detections associated with no particle.
-    detected_xy : dict of str to ndarray, shape (N, 2)
-        Detected positions of the associated particles, px (for the peak-locking test).
+    fractions : dict of str to FractionSums
+        The fractional positions of the associated particles' detections, per camera
+        (pooled for the peak-locking test, :func:`ptv.detect.peak_locking`).
     dt : ndarray, shape (K,)
         The time separations, s.
     position_noise : ndarray, shape (3,)
@@ -133,7 +135,7 @@ class DetectionQuality:
     rms_error_px: np.ndarray
     found: np.ndarray
     spurious: np.ndarray
-    detected_xy: dict
+    fractions: dict
     dt: np.ndarray
     position_noise: np.ndarray
     displacement_noise: np.ndarray
@@ -161,7 +163,7 @@ class _DetectionTally:
         self.sq_err = np.zeros((n, 2))
         self.found, self.visible = np.zeros(n), np.zeros(n)
         self.detected, self.spurious = np.zeros(n), np.zeros(n)
-        self.xy: list[list[np.ndarray]] = [[] for _ in names]
+        self.fractions = [FractionSums.of(np.empty((0, 2))) for _ in names]
 
     def add(self, c: int, detected: np.ndarray, exact: np.ndarray, visible, row) -> None:
         """Camera c's detections (D, 2), the exact images (P, 2), visibility and rows (P,)."""
@@ -171,14 +173,14 @@ class _DetectionTally:
         self.visible[c] += visible.sum()
         self.detected[c] += len(detected)
         self.spurious[c] += len(detected) - hit.sum()
-        self.xy[c].append(detected[row[hit]])
+        self.fractions[c] = self.fractions[c] + FractionSums.of(detected[row[hit]])
 
     def merged(self, other: "_DetectionTally") -> "_DetectionTally":
-        """This tally followed by ``other`` (the xy lists in that order)."""
+        """The sum of this tally and ``other``."""
         out = _DetectionTally([None] * len(self.found))
         for name in ("sq_err", "found", "visible", "detected", "spurious"):
             setattr(out, name, getattr(self, name) + getattr(other, name))
-        out.xy = [a + b for a, b in zip(self.xy, other.xy, strict=True)]
+        out.fractions = [a + b for a, b in zip(self.fractions, other.fractions, strict=True)]
         return out
 
 
@@ -342,7 +344,7 @@ def detected_runs(
         rms_error_px=np.sqrt(tally.sq_err / np.maximum(tally.found, 1)[:, None]),
         found=tally.found / np.maximum(tally.visible, 1),
         spurious=tally.spurious / np.maximum(tally.detected, 1),
-        detected_xy={n: np.concatenate(v) for n, v in zip(cameras, tally.xy, strict=True)},
+        fractions=dict(zip(cameras, tally.fractions, strict=True)),
         dt=np.asarray(dt),
         position_noise=position_noise,
         displacement_noise=displacement_noise,

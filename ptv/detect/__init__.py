@@ -14,12 +14,13 @@ from ptv.detect._image import check_image
 from ptv.detect.background import BackgroundEstimate, estimate_background
 from ptv.detect.detections import DetectionFlag, Detections
 from ptv.detect.locate import detect_particles
-from ptv.detect.peaklocking import PeakLocking, peak_locking
+from ptv.detect.peaklocking import FractionSums, PeakLocking, peak_locking
 
 __all__ = [
     "BackgroundEstimate",
     "DetectionFlag",
     "Detections",
+    "FractionSums",
     "PeakLocking",
     "check_image",
     "detect_particles",

@@ -74,13 +74,69 @@ def _rayleigh_p(n: int, r: float) -> float:
     return float(min(1.0, np.exp(log_p)))
 
 
+@dataclass(frozen=True, eq=False)
+class FractionSums:
+    """What the uniformity tests need of a set of positions: sums that pool by addition.
+
+    Detections of many images (or of chunks computed apart) are tested together by
+    adding their sums, without keeping their positions.
+
+    Parameters
+    ----------
+    counts : ndarray, shape (2, B), int64
+        Histograms of frac(x) and frac(y) over B bins from −½ to ½ px.
+    sum_cos, sum_sin : ndarray, shape (2,), float64
+        Σ cos 2πu and Σ sin 2πu for x and y.
+    n : int
+        Number of positions.
+    """
+
+    counts: np.ndarray
+    sum_cos: np.ndarray
+    sum_sin: np.ndarray
+    n: int
+
+    @classmethod
+    def of(cls, positions: Detections | object, *, bins: int = 10) -> "FractionSums":
+        """The sums of positions (N, 2), px (or of Detections); N may be 0.
+
+        Raises
+        ------
+        ValueError
+            Wrong shape, non-finite values or bad ``bins``.
+        """
+        xy = positions.xy if isinstance(positions, Detections) else np.asarray(positions)
+        if xy.ndim != 2 or xy.shape[1] != 2:
+            raise ValueError(f"positions must have shape (N, 2), got {xy.shape}")
+        if not (np.issubdtype(xy.dtype, np.number) and np.isfinite(xy).all()):
+            raise ValueError("positions must be finite real numbers")
+        if not isinstance(bins, int | np.integer) or isinstance(bins, bool) or bins < 2:
+            raise ValueError(f"bins must be an integer >= 2, got {bins!r}")
+        frac = xy.astype(np.float64) - np.floor(xy + 0.5)
+        idx = np.minimum(((frac + 0.5) * bins).astype(np.int64), bins - 1)
+        counts = np.stack([np.bincount(idx[:, a], minlength=bins) for a in range(2)])
+        phase = 2.0 * np.pi * frac
+        return cls(counts, np.cos(phase).sum(axis=0), np.sin(phase).sum(axis=0), len(xy))
+
+    def __add__(self, other: "FractionSums") -> "FractionSums":
+        if self.counts.shape != other.counts.shape:
+            raise ValueError("cannot add fraction sums of different bins")
+        return FractionSums(
+            self.counts + other.counts,
+            self.sum_cos + other.sum_cos,
+            self.sum_sin + other.sum_sin,
+            self.n + other.n,
+        )
+
+
 def peak_locking(positions: Detections | object, *, bins: int = 10) -> PeakLocking:
     """Histogram the fractional parts of positions and test them for uniformity.
 
     Parameters
     ----------
-    positions : Detections or array_like, shape (N, 2)
-        Sub-pixel positions (x, y), px; N >= 1, finite.
+    positions : Detections, array_like (N, 2) or FractionSums
+        Sub-pixel positions (x, y), px; N >= 1, finite. Or the pooled sums of several
+        sets of positions (then ``bins`` is theirs).
     bins : int
         Histogram bins over one pixel, >= 2.
 
@@ -93,32 +149,23 @@ def peak_locking(positions: Detections | object, *, bins: int = 10) -> PeakLocki
     ValueError
         Wrong shape, no positions, non-finite values or bad ``bins``.
     """
-    xy = positions.xy if isinstance(positions, Detections) else np.asarray(positions)
-    if xy.ndim != 2 or xy.shape[1] != 2:
-        raise ValueError(f"positions must have shape (N, 2), got {xy.shape}")
-    if xy.shape[0] == 0:
+    sums = (
+        positions if isinstance(positions, FractionSums) else FractionSums.of(positions, bins=bins)
+    )
+    n = sums.n
+    if n == 0:
         raise ValueError("positions is empty: need at least one (x, y) to test")
-    if not (np.issubdtype(xy.dtype, np.number) and np.isfinite(xy).all()):
-        raise ValueError("positions must be finite real numbers")
-    if not isinstance(bins, int | np.integer) or isinstance(bins, bool) or bins < 2:
-        raise ValueError(f"bins must be an integer >= 2, got {bins!r}")
-    xy = xy.astype(np.float64)
-    n = xy.shape[0]
-    frac = xy - np.floor(xy + 0.5)
+    bins = sums.counts.shape[1]
     edges = np.linspace(-0.5, 0.5, bins + 1)
-    idx = np.minimum(((frac + 0.5) * bins).astype(np.int64), bins - 1)
-    counts = np.stack([np.bincount(idx[:, a], minlength=bins) for a in range(2)])
-    phase = 2.0 * np.pi * frac
-    c = np.cos(phase).mean(axis=0)
-    s = np.sin(phase).mean(axis=0)
+    c, s = sums.sum_cos / n, sums.sum_sin / n
     r = np.hypot(c, s)
     p_h = np.array([_rayleigh_p(n, float(v)) for v in r])
     expected = n / bins
-    chi2 = ((counts - expected) ** 2 / expected).sum(axis=1)
+    chi2 = ((sums.counts - expected) ** 2 / expected).sum(axis=1)
     p_c = stats.chi2.sf(chi2, bins - 1)
     result = PeakLocking(
         edges=edges,
-        counts=counts,
+        counts=sums.counts,
         amplitude=c / np.pi,
         harmonic=r,
         p_harmonic=p_h,

@@ -236,4 +236,3 @@ class DetectionStore:
     def detections(self, k: int, m: int, frame: str) -> list[np.ndarray]:
         """Centres (N_c, 2), px, per camera, of frame ``frame`` of snapshot m at Δt_k."""
         return self.chunk(m).detections(k, m, frame)
-
