@@ -62,7 +62,7 @@ def csv_text(rows: Sequence[Mapping]) -> str:
     return stream.getvalue()
 
 
-def _series(rows: Sequence[Mapping], key: str, x_key: str, value, error):
+def _series(rows: Sequence[Mapping], x_key: str, value, error):
     """Per parameter value: mean of ``value(row)`` over the rows (seeds) and its error."""
     xs = list(dict.fromkeys(r[x_key] for r in rows))
     mean, err = [], []
@@ -79,8 +79,30 @@ def _series(rows: Sequence[Mapping], key: str, x_key: str, value, error):
     return xs, np.array(mean), np.array(err)
 
 
+def _groups(rows: Sequence[Mapping]) -> dict[str, list]:
+    """The rows per calibration method (and window direction), in order of appearance."""
+    groups: dict[str, list] = {}
+    for row in rows:
+        name = row.get("method") or "model-free"
+        if "direction_deg" in row:
+            where = (
+                f"{row['direction_deg']:g}° diagonal" if row["direction_deg"] else "camera plane"
+            )
+            name = f"{name}, {where}"
+        groups.setdefault(name, []).append(row)
+    return groups
+
+
+#: Line styles of the quantities drawn in one panel.
+_STYLES = ("-", "--", ":")
+_MARKERS = ("o", "s", "^")
+
+
 def study_figure(study: str, rows: Sequence[Mapping], *, title: str = "") -> Figure:
     """Calibration error, matching, c₁ and ε against the study's parameter.
+
+    One colour per calibration method (and window direction), one line style per
+    quantity of a panel.
 
     Parameters
     ----------
@@ -92,83 +114,74 @@ def study_figure(study: str, rows: Sequence[Mapping], *, title: str = "") -> Fig
         Figure title.
     """
     x_key, label, categorical = PARAMETERS[study]
-    groups = {}
-    for row in rows:
-        name = row.get("method", "model-free")
-        if "direction_deg" in row:
-            name = (
-                f"{name}, {row['direction_deg']:g}° diagonal"
-                if row["direction_deg"]
-                else (f"{name}, camera plane")
-            )
-        groups.setdefault(name, []).append(row)
+    groups = _groups(rows)
     figure, axes = plt.subplots(2, 2, figsize=(11.0, 8.0), layout="constrained")
-    panels = (
-        (
-            axes[0, 0],
-            "calibration error (µm)",
-            (("table1_d_um", "Table 1 d"), ("model_error_um", "model error")),
-            1.0,
-        ),
-        (axes[0, 1], "matching (%)", (("yield", "yield"), ("ghosts", "ghosts")), 100.0),
-    )
-    for ax, ylabel, quantities, scale in panels:
-        for name, group in groups.items():
-            for key, what in quantities:
-                xs, mean, err = _series(
-                    group, key, x_key, lambda r, k=key: r.get(k), lambda r: None
-                )
-                if np.isfinite(mean).any():
-                    _plot(ax, xs, mean * scale, err * scale, f"{what} ({name})", categorical)
+    scalar = {
+        axes[0, 0]: ("calibration error (µm)", 1.0, ("table1_d_um", "model_error_um")),
+        axes[0, 1]: ("matching yield and ghosts (%)", 100.0, ("yield", "ghosts")),
+    }
+    names = {"table1_d_um": "Table 1 d", "model_error_um": "model error"}
+    for ax, (ylabel, scale, keys) in scalar.items():
+        for colour, (name, group) in enumerate(groups.items()):
+            for style, key in zip(_STYLES, keys, strict=False):
+                xs, mean, err = _series(group, x_key, lambda r, k=key: r.get(k), lambda r: None)
+                what = f"{names.get(key, key)} ({name})"
+                _plot(ax, xs, mean * scale, err * scale, what, categorical, colour, style)
         ax.set_ylabel(ylabel)
-    ax = axes[1, 0]
-    for name, group in groups.items():
-        for n in R_KEYS:
+    for colour, (name, group) in enumerate(groups.items()):
+        for i, n in enumerate(R_KEYS):
             xs, mean, err = _series(
                 group,
-                "c1",
                 x_key,
                 lambda r, n=n: (r.get("c1_rel_err") or {}).get(n),
                 lambda r, n=n: (r.get("c1_rel_se") or {}).get(n),
             )
-            if np.isfinite(mean).any():
-                _plot(ax, xs, mean * 100, err * 100, f"{n}η ({name})", categorical)
-    ax.axhline(0.0, color="0.5", lw=0.8)
-    ax.set_ylabel("c₁ / sample truth of its pairs − 1 (%)")
-    ax = axes[1, 1]
-    for name, group in groups.items():
+            label_n = f"{n}η ({name})"
+            _plot(
+                axes[1, 0],
+                xs,
+                mean * 100,
+                err * 100,
+                label_n,
+                categorical,
+                colour,
+                _STYLES[i],
+                _MARKERS[i],
+            )
         xs, mean, err = _series(
-            group,
-            "eps",
-            x_key,
-            lambda r: r.get("epsilon_rel_err"),
-            lambda r: r.get("epsilon_rel_se"),
+            group, x_key, lambda r: r.get("epsilon_rel_err"), lambda r: r.get("epsilon_rel_se")
         )
-        if np.isfinite(mean).any():
-            _plot(ax, xs, mean * 100, err * 100, name, categorical)
-    ax.axhline(0.0, color="0.5", lw=0.8)
-    ax.set_ylabel("plateau ε / estimator on the exact D_LL − 1 (%)")
+        _plot(axes[1, 1], xs, mean * 100, err * 100, name, categorical, colour, "-")
+    axes[1, 0].set_ylabel("c₁ / sample truth of its pairs − 1 (%)")
+    axes[1, 1].set_ylabel("plateau ε / estimator on the exact D_LL − 1 (%)")
+    for ax in axes[1]:
+        ax.axhline(0.0, color="0.5", lw=0.8)
     for ax in axes.ravel():
         ax.set_xlabel(label)
         ax.grid(True, alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=7)
         else:
-            ax.text(0.5, 0.5, "not measured by this chain", ha="center", transform=ax.transAxes)
+            ax.text(0.5, 0.5, "not measured on this chain", ha="center", transform=ax.transAxes)
     if title:
         figure.suptitle(title, fontsize=9)
     return figure
 
 
-def _plot(ax, xs, mean, err, label, categorical) -> None:
+def _plot(ax, xs, mean, err, label, categorical, colour, style, marker="o") -> None:
+    """One series with its error bars (nothing when every value is missing)."""
+    if not np.isfinite(mean).any():
+        return
     positions = np.arange(len(xs)) if categorical else np.asarray(xs, dtype=float)
     ax.errorbar(
         positions,
         mean,
         yerr=np.where(np.isfinite(err), err, 0.0),
-        marker="o",
+        color=f"C{colour}",
+        ls=style,
+        marker=marker,
+        ms=4,
         capsize=3,
         label=label,
     )
-    if categorical:
-        ax.set_xticks(positions, [str(x) for x in xs], rotation=20, fontsize=8)
+    ax.set_xticks(positions, [str(x) if categorical else f"{x:g}" for x in xs], fontsize=8)
