@@ -173,7 +173,9 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
             n_workers=n,
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            # A port of its own: with None the scheduler's HTTP server still tries the
+            # default 8787, and warns when another cluster holds it.
+            dashboard_address=":0",
             env=SINGLE_THREADED,
         ) as cluster,
         Client(cluster) as client,

@@ -86,7 +86,7 @@ def test_an_interrupted_study_resumes_without_recomputing_finished_points(tmp_pa
 
 def test_a_study_runs_on_an_existing_scheduler(tmp_path, capsys):
     with LocalCluster(
-        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
     ) as cluster:
         args = ["study", "planes", *IDEAL, "--scheduler", cluster.scheduler_address]
         assert main([*args, "--out", str(tmp_path), "--quiet"]) == 0
