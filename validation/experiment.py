@@ -150,11 +150,6 @@ def _ptv_figures(result: PtvResult, folder: Path, truth: dict) -> None:
     )
 
 
-def _save_ptv(result: PtvResult, folder: Path, truth: dict, calibration: str) -> None:
-    save_results(result, folder, calibration=calibration)
-    _ptv_figures(result, folder, truth)
-
-
 class ExperimentRun:
     """The stages of one scenario under a folder: what runs them, their times.
 
@@ -275,10 +270,10 @@ class ExperimentRun:
             fn, shared = render_detections_chunk, {"job": job, "folder": dataset}
         frames = (self.render.frames,) * len(self.preset.dt)
         tick = self.bar("detect")
-        for i, found in self.executor.map(fn, todo, shared=shared):
+        for done, (i, found) in enumerate(self.executor.map(fn, todo, shared=shared), 1):
             write_chunk(target / chunk_name(*todo[i]), found, frames=frames)
             if tick is not None:
-                tick(i + 1, len(todo))
+                tick(done, len(todo))
         write_index(
             target,
             cameras=self.rig.camera_names,

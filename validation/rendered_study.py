@@ -11,7 +11,10 @@ studies of one output folder too), and
   traverse (model-free);
 - ``dt`` runs the whole chain once and recomputes the statistics on Δt subsets of the
   same recordings (all of them, the three largest, the smallest and the largest, and
-  three or four spread over the set);
+  three or four spread over the set), twice: as if only the subset's Δt had been
+  recorded (``dt_population`` "these dt alone": the particles linked at those Δt; with
+  fewer than four Δt the trajectory test cannot run and mislinks stay in), and refitted
+  on the pairs of every Δt's particles ("every dt": the paper's subset study);
 - ``noise`` renders the flow and the plate once and renders the particle images again
   for each read noise of the camera (the detection noise follows);
 - ``seeding`` (tracers in the sheet) and ``obliquity`` (the windows' obliquity, every
@@ -288,55 +291,87 @@ def evaluate_point(
     for method in methods:
         name = method if point.sensor is None else f"{method}-{tag}"
         stage = run.rung(method, builder, detections, calibrations, run.out / "ptv" / name)
-        scores = _rung_scores(stage.folder, truth_dict, run, truth, point.dt)
         cameras = load_calibrations(calibrations.folder / f"{method}.h5")
-        rows.append(
-            {
-                "seed": scenario.seed,
-                **point.params,
-                "method": method,
-                "table1_d_um": table1[method]["nominal"]["d_um"],
-                "model_error_um": model_error(cameras, truth, dataset.folder) * 1e6,
-                **scores,
-            }
-        )
+        calibration = {
+            "table1_d_um": table1[method]["nominal"]["d_um"],
+            "model_error_um": model_error(cameras, truth, dataset.folder) * 1e6,
+        }
+        for scores in _rung_scores(stage.folder, truth_dict, run, truth, point.dt):
+            if point.dt is None:
+                scores.pop("dt_population")
+            rows.append(
+                {"seed": scenario.seed, **point.params, "method": method, **calibration, **scores}
+            )
     return rows
 
 
 def _rung_scores(
     folder: Path, truth: dict, run: ExperimentRun, truth_file: TruthFile, dt: tuple | None
-) -> dict:
-    """Matching, c₁ and ε of a rung's stage folder, on a Δt subset when given."""
+) -> list[dict]:
+    """Matching, c₁ and ε of a rung's stage folder (one dict); on a Δt subset, two: the
+    subset's Δt as if they alone had been recorded ("these dt alone"), and the subset
+    refitted on the particles of every Δt ("every dt", the paper's subset study)."""
     matching = json.loads((folder / "matching.json").read_text())
+    population = json.loads((folder / "population.json").read_text())
+    every = np.array([np.nan if v is None else v for v in population["s2_sample"]])
     if dt is None or len(dt) == len(truth_file.dt):
         summary = json.loads((folder / "summary.json").read_text())
-        population = json.loads((folder / "population.json").read_text())
         sf, plateau = summary["structure_function"], summary["epsilon"]["plateau"]
         fit = tuple(np.array(sf[key], dtype=float) for key in ("r", "s2", "se_s2"))
         fitted = np.array(sf["fitted"], dtype=bool)
         epsilon = None if plateau is None else (plateau["epsilon"], plateau["se_epsilon"])
-        reference = np.array([np.nan if v is None else v for v in population["s2_sample"]])
+        measured = [("every dt", fit, fitted, epsilon, every)]
     else:
-        fit, fitted, epsilon, reference = _subset_statistics(folder, run, truth_file, dt, matching)
-    c1, se = c1_errors(*fit, reference, fitted, truth["parameters"]["eta"])
+        runs = load_runs(folder / "results.h5")
+        measured = [
+            ("these dt alone", *_alone(runs, run, truth_file, dt, matching)),
+            ("every dt", *_refit(runs, run, truth_file, dt), every),
+        ]
     exact = truth["epsilon_exact_d_ll"]
-    return {
-        "yield": matching["yield"],
-        "ghosts": matching["ghost_fraction"],
-        "c1_rel_err": c1,
-        "c1_rel_se": se,
-        "epsilon_rel_err": None if epsilon is None else epsilon[0] / exact - 1,
-        "epsilon_rel_se": None if epsilon is None else epsilon[1] / exact,
-    }
+    rows = []
+    for name, fit, fitted, epsilon, reference in measured:
+        c1, se = c1_errors(*fit, reference, fitted, truth["parameters"]["eta"])
+        rows.append(
+            {
+                "dt_population": name,
+                "yield": matching["yield"],
+                "ghosts": matching["ghost_fraction"],
+                "c1_rel_err": c1,
+                "c1_rel_se": se,
+                "epsilon_rel_err": None if epsilon is None else epsilon[0] / exact - 1,
+                "epsilon_rel_se": None if epsilon is None else epsilon[1] / exact,
+            }
+        )
+    return rows
 
 
-def _subset_statistics(folder, run, truth_file, dt, matching):
-    """The fit (r, c₁, se), fitted bins, plateau (ε, se) or None, and the sample truth
-    of the pairs used, of the rung's links (its results.h5) on the Δt subset ``dt``."""
-    chosen = [load_runs(folder / "results.h5")[k] for k in dt]
+def _fit_of(sf, plateau):
+    """(r, c₁, se), fitted bins and (ε, se) or None of a fit and its plateau."""
+    epsilon = None if plateau is None else (plateau.epsilon, plateau.se_epsilon)
+    return (sf.r, sf.s2, sf.se_s2), sf.fitted, epsilon
+
+
+def _refit(runs, run, truth_file, dt):
+    """The fit on Δt subset ``dt`` of the pairs of every Δt's particles."""
+    use = np.zeros(len(runs), dtype=bool)
+    use[list(dt)] = True
+    statistics = compute_statistics(
+        runs,
+        run.settings.statistics,
+        shared_first_frame=truth_file.shared_first_frame,
+        subsets={"chosen": use},
+    )
+    chosen = statistics.subsets["chosen"]
+    return _fit_of(chosen.structure, chosen.plateau)
+
+
+def _alone(runs, run, truth_file, dt, matching):
+    """The fit, fitted bins, plateau and the sample truth of the pairs used, of the
+    subset's links alone (the particles linked at these Δt: with fewer than four, the
+    trajectory test of :mod:`ptv.stats.run_statistics` cannot run)."""
     settings = run.settings.statistics
     statistics = compute_statistics(
-        chosen, settings, shared_first_frame=truth_file.shared_first_frame
+        [runs[k] for k in dt], settings, shared_first_frame=truth_file.shared_first_frame
     )
     reference = population_truth(
         statistics.population,
@@ -347,9 +382,7 @@ def _subset_statistics(folder, run, truth_file, dt, matching):
         rotation=np.array(matching["frame_rotation"]),
         translation=np.array(matching["frame_translation_m"]),
     )
-    sf, plateau = statistics.structure, statistics.plateau
-    epsilon = None if plateau is None else (plateau.epsilon, plateau.se_epsilon)
-    return (sf.r, sf.s2, sf.se_s2), sf.fitted, epsilon, reference.s2_sample
+    return (*_fit_of(statistics.structure, statistics.plateau), reference.s2_sample)
 
 
 class _SubsetTruth:

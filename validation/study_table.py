@@ -80,10 +80,13 @@ def _series(rows: Sequence[Mapping], x_key: str, value, error):
 
 
 def _groups(rows: Sequence[Mapping]) -> dict[str, list]:
-    """The rows per calibration method (and window direction), in order of appearance."""
+    """The rows per calibration method (and window direction, or Δt population), in
+    order of appearance."""
     groups: dict[str, list] = {}
     for row in rows:
         name = row.get("method") or "model-free"
+        if row.get("dt_population"):
+            name = f"{name}, {row['dt_population']}"
         if "direction_deg" in row:
             where = (
                 f"{row['direction_deg']:g}° diagonal" if row["direction_deg"] else "camera plane"
@@ -115,6 +118,8 @@ def study_figure(study: str, rows: Sequence[Mapping], *, title: str = "") -> Fig
     """
     x_key, label, categorical = PARAMETERS[study]
     groups = _groups(rows)
+    # Categories (Δt subsets) keep one position each, whatever group they appear in.
+    categories = list(dict.fromkeys(r[x_key] for r in rows)) if categorical else None
     figure, axes = plt.subplots(2, 2, figsize=(11.0, 8.0), layout="constrained")
     scalar = {
         axes[0, 0]: ("calibration error (µm)", 1.0, ("table1_d_um", "model_error_um")),
@@ -126,7 +131,7 @@ def study_figure(study: str, rows: Sequence[Mapping], *, title: str = "") -> Fig
             for style, key in zip(_STYLES, keys, strict=False):
                 xs, mean, err = _series(group, x_key, lambda r, k=key: r.get(k), lambda r: None)
                 what = f"{names.get(key, key)} ({name})"
-                _plot(ax, xs, mean * scale, err * scale, what, categorical, colour, style)
+                _plot(ax, xs, mean * scale, err * scale, what, categories, colour, style)
         ax.set_ylabel(ylabel)
     for colour, (name, group) in enumerate(groups.items()):
         for i, n in enumerate(R_KEYS):
@@ -143,7 +148,7 @@ def study_figure(study: str, rows: Sequence[Mapping], *, title: str = "") -> Fig
                 mean * 100,
                 err * 100,
                 label_n,
-                categorical,
+                categories,
                 colour,
                 _STYLES[i],
                 _MARKERS[i],
@@ -151,7 +156,7 @@ def study_figure(study: str, rows: Sequence[Mapping], *, title: str = "") -> Fig
         xs, mean, err = _series(
             group, x_key, lambda r: r.get("epsilon_rel_err"), lambda r: r.get("epsilon_rel_se")
         )
-        _plot(axes[1, 1], xs, mean * 100, err * 100, name, categorical, colour, "-")
+        _plot(axes[1, 1], xs, mean * 100, err * 100, name, categories, colour, "-")
     axes[1, 0].set_ylabel("c₁ / sample truth of its pairs − 1 (%)")
     axes[1, 1].set_ylabel("plateau ε / estimator on the exact D_LL − 1 (%)")
     for ax in axes[1]:
@@ -168,11 +173,17 @@ def study_figure(study: str, rows: Sequence[Mapping], *, title: str = "") -> Fig
     return figure
 
 
-def _plot(ax, xs, mean, err, label, categorical, colour, style, marker="o") -> None:
-    """One series with its error bars (nothing when every value is missing)."""
+def _plot(ax, xs, mean, err, label, categories, colour, style, marker="o") -> None:
+    """One series with its error bars (nothing when every value is missing); x values
+    are numbers, or (with ``categories``) placed at their category's position."""
     if not np.isfinite(mean).any():
         return
-    positions = np.arange(len(xs)) if categorical else np.asarray(xs, dtype=float)
+    if categories is None:
+        positions = np.asarray(xs, dtype=float)
+        ticks, labels = positions, [f"{x:g}" for x in xs]
+    else:
+        positions = np.array([categories.index(x) for x in xs], dtype=float)
+        ticks, labels = np.arange(len(categories)), [str(c) for c in categories]
     ax.errorbar(
         positions,
         mean,
@@ -184,4 +195,4 @@ def _plot(ax, xs, mean, err, label, categorical, colour, style, marker="o") -> N
         capsize=3,
         label=label,
     )
-    ax.set_xticks(positions, [str(x) if categorical else f"{x:g}" for x in xs], fontsize=8)
+    ax.set_xticks(ticks, labels, fontsize=8)

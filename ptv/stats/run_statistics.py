@@ -422,6 +422,7 @@ def compute_statistics(
     settings: StatisticsSettings,
     *,
     shared_first_frame: bool = False,
+    subsets: dict[str, np.ndarray] | None = None,
 ) -> PtvStatistics:
     """Multi-Δt statistics of the links in the analysis volume (module docstring).
 
@@ -437,6 +438,9 @@ def compute_statistics(
         over all Δt (:func:`ptv.stats.links.shared_snapshots`,
         :func:`ptv.stats.structure.time_resolved_sums`); otherwise every run's links,
         each run resampled on its own.
+    subsets : dict of str to ndarray of bool, shape (K,), optional
+        Δt subsets to refit on the same pairs, by name (default: the paper's,
+        :func:`ptv.stats.multidt.dt_subsets`); K counts the runs with links.
 
     Returns
     -------
@@ -477,11 +481,11 @@ def compute_statistics(
 
     structure = fit()
     profile = profile_of(structure)
-    subsets = {}
-    for name, use in dt_subsets(dt).items():
+    refits = {}
+    for name, use in (dt_subsets(dt) if subsets is None else subsets).items():
         sf = fit(use)
         prof = profile_of(sf)
-        subsets[name] = Subset(name, use, sf, prof, _plateau(prof, settings, name))
+        refits[name] = Subset(name, use, sf, prof, _plateau(prof, settings, name))
     grid, eul, up, sigma_b = _eulerian(usable, dt, settings)
     return PtvStatistics(
         dt_index=np.array([r.k for r in usable], dtype=np.int64),
@@ -490,7 +494,7 @@ def compute_statistics(
         structure=structure,
         profile=profile,
         plateau=_plateau(profile, settings, "all Δt"),
-        subsets=subsets,
+        subsets=refits,
         mean_displacement=sample.mean_displacement,
         grid=grid,
         eulerian=eul,
