@@ -105,3 +105,18 @@ def test_a_planes_count_beyond_the_traverse_is_refused_before_any_work(tmp_path,
     assert main(["study", "planes", "--planes", "3,20", "--out", str(tmp_path)]) == 2
     assert "--planes must be counts from 2 to 13" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
+
+
+def test_a_dt_study_reuses_the_render_and_refits_subsets_two_ways(planes, scenario):
+    out, _ = planes
+    files = run_study("dt", scenario, out, values=[[0, 4], [0, 1, 2, 3, 4]], workers=1, quiet=True)
+    rows = json.loads(files.table.read_text())["points"]
+    assert [(r["dt_subset"], r["dt_population"]) for r in rows] == [
+        ("0-4", "these dt alone"),
+        ("0-4", "every dt"),
+        ("0-1-2-3-4", "every dt"),
+    ]
+    # One render for both studies: the work folder holds one dataset.
+    assert [p.name for p in (out / "work").iterdir()] == ["seed-3"]
+    for row in rows:
+        assert abs(row["epsilon_rel_err"]) < 4 * row["epsilon_rel_se"] + 0.02
