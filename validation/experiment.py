@@ -346,10 +346,11 @@ class ExperimentRun:
         builder: "RungBuilder",
         detections: StageOutcome,
         calibrations: StageOutcome | None,
-        folder: Path,
+        folder: Path | None = None,
     ) -> StageOutcome:
         """The stage of one rung (a reference variant, or the PTV stack with the
-        calibration method ``variant`` from ``calibrations``) in ``folder``."""
+        calibration method ``variant`` from ``calibrations``) in ``folder`` (default:
+        ``ptv/<variant>-<key>``, a folder of its own for every set of inputs)."""
         inputs = {
             "detections": detections.key,
             "variant": variant,
@@ -358,6 +359,8 @@ class ExperimentRun:
         }
         if variant not in REFERENCE_VARIANTS:
             inputs["calibration"] = calibrations.key
+        if folder is None:
+            folder = self.out / "ptv" / f"{variant}-{stage_key(inputs)[:12]}"
         return self.timed(
             f"ptv {variant}",
             folder,

@@ -289,8 +289,7 @@ def evaluate_point(
     table1 = json.loads((calibrations.folder / "table1.json").read_text())["table1"]
     rows = []
     for method in methods:
-        name = method if point.sensor is None else f"{method}-{tag}"
-        stage = run.rung(method, builder, detections, calibrations, run.out / "ptv" / name)
+        stage = run.rung(method, builder, detections, calibrations)
         cameras = load_calibrations(calibrations.folder / f"{method}.h5")
         calibration = {
             "table1_d_um": table1[method]["nominal"]["d_um"],
