@@ -24,6 +24,7 @@ from typing import Protocol
 
 import numpy as np
 
+from ptv._checks import positive
 from ptv.dataset import Dataset, DatasetError
 from ptv.detect import Detections, detect_particles
 
@@ -85,12 +86,7 @@ class DetectorSettings:
     saturation: float | None = None
 
     def __post_init__(self) -> None:
-        value = self.threshold
-        ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(
-            value, bool
-        )
-        if not (ok and np.isfinite(value) and value > 0):
-            raise ValueError(f"threshold must be a finite number > 0, got {value!r}")
+        positive("threshold", self.threshold)
 
     def as_dict(self) -> dict:
         """JSON-able form (what detections depend on besides the images)."""
@@ -177,6 +173,21 @@ class ChunkDetections:
     detector: dict
     snapshots: tuple[int, int]
     found: dict
+
+    @classmethod
+    def of(cls, source, snapshots: tuple[int, int], found: dict) -> "ChunkDetections":
+        """The chunk ``snapshots`` of the dataset ``source`` describes (a
+        :class:`FrameDetections`), with its detections ``found``."""
+        return cls(
+            source.folder,
+            tuple(source.cameras),
+            np.asarray(source.dt),
+            tuple(source.frames),
+            source.shared_first_frame,
+            source.detector,
+            tuple(snapshots),
+            found,
+        )
 
     def detections(self, k: int, m: int, frame: str) -> list[np.ndarray]:
         """Centres (N_c, 2), px, per camera, of frame ``frame`` of snapshot m at Δt_k."""
@@ -267,16 +278,7 @@ class ImageDetector:
                 self.frames, range(m0, m1), shared_first_frame=self.shared_first_frame
             )
         }
-        return ChunkDetections(
-            self.folder,
-            self.cameras,
-            self.dt,
-            self.frames,
-            self.shared_first_frame,
-            self.detector,
-            (m0, m1),
-            found,
-        )
+        return ChunkDetections.of(self, (m0, m1), found)
 
     def _detect(self, image: np.ndarray) -> Detections:
         return detect_particles(

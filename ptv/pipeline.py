@@ -45,6 +45,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ptv._checks import positive
 from ptv.camera_model import CameraModel
 from ptv.dataset import cameras_in_order
 from ptv.frames import FrameDetections
@@ -73,13 +74,6 @@ Progress = Callable[[int, int], None]
 
 #: The 100 × 100 × 10 mm laser sheet plus a 1 mm margin, m: the default matching volume.
 MEASUREMENT_VOLUME: Box = ((-0.051, -0.051, -0.006), (0.051, 0.051, 0.006))
-
-
-def _positive(name: str, value) -> float:
-    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
-    if not (ok and np.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return float(value)
 
 
 @dataclass(frozen=True)
@@ -120,10 +114,10 @@ class PipelineSettings:
     def __post_init__(self) -> None:
         object.__setattr__(self, "volume", check_box("volume", self.volume))
         for name in ("tolerance", "max_speed", "position_noise"):
-            object.__setattr__(self, name, _positive(name, getattr(self, name)))
+            object.__setattr__(self, name, positive(name, getattr(self, name)))
         if self.outlier_threshold is not None:
             object.__setattr__(
-                self, "outlier_threshold", _positive("outlier_threshold", self.outlier_threshold)
+                self, "outlier_threshold", positive("outlier_threshold", self.outlier_threshold)
             )
         if not isinstance(self.outlier_neighbours, int) or self.outlier_neighbours < 2:
             raise ValueError(

@@ -151,7 +151,7 @@ def _must_hold(
             (
                 f"stats.raw_s2_biased ({main})",
                 c["raw_s2"]["ratio_smallest_dt"],
-                "> 2 at ≈10η",
+                "median > 2 over 5η–20η",
                 c["raw_s2"]["passed"],
             )
         )

@@ -221,16 +221,7 @@ class DetectionStore:
         if i < 0 or m >= max(self.frames):
             raise IndexError(f"snapshot {m} out of range 0 … {max(self.frames) - 1}")
         snapshots, found = _read_chunk(self._files[i], self.cameras)
-        self._chunk = ChunkDetections(
-            self.folder,
-            self.cameras,
-            self.dt,
-            self.frames,
-            self.shared_first_frame,
-            self.detector,
-            snapshots,
-            found,
-        )
+        self._chunk = ChunkDetections.of(self, snapshots, found)
         return self._chunk
 
     def detections(self, k: int, m: int, frame: str) -> list[np.ndarray]:

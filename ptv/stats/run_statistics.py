@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ptv._checks import positive
 from ptv.stats.dissipation import (
     DEFAULT_C2,
     DissipationProfile,
@@ -67,13 +68,6 @@ log = logging.getLogger(__name__)
 
 #: The paper's 70 × 70 × 2 mm analysis volume centred in the sheet, m.
 ANALYSIS_VOLUME: Box = ((-0.035, -0.035, -0.001), (0.035, 0.035, 0.001))
-
-
-def _positive(name: str, value) -> float:
-    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
-    if not (ok and np.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return float(value)
 
 
 @dataclass(frozen=True)
@@ -127,7 +121,7 @@ class StatisticsSettings:
         object.__setattr__(
             self, "analysis_volume", check_box("analysis_volume", self.analysis_volume)
         )
-        object.__setattr__(self, "kolmogorov_c2", _positive("kolmogorov_c2", self.kolmogorov_c2))
+        object.__setattr__(self, "kolmogorov_c2", positive("kolmogorov_c2", self.kolmogorov_c2))
         LogBins(self.r_min, self.r_max, self.n_bins)  # validates
         lo, hi = self.plateau
         if not 0 < lo < hi:
@@ -145,7 +139,7 @@ class StatisticsSettings:
             object.__setattr__(
                 self,
                 "trajectory_threshold",
-                _positive("trajectory_threshold", self.trajectory_threshold),
+                positive("trajectory_threshold", self.trajectory_threshold),
             )
 
     @property
