@@ -456,13 +456,7 @@ class RungBuilder:
             name="detection",
             progress=tick,
         )
-        runs, quality = detected_runs(
-            chunks,
-            self.truth.dt,
-            self.store.cameras,
-            self.unlinked,
-            shared_first_frame=self.store.shared_first_frame,
-        )
+        runs, quality = detected_runs(chunks, self.truth.dt, self.store.cameras)
         result = self.reference_result(runs)
         self.save(result, target, "true cameras, truth-paired detections")
         _save_detection(quality, target)

@@ -20,7 +20,9 @@ Layout (format version 2; lengths in m, times in s, pixels as OpenCV)::
 
 With a shared first frame, ``positions_a``, ``velocity``, ``xy_a`` and ``visible_a`` of
 every ``dt<k>`` are HDF5 hard links to those of ``dt0``: stored once. Without one, each
-Δt is an independent experiment with its own P.
+Δt is an independent experiment with its own P. The particle arrays are stored one
+snapshot per HDF5 chunk, compressed without loss (gzip level 1, with the byte shuffle
+for the floats): any HDF5 reader opens them.
 
 :class:`TruthWriter` fills the file part by part (plate images, particle chunks, in any
 order) and records each part as done only once its data are written, so a run
@@ -191,7 +193,9 @@ class TruthWriter:
                 shape=(self.frames, *value.shape[1:]),
                 dtype=dtype,
                 chunks=(1, *value.shape[1:]),
-                compression="gzip" if dtype is bool else None,
+                compression="gzip",
+                compression_opts=1,
+                shuffle=dtype is not bool,
             )
             ds[rows] = np.asarray(value, dtype=dtype)
 

@@ -216,6 +216,79 @@ def _triangulated_particles(detected, exact, visible, cameras, tally) -> np.ndar
     return points
 
 
+@dataclass(frozen=True)
+class NoiseSums:
+    """Sums of the squared errors against the truth of the scored particles: the noise
+    of a chunk, summed over chunks (:meth:`merged`) into that of the run.
+
+    The scored particles are those whose true X(t) lies in the analysis volume. With a
+    shared first frame the statistics use only the particles found at every Δt
+    (:func:`ptv.stats.links.shared_snapshots`), which are less often overlapped by a
+    neighbour and so less noisy: the noise is measured on them alone. A chunk holds
+    every Δt of its snapshots, so this choice is made within the chunk.
+
+    Attributes
+    ----------
+    position : ndarray, shape (3,)
+        Σ (X(t) − X_true(t))², m², over the scored particles of Δt_0.
+    positions : int
+        Particles in ``position``.
+    displacement : ndarray, shape (K, 3)
+        Σ (ΔX − ΔX_true)² per Δt, m².
+    displacements : ndarray of int, shape (K,)
+        Particles in each row of ``displacement``.
+    """
+
+    position: np.ndarray
+    positions: int
+    displacement: np.ndarray
+    displacements: np.ndarray
+
+    @classmethod
+    def of(cls, errors: Sequence[dict], *, shared: bool) -> "NoiseSums":
+        """From ``errors[k][m]`` = (particle indices, position errors (N, 3), ΔX errors
+        (N, 3)) of snapshot m at Δt_k."""
+        if shared:
+            snapshots = sorted(set.intersection(*(set(e) for e in errors)))
+            common = {m: reduce(np.intersect1d, [e[m][0] for e in errors]) for m in snapshots}
+            errors = [
+                {m: tuple(a[np.isin(e[m][0], common[m])] for a in e[m]) for m in snapshots}
+                for e in errors
+            ]
+
+        def stacked(run: dict, column: int) -> np.ndarray:
+            arrays = [v[column] for v in run.values()]
+            return np.concatenate(arrays) if arrays else np.empty((0, 3))
+
+        position = stacked(errors[0], 1)
+        moves = [stacked(run, 2) for run in errors]
+        return cls(
+            np.sum(position**2, axis=0),
+            len(position),
+            np.array([np.sum(d**2, axis=0) for d in moves]).reshape(len(errors), 3),
+            np.array([len(d) for d in moves], dtype=np.int64),
+        )
+
+    def merged(self, other: "NoiseSums") -> "NoiseSums":
+        """The sums of this chunk and ``other``."""
+        return NoiseSums(
+            self.position + other.position,
+            self.positions + other.positions,
+            self.displacement + other.displacement,
+            self.displacements + other.displacements,
+        )
+
+    def rms(self) -> tuple[np.ndarray, np.ndarray]:
+        """RMS position noise (3,) and displacement noise per Δt (K, 3), m; NaN where
+        no particle was scored."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            position = np.sqrt(self.position / self.positions) if self.positions else None
+            displacement = np.sqrt(self.displacement / self.displacements[:, None])
+        if position is None:
+            position = np.full(3, np.nan)
+        return position, np.where(self.displacements[:, None] > 0, displacement, np.nan)
+
+
 @dataclass(frozen=True, eq=False)
 class DetectionChunk:
     """The truth-paired detections of a chunk of snapshots (:func:`detection_chunk`).
@@ -226,15 +299,17 @@ class DetectionChunk:
         Per Δt and snapshot, the number of particles found in both frames of every
         camera, and X(t) and X(t + Δt) of those in the analysis volume
         (:func:`in_volume`), m.
-    errors : list of K dicts
-        Per Δt, {snapshot: (particle indices, position error (N, 3), ΔX error (N, 3))}
-        of the particles whose true X(t) lies in the analysis volume, m.
+    snapshots : list of K lists of int
+        The snapshots of ``ends``, per Δt.
+    noise : NoiseSums
+        Their errors against the truth.
     tally : _DetectionTally
         Detection against the exact images, summed over the chunk's frames.
     """
 
     ends: list
-    errors: list
+    snapshots: list
+    noise: NoiseSums
     tally: _DetectionTally
 
 
@@ -301,16 +376,12 @@ def detection_chunk(
             run_ends.append(in_volume(*pair, settings))
         ends.append(run_ends)
         errors.append(run_errors)
-    return DetectionChunk(ends, errors, tally)
+    noise = NoiseSums.of(errors, shared=frames.shared_first_frame)
+    return DetectionChunk(ends, [list(e) for e in errors], noise, tally)
 
 
 def detected_runs(
-    chunks: Sequence[DetectionChunk],
-    dt: np.ndarray,
-    cameras: Sequence[str],
-    settings: PipelineSettings,
-    *,
-    shared_first_frame: bool,
+    chunks: Sequence[DetectionChunk], dt: np.ndarray, cameras: Sequence[str]
 ) -> tuple[list[RunParticles], DetectionQuality]:
     """The detection rung's runs and the detection quality, from its chunks in order.
 
@@ -322,23 +393,18 @@ def detected_runs(
         s.
     cameras : sequence of str
         Camera names.
-    settings : PipelineSettings
-        Analysis volume.
-    shared_first_frame : bool
-        The runs share frame a.
 
     Returns
     -------
     (list of RunParticles, DetectionQuality)
     """
     tally = reduce(_DetectionTally.merged, (c.tally for c in chunks), _DetectionTally(cameras))
-    runs, errors = [], []
+    runs = []
     for k, step in enumerate(dt):
         ends = [pair for c in chunks for pair in c.ends[k]]
-        run_errors = {m: e for c in chunks for m, e in c.errors[k].items()}
-        runs.append(reference_run(k, float(step), list(run_errors), ends, len(cameras)))
-        errors.append(run_errors)
-    position_noise, displacement_noise = _noise_rms(errors, shared=shared_first_frame)
+        snapshots = [m for c in chunks for m in c.snapshots[k]]
+        runs.append(reference_run(k, float(step), snapshots, ends, len(cameras)))
+    position_noise, displacement_noise = reduce(NoiseSums.merged, (c.noise for c in chunks)).rms()
     quality = DetectionQuality(
         cameras=tuple(cameras),
         rms_error_px=np.sqrt(tally.sq_err / np.maximum(tally.found, 1)[:, None]),
@@ -352,26 +418,3 @@ def detected_runs(
     return runs, quality
 
 
-def _noise_rms(errors: Sequence[dict], *, shared: bool) -> tuple[np.ndarray, np.ndarray]:
-    """RMS position noise (3,) and displacement noise per Δt (K, 3) of the scored particles.
-
-    ``errors[k][m]`` holds (particle indices, position errors (N, 3), ΔX errors (N, 3)) of
-    snapshot m at Δt_k. With a shared first frame the statistics use only the particles
-    found at every Δt (:func:`ptv.stats.links.shared_snapshots`), which are less often
-    overlapped by a neighbour and so less noisy: the noise is measured on them too.
-    """
-    if shared:
-        snapshots = sorted(set.intersection(*(set(e) for e in errors)))
-        common = {m: reduce(np.intersect1d, [e[m][0] for e in errors]) for m in snapshots}
-        errors = [
-            {m: tuple(a[np.isin(e[m][0], common[m])] for a in e[m]) for m in snapshots}
-            for e in errors
-        ]
-
-    def rms(arrays) -> np.ndarray:
-        stacked = np.concatenate(list(arrays)) if arrays else np.empty((0, 3))
-        return np.sqrt(np.mean(stacked**2, axis=0)) if len(stacked) else np.full(3, np.nan)
-
-    position = rms([v[1] for v in errors[0].values()])
-    displacement = np.array([rms([v[2] for v in e.values()]) for e in errors])
-    return position, displacement
