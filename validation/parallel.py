@@ -167,20 +167,41 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
     if not isinstance(n, int) or n < 1:
         raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
     environment = {f"{_PRE_SPAWN}.{key}": value for key, value in SINGLE_THREADED.items()}
-    with (
-        dask.config.set({TRIM_THRESHOLD: None, "logging.distributed": "warning", **environment}),
-        LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            # A port of its own: with None the scheduler's HTTP server still tries the
-            # default 8787, and warns when another cluster holds it.
-            dashboard_address=":0",
-            env=SINGLE_THREADED,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        yield client
+    # The nannies write SINGLE_THREADED into this process's os.environ before spawning a
+    # worker; put this process's values back once the workers are up and at the end.
+    # Left at one thread, the statistics computed here between the chunks would run on
+    # one core, and numba refuses to compile once the variable no longer matches its
+    # running threads.
+    saved = {key: os.environ.get(key) for key in SINGLE_THREADED}
+    try:
+        with (
+            dask.config.set(
+                {TRIM_THRESHOLD: None, "logging.distributed": "warning", **environment}
+            ),
+            LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                # A port of its own: with None the scheduler's HTTP server still tries
+                # the default 8787, and warns when another cluster holds it.
+                dashboard_address=":0",
+                env=SINGLE_THREADED,
+            ) as cluster,
+            Client(cluster) as client,
+        ):
+            _set_environment(saved)
+            yield client
+    finally:
+        _set_environment(saved)
+
+
+def _set_environment(values: dict[str, str | None]) -> None:
+    """Set (or, for None, remove) variables of ``os.environ``."""
+    for key, value in values.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
 
 
 def check_parallel_options(workers: int | None, scheduler: str | None) -> None:
