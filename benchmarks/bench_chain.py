@@ -1,6 +1,6 @@
 """The rendered chain's chunks on Dask: render + detect images/s, 1 worker against 2.
 
-Targets (DESIGN.md, issue 12): render + detect ≥ 40 images/s of 2048 × 1088 with 2000
+Targets (docs/performance.md, issue 12): render + detect ≥ 40 images/s of 2048 × 1088 with 2000
 particles on 2 cores, and a LocalCluster of 2 workers ≥ 1.7× one worker.
 
 The chunks are those of the ``paper-10hz`` scenario (10 snapshots each: 6 exposures ×

@@ -1,6 +1,6 @@
 """Particle detection on 2048 × 1088 images, side by side with ``trackpy.locate``.
 
-Targets (DESIGN.md): ≥ 20 images/s and ≥ 10× the speed of ``trackpy.locate`` on the same
+Targets (docs/performance.md): ≥ 20 images/s and ≥ 10× the speed of ``trackpy.locate`` on the same
 images in the same run. Images: 1000–2000 particles each, σ = 0.6–0.9 px (d_τ ≈ 3 px),
 1000–8000 photo-electrons per spot (peak SNR ≈ 20–150), a 12-bit sensor with gain
 0.4 DN/e⁻, 8 e⁻ read noise and 5 e⁻ of background. Both detectors get the same uint16

@@ -1,6 +1,6 @@
 """KS flow speed and memory: velocity, velocity + acceleration, an RK4 step, peak memory.
 
-Targets (DESIGN.md, issue 2): velocity ≤ 1.5 ns and velocity + Lagrangian acceleration
+Targets (docs/performance.md, issue 2): velocity ≤ 1.5 ns and velocity + Lagrangian acceleration
 ≤ 2.5 ns per particle·mode (float64, this 2-core machine), an RK4 step of 2000
 particles × 200 modes ≤ 2 ms, and ≤ 1 GiB peak memory for 10⁵ particles × 300 modes.
 

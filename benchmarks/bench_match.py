@@ -1,6 +1,6 @@
 """Stereo matching speed: 2000 detections per camera, the paper's two-camera rig.
 
-Target (DESIGN.md): ≤ 50 ms for 2000 particles per camera. Set-up: model-free
+Target (docs/performance.md): ≤ 50 ms for 2000 particles per camera. Set-up: model-free
 calibrations of the two ``paper-stereo`` cameras from exact dot projections; 2000
 particles uniform in the 100 × 100 × 10 mm sheet, projected by the true cameras with
 0.1 px detection noise, shuffled per camera. ``match_rays_ms`` times the matching

@@ -1,6 +1,6 @@
 """Pair binning speed: all pairs of a snapshot, all Δt columns per pair.
 
-Target (DESIGN.md): ≥ 5·10⁷ particle pairs/s with all Δt values of a snapshot
+Target (docs/performance.md): ≥ 5·10⁷ particle pairs/s with all Δt values of a snapshot
 processed per pair.
 """
 

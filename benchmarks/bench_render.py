@@ -1,6 +1,6 @@
 """Particle image 2048 × 1088 with 1000 particles and sensor noise (target ≤ 50 ms).
 
-Spots of d_τ ≈ 3 px (σ ≈ 0.75 px, the paper-like optics of PHYSICS.md §8), brightness
+Spots of d_τ ≈ 3 px (σ ≈ 0.75 px, the paper-like optics of docs/imaging.md §1), brightness
 from the sheet profile and d_p², a 12-bit sensor with 8 e⁻ read noise and 5 e⁻ of
 background per pixel. Times are per image, after a warm-up call (numba compilation and
 the sensor's background table are not counted), best and median of the repeats.

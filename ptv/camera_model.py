@@ -1,7 +1,7 @@
 """The protocol every camera calibration offers, whatever its model.
 
 Triangulation, matching and metrics use only this protocol; they never ask which
-model a calibration is (DESIGN.md).
+model a calibration is (docs/conventions.md §6).
 """
 
 from typing import Protocol

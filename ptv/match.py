@@ -1,6 +1,6 @@
 """Stereo correspondence: which detections of C ≥ 2 cameras image the same particle.
 
-Only the calibration protocol is used (``pixel_to_ray``; PHYSICS.md §7). A candidate
+Only the calibration protocol is used (``pixel_to_ray``; docs/ptv.md §3). A candidate
 is a set of detections, one per camera in at least ``min_cameras`` cameras, whose rays
 all pass within ``tolerance`` of their least-squares point, that point lying inside
 the measurement volume (an axis-aligned box). Choose the tolerance at 2–3× the

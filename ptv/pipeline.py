@@ -11,7 +11,7 @@ source (detected from a dataset's images, or read from a detection store). For e
 2. link frame a to frame b one-to-one (:func:`ptv.track.link`) within the radius
    r_k = max_speed·Δt_k + 5σ_b (max_speed: the largest speed expected, default
    1.5 m/s; σ_b: the position noise, default 30 µm): the Δt-scaled threshold of
-   PHYSICS.md §4, which also rejects mismatches with |ΔX| beyond it;
+   docs/ptv.md §4, which also rejects mismatches with |ΔX| beyond it;
 3. flag mislinks by the normalised median test (Westerweel & Scarano 2005) on the
    3-D displacements: a link is an outlier when |ΔX − m| > threshold·(r̃ + ε0), m the
    median displacement of its 8 nearest linked neighbours (same snapshot, by X(t)), r̃

@@ -1,11 +1,11 @@
-"""Particle tracking: double-frame links at Δt and time-resolved tracks (PHYSICS.md §4).
+"""Particle tracking: double-frame links at Δt and time-resolved tracks (docs/ptv.md §4).
 
 Double frame (:func:`link`). Each particle at t is predicted at t + Δt (by a mean
 displacement, when given) and linked to a particle at t + Δt within the search radius
 
     r = k_v u′ Δt + k_b σ_b            (:func:`search_radius`),
 
-a Δt-scaled threshold as PHYSICS.md §4 asks (5 u′Δt + 5 σ_b by default): a fixed radius
+a Δt-scaled threshold as docs/statistics.md §9 asks (5 u′Δt + 5 σ_b by default): a fixed radius
 would cut the tails of the displacement distribution at large Δt and let mismatches in
 at small Δt. Ambiguities are resolved one-to-one by the minimum total cost assignment
 with cost (d/r)² per link, d the distance from the prediction, and cost 1 per particle
@@ -23,7 +23,7 @@ Skip-frame increments (:func:`skip_pairs`). For Δt = mτ, m ∈ {m_1 … m_K}, 
 (X(t), X(t + m τ)) are taken from the same track segments of m_max + 1 frames for every
 m, so the particle population — and its selection bias — does not change with Δt.
 
-Selection of the analysis volume (bin by X(t) inside it; PHYSICS.md §4) and mean-flow
+Selection of the analysis volume (bin by X(t) inside it; docs/statistics.md §2) and mean-flow
 subtraction are left to the statistics; nothing here filters or smooths positions.
 """
 
@@ -57,7 +57,7 @@ def search_radius(
     sigma_b : float
         Position noise σ_b (rms, one component), m.
     k_v, k_b : float
-        Multipliers (PHYSICS.md §4 suggests 5 and 5).
+        Multipliers (docs/ptv.md §4: 5 and 5 by default).
 
     Returns
     -------
@@ -365,7 +365,7 @@ def skip_pairs(tracks: Tracks, skips: Sequence[int], *, stride: int = 1) -> Skip
 
     A segment is m_max + 1 consecutive points of one track; every m uses every
     segment, so the starting points X(t) — and the population — are identical for
-    all m (PHYSICS.md §4). Tracks shorter than m_max + 1 contribute nothing.
+    all m (docs/ptv.md §4). Tracks shorter than m_max + 1 contribute nothing.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Least-squares 3-D points from rays of several cameras (PHYSICS.md §7).
+"""Least-squares 3-D points from rays of several cameras (docs/ptv.md §2).
 
 For rays (O_c, V_c) with A_c = I − V_c V_cᵀ, the point minimising Σ_c w_c d_c², where
 d_c = |A_c (P − O_c)| is its distance to ray c, solves

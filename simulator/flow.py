@@ -1,6 +1,6 @@
 """Kinematic-simulation (KS) turbulence: one random realization of a divergence-free field.
 
-u(x, t) = Σ_n A_n cos θ_n + B_n sin θ_n, θ_n = k_n·x + ω_n t (PHYSICS.md §1.1), with
+u(x, t) = Σ_n A_n cos θ_n + B_n sin θ_n, θ_n = k_n·x + ω_n t (docs/flow.md §1), with
 k̂_n uniform on the sphere, A_n and B_n perpendicular to k_n (so ∇·u ≡ 0 mode by mode),
 |A_n|² = |B_n|² = 2E(k_n)Δk_n and ω_n = λ √(k_n³ E(k_n)).
 
@@ -147,7 +147,7 @@ class KSField:
         return self.derivatives(x, t)[3]
 
     def longitudinal_structure_function(self, r: np.ndarray) -> np.ndarray:
-        """Exact D_LL(r) of this realization averaged over directions (PHYSICS.md §2).
+        """Exact D_LL(r) of this realization averaged over directions (docs/flow.md §3.2).
 
         D_LL(r) = Σ_n (|A_n|² + |B_n|²) G(k_n r), G(x) = 1/3 − (sin x − x cos x)/x³.
         It does not depend on the mode directions: it is the ensemble D_LL of the modes.

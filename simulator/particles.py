@@ -1,6 +1,6 @@
 """Tracer particles in a KS flow: seeding, RK4 trajectories and the sample truth.
 
-Every snapshot is an independent KS realization seeded afresh (PHYSICS.md §1.3), so
+Every snapshot is an independent KS realization seeded afresh (docs/flow.md §6), so
 snapshots are independent samples. Particles are seeded uniformly in the illuminated
 slab padded by a margin larger than any particle travels during the snapshot; since the
 flow is incompressible the particle density inside the slab stays uniform at every
@@ -9,7 +9,7 @@ biasing the sample (no particle is re-injected by hand). Whether a particle is i
 slab or the analysis volume at a given time is a mask computed by the consumer.
 
 Trajectories are integrated with classical RK4 in float64, with steps no longer than
-min(Δt_min/2, 0.05 τ_η, 0.2/ω_N) (PHYSICS.md §1.1).
+min(Δt_min/2, 0.05 τ_η, 0.2/ω_N) (docs/flow.md §6).
 """
 
 import logging

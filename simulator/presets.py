@@ -1,9 +1,9 @@
 """Flow presets from the paper's Table 3, with its Table 4 Δt sets.
 
 The 10 Hz row prints u' = 17 cm/s, but its R_λ = 339 and the text's L_int ≃ 4 cm both
-need u' = 19 cm/s (PHYSICS.md §0.1): with 17 cm/s R_λ would be 271.5. ``lem-10hz``
+need u' = 19 cm/s (docs/errata.md E1): with 17 cm/s R_λ would be 271.5. ``lem-10hz``
 uses **u' = 0.19 m/s**. The 8 Hz row's η and τ_η (56 µm, 3.2 ms) are rounded from
-ε ≈ 0.10; the preset keeps the printed ε = 0.09 (PHYSICS.md §0.2). Δt values are the
+ε ≈ 0.10; the preset keeps the printed ε = 0.09 (docs/errata.md E2). Δt values are the
 Table 4 ratios times τ_η = (ν/ε)^{1/2} computed from the preset's ε.
 """
 

@@ -3,7 +3,7 @@
 pyrender draws offscreen through EGL (``PYOPENGL_PLATFORM=egl``, set here unless the
 environment already chose a platform; it must be set before PyOpenGL is first
 imported). It is a second, independent renderer for cameras *without refraction*:
-it cannot refract, so it is not the accuracy path (DESIGN.md §4).
+it cannot refract, so it is not the accuracy path (docs/optics.md §7).
 
 Conventions (see the derivation in :func:`intrinsics_camera`):
 

@@ -1,6 +1,6 @@
 """Energy spectra E(k) whose energy and dissipation match prescribed (u', ε, ν).
 
-Two spectra (PHYSICS.md §1.2):
+Two spectra (docs/flow.md §2):
 
 * :class:`PopeSpectrum`, Pope's model spectrum (*Turbulent Flows* §6.5) with c_L and
   c_η solved so that ∫E dk = (3/2)u'² and 2ν∫k²E dk = ε. The default.

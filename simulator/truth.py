@@ -1,4 +1,4 @@
-"""Exact second-order ground truth of a spectrum (PHYSICS.md §2).
+"""Exact second-order ground truth of a spectrum (docs/flow.md §3).
 
 For isotropic turbulence with energy spectrum E(k),
 

@@ -1,4 +1,4 @@
-"""Turbulence parameters (u', ε, ν) and the scales derived from them (PHYSICS.md §3)."""
+"""Turbulence parameters (u', ε, ν) and the scales derived from them (docs/flow.md §4)."""
 
 from dataclasses import dataclass
 from math import isfinite, sqrt

@@ -1,12 +1,12 @@
 """Calibration accuracy against truth: the paper's Table 1 metric and the pure model error.
 
-Table 1 metric (PHYSICS.md §7): every dot of every plane is triangulated from its image
+Table 1 metric (docs/calibration.md §7): every dot of every plane is triangulated from its image
 positions in both cameras, and Δ = P − X is taken against the dot's expected position:
 as in the paper, its nominal position (indices × pitch, Z_j) by default, or its true
 centre (which adds the plate's tilt, bow, manufacturing and traverse errors, which no
 calibration built on nominal positions can know);
 d_X, d_Y, d_Z are the mean absolute components and d is the mean 3-D distance (the
-paper's table uses the mean of |Δ|, not √(d_X² + d_Y² + d_Z²), §0.6). It is in-sample:
+paper's table uses the mean of |Δ|, not √(d_X² + d_Y² + d_Z²), docs/errata.md E6). It is in-sample:
 the same dots built the calibration, so dot-centre noise dominates it when it is large.
 
 Model error: random points inside the measurement volume are projected by the true

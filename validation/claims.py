@@ -1,4 +1,4 @@
-"""Every regressable statement of the paper, measured against truth (PHYSICS.md §9).
+"""Every regressable statement of the paper, measured against truth (docs/claims.md).
 
 A claim has an id, its source in the paper, what it states, and a check that measures a
 value and compares it with a tolerance. Checks share the expensive runs through a
@@ -44,7 +44,7 @@ CORRELATION_LENGTH = 3e-3
 def dt3_gamma(dt: np.ndarray) -> float:
     """γ of a Δt set, s: the least-squares line c₁Δt² + c₂ through βΔt³ has c₁ = γβ.
 
-    PHYSICS.md §4 ("Δt³ term") gives γ/τ_η = 0.155, 0.218, 0.243 for the Table 4 sets.
+    docs/statistics.md §4 gives γ/τ_η = 0.155, 0.218, 0.243 for the Table 4 sets.
     """
     dt = np.asarray(dt, dtype=float)
     design = np.stack([dt**2, np.ones_like(dt)], axis=1)
@@ -112,7 +112,7 @@ class ClaimContext:
         k_Nη of the band-limited K41 spectrum of claims #10 and #23 (2π; 0.544, the
         dissipation-matched "k41-band", has no 2/3 range and must fail #10).
     dt3_coefficient : float
-        β/ε of the Δt³ term injected for claim #23 (PHYSICS.md §4: β ≈ −(2/3)ε).
+        β/ε of the Δt³ term injected for claim #23 (docs/statistics.md §4: β ≈ −(2/3)ε).
     """
 
     def __init__(
@@ -424,7 +424,7 @@ def _two_thirds(claim: Claim, ctx: ClaimContext) -> ClaimResult:
     """Mean local slope d ln c₁/d ln r over 20η < r < 0.2L_int (L_int = u'³/ε).
 
     Measured on the band-limited K41 spectrum cut at k_N = 2π/η, whose exact D_LL has a
-    local slope of 0.65–0.71 there (PHYSICS.md §1.2(b); the Pope spectrum gives 0.69–1.0
+    local slope of 0.65–0.71 there (docs/flow.md §2.4; the Pope spectrum gives 0.69–1.0
     and the dissipation-matched band, cut at k_Nη = 0.544, 0.70–0.96). The slope is that
     of the weighted line through ln c₁ against ln r (σ of ln c₁ = σ(c₁)/c₁), since
     bin-to-bin slopes scatter by ±0.05 at quick size. It comes out ≈ 0.04 above that of
@@ -445,9 +445,9 @@ def _two_thirds(claim: Claim, ctx: ClaimContext) -> ClaimResult:
 
 
 def _dt3_negligible(claim: Claim, ctx: ClaimContext) -> ClaimResult:
-    """Bias of c₁ from a Δt³ term, against γβ/S2 (PHYSICS.md §4).
+    """Bias of c₁ from a Δt³ term, against γβ/S2 (docs/statistics.md §4).
 
-    KS has no energy flux (⟨δu·δa⟩ = 0, §1.3), so the term ⟨δv_∥δa_∥⟩Δt³ of
+    KS has no energy flux (⟨δu·δa⟩ = 0, docs/flow.md §7), so the term ⟨δv_∥δa_∥⟩Δt³ of
     ⟨q⟩ = N + S2Δt² + ⟨δv_∥δa_∥⟩Δt³ is injected: β Δt_k³, with β = −(2/3)ε, is added to
     the q = (δΔX·e)² of every pair at Δt_k, so each ⟨q⟩_k and each bootstrap replicate
     moves by exactly βΔt_k³ (``add_dt3_term``; the fits with and without it share noise
@@ -455,9 +455,10 @@ def _dt3_negligible(claim: Claim, ctx: ClaimContext) -> ClaimResult:
     the prediction γβ/S2 takes γ of the unweighted fit (0.218 τ_η for the 10 Hz set),
     while the weighted fit leans on the small Δt at large r, where the measured bias is
     up to 25 % smaller. The run is the band-limited one, whose S2 ≈ 1.8(εr)^{2/3} down
-    to 10η, as the estimate of §4 (−1.1 to −1.8 % at 10η) assumes. On the Pope spectrum
-    S2(10η) is about half that and the bias reaches −2.9 % at 11η and −2.1 % at 14η, but
-    β = −(2/3)ε is an inertial-range value that does not hold in that dissipation range.
+    to 10η, as the estimate of docs/statistics.md §4 (−1.1 to −1.8 % at 10η) assumes. On
+    the Pope spectrum S2(10η) is about half that and the bias reaches −2.9 % at 11η and
+    −2.1 % at 14η, but β = −(2/3)ε is an inertial-range value that does not hold in that
+    dissipation range.
     """
     p = ctx.preset.parameters
     base, biased = ctx.dt3_fits
@@ -514,7 +515,7 @@ CLAIMS: tuple[Claim, ...] = (
     ),
     Claim(
         "calib.table1_mean_distance",
-        "Table 1 (erratum §0.6)",
+        "Table 1 (docs/errata.md E6)",
         "d is the mean 3-D distance, not √Σd_i²",
         _mean_distance,
     ),
@@ -553,13 +554,13 @@ CLAIMS: tuple[Claim, ...] = (
     ),
     Claim(
         "stats.calibration_bias_not_removed",
-        "PHYSICS §4",
+        "docs/statistics.md §9",
         "a systematic scale error s shifts ε by 2s",
         _scale_bias,
     ),
     Claim(
         "stats.epsilon_convention",
-        "Fig. 6b caption (erratum §0.5)",
+        "Fig. 6b caption (docs/errata.md E5)",
         "ε = (S2/C₂)^{3/2}/r is C₂^{−3/2} × the caption's S2^{3/2}/r",
         _convention,
     ),

@@ -376,7 +376,7 @@ def build_parser() -> argparse.ArgumentParser:
     claims = sub.add_parser(
         "claims",
         help="regress the paper's claims against truth; exit status 1 if one fails",
-        description="Measure every regressable statement of the paper (PHYSICS.md section 9) "
+        description="Measure every regressable statement of the paper (docs/claims.md) "
         "against the simulator's truth and compare it with its tolerance.",
     )
     size = claims.add_mutually_exclusive_group()

@@ -4,11 +4,11 @@ Inputs are the JSON files the stages wrote (``truth/truth.json``, each
 ``ptv/<variant>/summary.json``, ``ptv/detection/detection.json``), so a report can be
 rebuilt from a finished run without recomputing anything.
 
-Checks on one variant (tolerances from the issue and PHYSICS.md §9):
+Checks on one variant (tolerances from the issue and docs/claims.md):
 
 - ``c1``: max |c1/S2_sample − 1| over the fitted bins with c1_r_min_eta·η ≤ r ≤
   c1_r_max_l_int·L_int, L_int = u'³/ε: ≤ 5 %; S2_sample over the pairs the variant's
-  S2 used when known (PHYSICS.md §2), so that the particles it missed do not count as
+  S2 used when known (docs/statistics.md §8), so that the particles it missed do not count as
   its error (the deviation from the sample truth of every particle is given beside);
 - ``epsilon``: plateau ε against the same estimator on the exact D_LL: within 5 %;
   the estimator's own gap to the input ε (finite-Reynolds plateau deficit) beside it;
@@ -26,7 +26,7 @@ Checks on one variant (tolerances from the issue and PHYSICS.md §9):
   the three components, at 1 % false alarms
   (:meth:`ptv.stats.mean_displacement.MeanDisplacement.offset_test`);
 - ``subsets``: plateau ε of the 3-largest-Δt and the smallest-and-largest fits over the
-  all-Δt value (the paper: −5 % and +2 %; |Δ| < 10 % and < 5 %, PHYSICS.md §9 #13).
+  all-Δt value (the paper: −5 % and +2 %; |Δ| < 10 % and < 5 %, docs/claims.md #13).
 """
 
 from dataclasses import dataclass

@@ -163,7 +163,7 @@ def population_truth(
     translation: np.ndarray | None = None,
 ) -> PopulationTruth:
     """The truth of the particles a measurement's S2 used: the sample-truth S2 of their
-    pairs (PHYSICS.md §2: the exact velocities over the actual pairs isolate the
+    pairs (docs/statistics.md §8: the exact velocities over the actual pairs isolate the
     method's error from the sampling) and their displacement noise.
 
     Parameters

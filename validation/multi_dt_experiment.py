@@ -1,7 +1,7 @@
 """The multi-Δt method on KS particles with injected measurement errors, against truth.
 
 Exact double-frame trajectories of a KS flow (one independent run per Δt) are
-"measured" as X = (1 + s) X̃ + b: a uniform calibration scale error s (PHYSICS.md §4,
+"measured" as X = (1 + s) X̃ + b: a uniform calibration scale error s (docs/statistics.md §9,
 b(X) constant in time) and white Gaussian position noise b, independent at t and
 t + Δt. The stack's statistics (``ptv.stats``) then fit c₁Δt² + c₂ per separation bin,
 and every figure is compared with the sample truth of the same pairs (exact velocities
@@ -50,7 +50,7 @@ class Measurement:
         """Position noise at positions (P, 3), m: white, or a Gaussian random field.
 
         With a correlation length ℓ the noise of each component is a random Fourier field
-        with covariance σ² exp(−r²/(2ℓ²)) in space (PHYSICS.md §4: N(r) = 4σ²(1 − ρ(r))),
+        with covariance σ² exp(−r²/(2ℓ²)) in space (docs/statistics.md §1: N(r) = 4σ²(1 − ρ(r))),
         drawn afresh for every frame (white in time).
         """
         sigma = np.asarray(self.noise, dtype=float)
@@ -108,10 +108,10 @@ def band_limited_spectrum(
 
     A sharp cut-off dissipates ε = 2ν∫k²E dk only at k_Nη = (2/(3C_K))^{3/4} ≈ 0.544
     (``SPECTRA["k41-band"]``), which leaves no K41 range: the local slope of D_LL over
-    20η–0.2L_int is 0.70–0.96. Cut at k_N = 2π/η (PHYSICS.md §1.2(a), option 1: ε is the
+    20η–0.2L_int is 0.70–0.96. Cut at k_N = 2π/η (docs/flow.md §2.2: ε is the
     inertial-range flux, η the label 2π/k_N, and 2ν∫k²E dk = 26ε) the band spans
     k_N/k₁ ≈ 2200–3400, D_LL/(εr)^{2/3} peaks at 1.91 and the local slope is 0.65–0.71
-    over that range (§1.2(b)). The result is the ``KolmogorovBandSpectrum`` of a fluid
+    over that range (docs/flow.md §2.4). The result is the ``KolmogorovBandSpectrum`` of a fluid
     of viscosity ν' = ν (2/(3C_K)) cutoff^{-4/3}, whose dissipation-matched cut-off falls
     at cutoff/η (up to the small k₁ term of its dissipation integral). Its own
     ``parameters`` carry ν', hence η and τ_η of ν': take η, τ_η and the Δt set from the
@@ -253,8 +253,8 @@ def analyse(
 def add_dt3_term(sums: SnapshotSums, dt: np.ndarray, beta: float) -> SnapshotSums:
     """Add β Δt_k³ to the q of every pair at Δt_k: a Δt³ term injected analytically.
 
-    The expansion ⟨q⟩ = N + S2Δt² + ⟨δv_∥δa_∥⟩Δt³ + … (PHYSICS.md §4) has a Δt³ term
-    that KS lacks (no energy flux, §1.3). Each q → q + βΔt_k³, so Σq gains βΔt_k³·n and
+    The expansion ⟨q⟩ = N + S2Δt² + ⟨δv_∥δa_∥⟩Δt³ + … (docs/statistics.md §1, §4) has a Δt³ term
+    that KS lacks (no energy flux, docs/flow.md §7). Each q → q + βΔt_k³, so Σq gains βΔt_k³·n and
     Σq² gains 2βΔt_k³Σq + (βΔt_k³)²n: every per-snapshot mean, hence ⟨q⟩_k and each
     bootstrap replicate, shifts by exactly βΔt_k³ and its scatter is unchanged.
 

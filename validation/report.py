@@ -68,7 +68,7 @@ def _portable(scenario: Scenario) -> dict:
 def _calibration_check(table1: dict, rig: dict) -> tuple | None:
     """Model-free against classic Tsai on the Table 1 metric (nominal dots), checked
     where the paper's claim applies: both calibrated, every camera on a Scheimpflug
-    mount behind an oblique window (PHYSICS.md §9, claim 16: d_Tsai/d_new ≥ 3)."""
+    mount behind an oblique window (docs/claims.md #16: d_Tsai/d_new ≥ 3)."""
     oblique = all(
         c.get("scheimpflug") and c.get("window", {}).get("obliquity_deg", 0.0) > 0
         for c in rig["cameras"]

@@ -2,7 +2,7 @@
 
 Comparing an estimate with the sample truth, rather than with the ensemble D_LL,
 removes the sampling noise of the particular realizations and isolates method error
-(PHYSICS.md §2).
+(docs/statistics.md §8).
 """
 
 import numpy as np

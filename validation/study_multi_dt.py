@@ -5,7 +5,7 @@ run of M snapshots per Δt, :func:`simulator.particles.double_frame`, whatever t
 scenario's ``shared_first_frame``: the conservative design, whose sampling noise does not
 cancel between the Δt as it does when they share frame a), measures them
 with white Gaussian position noise (:class:`validation.multi_dt_experiment.Measurement`)
-and fits c₁Δt² + c₂ per separation bin (PHYSICS.md §4), beside the sample truth of the
+and fits c₁Δt² + c₂ per separation bin (docs/statistics.md §3), beside the sample truth of the
 same pairs and the exact D_LL of the spectrum.
 
 Sizes. P, the particles per snapshot in the analysis volume, is the scenario's tracer
@@ -15,12 +15,12 @@ default scenario); M is the scenario's frame pairs per Δt, at most
 
 - ``dt``: k = 2, 3, 4, 5 Δt values spread over the preset's set (the smallest and the
   largest always in, e.g. indices 0, 2, 4 for k = 3) at a fixed budget of K·M frame
-  pairs, split evenly over the k values (PHYSICS.md §4: two Δt give the smallest
+  pairs, split evenly over the k values (docs/statistics.md §3.4: two Δt give the smallest
   Var c₁ for a fixed budget but cannot show curvature).
 - ``noise``: σ = 0, 5, 10, 15, 30 µm per component; every point measures the same
   simulated sample, so the differences are the noise's.
 - ``seeding``: P = 250, 500, 1000, 2000 at fixed M: the scatter of c₁ at small r goes
-  as 1/(P√M) (PHYSICS.md §10).
+  as 1/(P√M) (docs/statistics.md §10).
 """
 
 from dataclasses import replace
@@ -40,7 +40,7 @@ from validation.study_runner import Sweep, SweepPoint, seed_sequence
 MAX_SNAPSHOTS = 100
 #: Separations r/η at which the table reports c₁ against the sample truth.
 R_OVER_ETA = (10, 40, 100)
-#: Position noise of the dt and seeding studies, µm (the paper-like level of §10).
+#: Position noise of the dt and seeding studies, µm (paper-like, docs/statistics.md §10).
 DEFAULT_NOISE_UM = 15.0
 DT_COUNTS = (2, 3, 4, 5)
 NOISE_UM = (0.0, 5.0, 10.0, 15.0, 30.0)

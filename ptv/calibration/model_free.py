@@ -1,6 +1,6 @@
 """The paper's model-free calibration: every pixel is a straight line in the water.
 
-Steps (PHYSICS.md §6; MLBAV §2):
+Steps (docs/calibration.md §3; MLBAV §2):
 
 1. For each traverse plane Z_j, fit T_j: pixel → (X, Y) on the plane, a 2-D polynomial
    (cubic by default), and its separate inverse T_j⁻¹: (X, Y) → pixel.
@@ -69,7 +69,7 @@ class PlaneFit:
 
 
 def fit_plane(observation: PlaneObservation, *, degree: int = 3) -> PlaneFit:
-    """Fit T_j and T_j⁻¹ for one plane (PHYSICS.md §6 step 2)."""
+    """Fit T_j and T_j⁻¹ for one plane (docs/calibration.md §2)."""
     px = np.asarray(observation.pixels, dtype=float)
     xy = np.asarray(observation.world_xy, dtype=float)
     to_world = fit_polynomial2d(px, xy, degree=degree)

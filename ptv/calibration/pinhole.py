@@ -1,13 +1,13 @@
 """The full OpenCV pinhole camera: the strongest honest model-based baseline.
 
-Model (OpenCV convention, PHYSICS.md §5): camera coordinates X_c = R X + t, normalised
+Model (OpenCV convention, docs/optics.md §2): camera coordinates X_c = R X + t, normalised
 coordinates x = X_c/Z_c, y = Y_c/Z_c, Brown–Conrady distortion with k1, k2, k3 (radial)
 and p1, p2 (tangential), optionally OpenCV's tilted sensor M_τ (``CALIB_TILTED_MODEL``),
 then u = f_x x_t + c_x, v = f_y y_t + c_y. No skew (OpenCV has none). The principal
 point and f_x ≠ f_y are free. The model has no refraction: its error through oblique
 windows is what the paper measures (MLBAV Table 1).
 
-Fit (PHYSICS.md §6, §10):
+Fit (docs/calibration.md §5, §8):
 
 * all traverse planes form **one non-coplanar view** with the true (X, Y, Z_j), so a
   single pose keeps the known traverse; OpenCV then needs an intrinsic guess

@@ -1,7 +1,7 @@
 """Soloff, Adrian & Liu (1997): a polynomial world → pixel mapping per camera.
 
 Each image coordinate of each camera is a polynomial F(X) in the world point,
-cubic in X₁ = X and X₂ = Y and quadratic in X₃ = Z, with the 19 terms (PHYSICS.md §6)
+cubic in X₁ = X and X₂ = Y and quadratic in X₃ = Z, with the 19 terms (docs/calibration.md §6)
 
     1, X₁, X₂, X₃, X₁², X₁X₂, X₂², X₁X₃, X₂X₃, X₃², X₁³, X₁²X₂, X₁X₂², X₂³,
     X₁²X₃, X₁X₂X₃, X₂²X₃, X₁X₃², X₂X₃²,
@@ -36,7 +36,7 @@ from ptv.triangulate import triangulate
 
 log = logging.getLogger(__name__)
 
-#: Exponents (of X₁, X₂, X₃) of the 19 Soloff terms, in PHYSICS.md §6 order.
+#: Exponents (of X₁, X₂, X₃) of the 19 Soloff terms, in docs/calibration.md §6 order.
 SOLOFF_EXPONENTS = np.array(
     [
         (0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1),

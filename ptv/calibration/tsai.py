@@ -1,6 +1,6 @@
 """The classic Tsai (1987) camera model: the baseline the paper's calibration beats.
 
-Model (PHYSICS.md §6), world point P (m) to pixel:
+Model (docs/calibration.md §4), world point P (m) to pixel:
 
 1. Camera coordinates (x, y, z) = R P + T; z is the depth along the optical axis.
 2. Undistorted image: X_u = f x/z, Y_u = f y/z (m on the sensor).
@@ -21,7 +21,7 @@ non-coplanar rig of world points (X, Y, Z_j).
   over all points, dominated by those far from the centre, generalising Tsai's single
   far point). R is re-orthonormalised by SVD.
 * The RAC divides by T_y, which is ill-conditioned when the world origin lies near the
-  camera's y = 0 plane (PHYSICS.md §6 pitfall; in a rig whose cameras sit in the XZ
+  camera's y = 0 plane (docs/calibration.md §4; in a rig whose cameras sit in the XZ
   plane and look at the plate centre it lies exactly there). A scale-free version of the
   same equations first locates that plane, and the fit runs in an internal world frame
   shifted well away from it; the results are reported in the user's frame.

@@ -45,7 +45,7 @@ Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
      that is not detected) stay the largest error: 0.2–0.4 px, correlated between the
      frames of a pair; about half of them are flagged ELONGATED.
    - ``"gauss3"``: the 3-point Gaussian estimator along x and along y through the
-     maximum pixel, on background-subtracted values (PHYSICS.md §8),
+     maximum pixel, on background-subtracted values (docs/imaging.md §5),
      x̂ = i + [ln I₋ − ln I₊] / [2(ln I₋ − 2 ln I₀ + ln I₊)]. Where a logarithm is
      undefined (a value <= B), the profile is not concave or the maximum is on the
      border, the centroid is used on that axis (flag FALLBACK).
@@ -59,7 +59,7 @@ Measured on pixel-integrated Gaussian spots rendered with known centres (12-bit 
 gain 0.4 DN/e⁻, 8 e⁻ read noise, 5 e⁻ background, k = 6), gauss / gauss3 / centroid:
 
 - Noise-free bias, max over sub-pixel positions, float image: 0.013 / 0.013 / 0.014 px
-  at σ = 0.4 px (the pixel-integration limit of PHYSICS.md §8), 0.0022 / 0.0022 /
+  at σ = 0.4 px (the pixel-integration limit of docs/imaging.md §6), 0.0022 / 0.0022 /
   0.0003 at 0.6, 0.0004 / 0.0007 / 0.0001 at 0.75, 0.0001 / 0.0002 / 0.0015 at 0.9,
   0.0001 / 0.0000 / 0.017 at 1.2 (the 7 × 7 window truncates the centroid).
   Rounding to DN adds up to ~0.005 px.
@@ -105,7 +105,7 @@ _ESTIMATORS = {"gauss": _kernels.GAUSS, "gauss3": _kernels.GAUSS3, "centroid": _
 GROUP_DISTANCE_PX = 6.0
 #: Groups of more detections than this are left as the log fits gave them.
 MAX_GROUP = 6
-#: Starting Gaussian width of the refinement, px (d_τ ≈ 3 px spots, PHYSICS.md §8).
+#: Starting Gaussian width of the refinement, px (d_τ ≈ 3 px spots, docs/imaging.md §1).
 _REFINE_START_WIDTH = 0.8
 #: Detections whose light is not one Gaussian spot: they and their groups are not refined.
 _UNMODELLED = int(DetectionFlag.SATURATED | DetectionFlag.EDGE | DetectionFlag.ELONGATED)

@@ -2,7 +2,7 @@
 
 For randomly placed particles the fractional part u = x − ⌊x + ½⌋ ∈ [−½, ½) of an
 unbiased position estimate is uniform. A sub-pixel estimator with the periodic bias
-x̂ − x = −a sin 2πx (PHYSICS.md §8) piles estimates up at pixel centres (a > 0). Two
+x̂ − x = −a sin 2πx (docs/imaging.md §6) piles estimates up at pixel centres (a > 0). Two
 tests per axis:
 
 - the first Fourier harmonic (Rayleigh test): C = mean cos 2πu, S = mean sin 2πu,

@@ -4,14 +4,14 @@ In the inertial range S2(r) = C2 (εr)^{2/3}, so the local estimator is
 
     ε(r) = (S2/C2)^{3/2} / r                       (`epsilon_estimate`)
 
-with C2 ≈ 2.0 (C2 = 1.3151 C_K, PHYSICS.md §2). The paper's Fig. 6 caption writes
+with C2 ≈ 2.0 (C2 = 1.3151 C_K, docs/flow.md §3.4). The paper's Fig. 6 caption writes
 ε_r = S2^{3/2}/r without C2 (`epsilon_paper_caption`), which is C2^{3/2} ≈ 2.83 times
-larger for C2 = 2 (PHYSICS.md §0 item 5); both are reported, clearly labelled.
+larger for C2 = 2 (docs/errata.md E5); both are reported, clearly labelled.
 Errors: δε/ε = 1.5 δS2/S2 (and 1.5 δC2/C2 for an uncertain constant).
 
 The plateau value of ε (`plateau_epsilon`) is either the mean of ε(r) over a chosen
 inertial range [r_min, r_max] (the paper's Table 3: "averaged over the inertial
-range") or its maximum there (PHYSICS.md §9 claim 11).
+range") or its maximum there (docs/claims.md #11).
 """
 
 import logging
@@ -35,7 +35,7 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: Kolmogorov constant of the longitudinal S2 (C_K = 1.52), PHYSICS.md §2.
+#: Kolmogorov constant of the longitudinal S2 (C_K = 1.52), docs/flow.md §3.4.
 DEFAULT_C2 = 2.0
 
 #: Kinematic viscosity of water at 20 °C used by the paper, m²/s.
@@ -230,8 +230,8 @@ def plateau_epsilon(
         Inertial range, m, 0 < r_min < r_max. Choose it where ε(r) is flat (e.g.
         20η < r < 0.2 L_int); nothing here checks flatness.
     method : {"mean", "max"}
-        Mean of ε(r) over the range (paper, Table 3) or its maximum (PHYSICS.md §9
-        claim 11; biased upward by noise when the plateau is flat).
+        Mean of ε(r) over the range (paper, Table 3) or its maximum (docs/claims.md
+        #11; biased upward by noise when the plateau is flat).
 
     Returns
     -------
@@ -277,7 +277,7 @@ def plateau_epsilon(
 
 @dataclass(frozen=True)
 class TurbulenceScales:
-    """Scales derived from u′ (rms of one component) and ε (PHYSICS.md §3).
+    """Scales derived from u′ (rms of one component) and ε (docs/flow.md §4).
 
     Attributes
     ----------

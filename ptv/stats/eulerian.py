@@ -3,7 +3,7 @@
 Displacements ΔX = X(t + Δt) − X(t) are binned on a regular grid by the measured X(t).
 Per cell and Δt the mean ⟨ΔX⟩ and the variance ⟨(ΔX − ⟨ΔX⟩)²⟩ (the mean displacement
 of the cell subtracted) are formed per component. Then, per cell and component
-(PHYSICS.md §4, the paper's section 3):
+(docs/statistics.md §7, the paper's section 3):
 
 - ⟨ΔX⟩ = α·Δt + β0: α is the mean velocity; β0 = 0 within its error when the noise
   has zero mean (the paper's test). Holds when the mean acceleration in the cell is

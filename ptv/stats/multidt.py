@@ -1,6 +1,6 @@
 """Straight-line fits y = c1·x + c2 for many bins at once: the multi-Δt noise removal.
 
-A second moment of displacements measured at several Δt (PHYSICS.md §4) is, per bin,
+A second moment of displacements measured at several Δt (docs/statistics.md §3) is, per bin,
 
     y(Δt) = c1·Δt² + c2,
 
@@ -8,7 +8,8 @@ with c1 the noise-free second moment of the velocity (S2 for pair increments, th
 velocity variance for single points) and c2 the Δt-independent noise term. This module
 fits that line in every bin at once (arrays of shape (B, K): B bins, K values of Δt):
 
-- `wls_line`: weighted least squares with independent errors σ (closed forms of §4);
+- `wls_line`: weighted least squares with independent errors σ (closed forms of
+  docs/statistics.md §3.2);
 - `gls_line`: generalised least squares with a full K×K covariance per bin, for
   time-resolved (skip-frame) data whose estimates at different Δt share noise and
   samples;
@@ -168,7 +169,7 @@ def select_dt(use: np.ndarray | None, dt: np.ndarray) -> np.ndarray:
 def _wls_operator(x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Linear operator A (B, 2, K) with (c1, c2) = A·y, and Cov(c) (B, 2, 2).
 
-    The closed forms of PHYSICS.md §4 (S = Σw, S_x = Σwx, S_xx = Σwx², Δ = S·S_xx − S_x²,
+    The closed forms of docs/statistics.md §3.2 (S = Σw, S_x = Σwx, S_xx = Σwx², Δ = S·S_xx − S_x²,
     Var c1 = S/Δ, Var c2 = S_xx/Δ, Cov = −S_x/Δ), written with x centred on its
     weighted mean x̄ = S_x/S so that Δ = S·Σw(x − x̄)² does not cancel.
     """
@@ -286,7 +287,7 @@ def wls_line(x: np.ndarray, y: np.ndarray, sigma: np.ndarray) -> LineFit:
     Returns
     -------
     LineFit
-        c1, c2 and their covariance from the closed forms of PHYSICS.md §4, which take
+        c1, c2 and their covariance from the closed forms of docs/statistics.md §3.2, which take
         σ as exact (no rescaling by χ²); χ²/(n − 2) flags a bad model or bad σ.
     """
     y = _as_2d("y", y)

@@ -2,7 +2,7 @@
 
 From the links of every Δt (:class:`ptv.stats.links.RunParticles`), restricted to those
 whose X(t) lies in the analysis volume and that are not outliers (bin by X(t),
-PHYSICS.md §4):
+docs/statistics.md §2):
 
 - S2(r) by the multi-Δt fit ⟨q⟩_k = S2·Δt_k² + N per log-spaced separation bin, errors
   by bootstrap over snapshots (:func:`ptv.stats.structure.structure_function`); the raw

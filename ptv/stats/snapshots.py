@@ -3,7 +3,7 @@
 Snapshots (independent realisations of the flow) are the unit of independence of PTV
 data: pairs of one snapshot share particles and see the same velocity field, so their
 q values are correlated and Var(q)/N_pairs underestimates the error of ⟨q⟩. The
-bootstrap over snapshots (PHYSICS.md §4) gets it right. `SnapshotSums` holds the sums
+bootstrap over snapshots (docs/statistics.md §3.3) gets it right. `SnapshotSums` holds the sums
 of every snapshot, bin and Δt column; a bootstrap replicate is a weighted sum over
 snapshots (weights = how often each snapshot is drawn), computed as one matrix product.
 

@@ -1,7 +1,7 @@
 """Noise-free longitudinal structure function S2(r) from displacements at several Δt.
 
 For the measured displacements ΔX at Δt_k and separation r between two particles at
-time t (PHYSICS.md §4),
+time t (docs/statistics.md §1),
 
     ⟨q⟩_k = ⟨[(ΔX_j − ΔX_i)·e]²⟩ = S2(r)·Δt_k² + N(r) + O(Δt³),
 
@@ -115,7 +115,7 @@ def time_resolved_sums(
     snapshots : iterable of (positions, displacements)
         positions, shape (P, 3), m: measured particle positions at t; displacements,
         shape (P, K, 3), m: ΔX = X(t + Δt_k) − X(t) of the same particles for each of
-        the K Δt (the same particles at every Δt, see PHYSICS.md §4).
+        the K Δt (the same particles at every Δt, see docs/statistics.md §3.3).
     bins : LogBins
         Separation bins.
 
@@ -189,7 +189,7 @@ def structure_function(
         "wls" (default): weights 1/σ² from the bootstrap σ of each ⟨q⟩; the errors of
         S2 are the spread of the refitted S2 over replicates, which accounts for the
         correlation between Δt of time-resolved data. "gls": weights from the full
-        bootstrap covariance between Δt (PHYSICS.md §4). With the covariance estimated
+        bootstrap covariance between Δt (docs/statistics.md §3.3). With the covariance estimated
         from the same data GLS came out biased low on synthetic skip-frame data (≈ −0.4σ
         with 40 snapshots, −0.15σ with 1000; not regressed by a test) and no more
         precise than WLS, so it is not the default.

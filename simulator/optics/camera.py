@@ -111,7 +111,7 @@ class Camera:
     def project(self, points: np.ndarray) -> np.ndarray:
         """Pixel positions of world points (exact refraction, Newton to 1e-12).
 
-        The camera protocol of DESIGN.md: a NaN row wherever the point is not imaged.
+        The camera protocol of docs/conventions.md §6: a NaN row wherever the point is not imaged.
 
         Parameters
         ----------

@@ -1,14 +1,14 @@
 """Forward refraction: the direction in which a camera sees a point behind flat interfaces.
 
 Every ray from the camera centre C to a point P through parallel planes stays in the
-plane spanned by C, P and the normal n̂ (PHYSICS.md §5). With heights
+plane spanned by C, P and the normal n̂ (docs/optics.md §4.3). With heights
 
     h_0 = d_0 − n̂·C (camera → first plane),  h_m = d_m − d_{m−1} (inner layers),
     h_L = n̂·P − d_{L−1} (last plane → point),
 
 the radial offset ρ = |(P − C) − ((P − C)·n̂) n̂| and μ_m = n_0/n_m, the ray leaves
 C at an angle θ_0 to n̂ such that Σ_m h_m tan θ_m = ρ, with sin θ_m = μ_m sin θ_0
-(PHYSICS.md §5 writes this in s = sin θ_0). In u = tan θ_0, since
+(docs/optics.md §4.3 also gives it in s = sin θ_0). In u = tan θ_0, since
 tan θ_m = μ_m u / √(1 + (1 − μ_m²) u²),
 
     g(u) = u [h_0 + Σ_{m≥1} h_m μ_m q_m^{−1/2}] − ρ = 0,   q_m = 1 + (1 − μ_m²) u²,

@@ -5,7 +5,7 @@ L + 1 media of refractive indices n_0 (the camera's side, air) … n_L (the far 
 water). n̂ is a unit normal pointing from the camera toward the last medium. The
 default window is air | glass | water.
 
-Refraction uses the vector form of Snell's law (PHYSICS.md §5): for a unit incident
+Refraction uses the vector form of Snell's law (docs/optics.md §4.1): for a unit incident
 direction d and a unit normal N facing the incident side (N·d < 0), with η = n₁/n₂,
 c₁ = −N·d and c₂² = 1 − η²(1 − c₁²),
 

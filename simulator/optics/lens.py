@@ -2,7 +2,7 @@
 
 Normalized camera coordinates (x, y) = (X_c/Z_c, Y_c/Z_c) of a point in the camera
 frame (OpenCV: x right, y down, z along the optical axis) map to pixels as in OpenCV
-(PHYSICS.md §5):
+(docs/optics.md §2–3):
 
 - distortion, with r² = x² + y²::
 

@@ -30,7 +30,7 @@ where the chief ray meets the sensor, is a disc of diameter D |t − z_i| / z_i 
 sensor tilt makes it slightly elliptical; neglected). With astigmatism the blur
 patch is an ellipse with axes given by this formula for the sagittal and the
 tangential image; ``defocus_blur`` returns the major axis. In object space this is
-Adrian's d_blur = M² |Δz| / (N (1 + M)) for an axial defocus Δz (PHYSICS.md §8).
+Adrian's d_blur = M² |Δz| / (N (1 + M)) for an axial defocus Δz (docs/imaging.md §1).
 Lens distortion is ignored in the blur and focus geometry (it displaces images
 within the sensor plane, not along the chief ray).
 """

@@ -1,4 +1,4 @@
-"""Images as a camera would record them: particle spots and the sensor (PHYSICS.md §8).
+"""Images as a camera would record them: particle spots and the sensor (docs/imaging.md).
 
 - :mod:`simulator.render.spot`: particle-image size (diffraction, geometry, defocus,
   Gaussian σ convention) and brightness (Mie ∝ d_p², laser-sheet profile).

@@ -1,4 +1,4 @@
-"""Particle images as pixel-integrated Gaussian spots (PHYSICS.md §8).
+"""Particle images as pixel-integrated Gaussian spots (docs/imaging.md §3).
 
 Each particle p has an image centre (x_p, y_p) in pixels (OpenCV: x = column, y = row,
 centre of the top-left pixel at (0, 0)), a Gaussian σ_p in pixels and N_p expected

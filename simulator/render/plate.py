@@ -1,4 +1,4 @@
-"""Images of the back-lit calibration plate, by per-pixel ray casting (PHYSICS.md §5, §6).
+"""Images of the back-lit calibration plate, by per-pixel ray casting (docs/optics.md §4, §6–7).
 
 Model
 -----

@@ -1,4 +1,4 @@
-"""Camera sensor: photo-electrons in, digital numbers out (PHYSICS.md §8).
+"""Camera sensor: photo-electrons in, digital numbers out (docs/imaging.md §4).
 
 For each pixel, independently, with μ = signal + background expected electrons::
 

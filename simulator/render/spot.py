@@ -1,4 +1,4 @@
-"""Particle-image size and brightness (PHYSICS.md §8, after Adrian & Westerweel).
+"""Particle-image size and brightness (docs/imaging.md §1–2, after Adrian & Westerweel).
 
 Image diameter of a particle of diameter d_p (all diameters **image side**, metres)::
 

@@ -65,7 +65,7 @@ def test_step_rule_and_displacements_follow_the_analytic_taylor_expansion(field)
         remainders.append(np.abs(x1 - (x0 + u * dt + 0.5 * a * dt**2)).max())
     # X(Δt) − (X + vΔt + ½aΔt²) = ȧΔt³/6 + …: halving Δt divides it by 8. In KS the
     # particles sweep through frozen small modes, so ȧ ~ a u'/η and the cubic term is
-    # not negligible at Δt ~ 0.2 τ_η (PHYSICS.md §1.3); its order is what is checked.
+    # not negligible at Δt ~ 0.2 τ_η (docs/flow.md §7); its order is what is checked.
     assert 6.5 < remainders[0] / remainders[1] < 9.5, remainders
 
 

@@ -1,4 +1,4 @@
-"""Presets: the paper's Table 3 arithmetic (claims 1–4 of PHYSICS.md §9)."""
+"""Presets: the paper's Table 3 arithmetic (claims #1–#4 of docs/claims.md)."""
 
 import pytest
 
@@ -20,7 +20,7 @@ def test_presets_reproduce_table3(name):
     assert p.tau_eta * 1e3 == pytest.approx(tau_ms, rel=0.05)
     assert p.R_lambda == pytest.approx(r_lambda, rel=0.01)  # 10 Hz only with u' = 0.19
     assert p.L_int == pytest.approx(0.04, rel=0.10)
-    assert 3.9 <= round(225e-6 / p.eta, 1) <= 5.4  # d_p ≃ 5η, PHYSICS.md §3
+    assert 3.9 <= round(225e-6 / p.eta, 1) <= 5.4  # d_p ≃ 5η, docs/flow.md §4
 
 
 @pytest.mark.parametrize("name", sorted(TABLE3))

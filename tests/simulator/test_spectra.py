@@ -24,7 +24,7 @@ def test_pope_energy_and_dissipation_match_within_half_percent(u, eps):
     ("u", "eps", "c_l"), [(0.15, 0.09, 6.135), (0.19, 0.17, 6.221), (0.24, 0.33, 6.289)]
 )
 def test_pope_constants_match_published_values(u, eps, c_l):
-    # PHYSICS.md §1.2(b): c_L = 6.135 / 6.221 / 6.289, c_eta = 0.403 at these R_lambda.
+    # docs/flow.md §2.1: c_L = 6.135 / 6.221 / 6.289, c_eta = 0.403 at these R_lambda.
     s = PopeSpectrum(TurbulenceParameters(u, eps))
     assert s.c_L == pytest.approx(c_l, abs=2e-3)
     assert s.c_eta == pytest.approx(0.403, abs=1.5e-3)

@@ -1,7 +1,7 @@
-"""The paper's calibration claims on synthetic dot observations (PHYSICS.md §9, #16–22).
+"""The paper's calibration claims on synthetic dot observations (docs/claims.md #16–#22).
 
 Dots are exact projections through the rig's refracting windows plus 0.05 px Gaussian
-noise (PHYSICS.md §10: the model-free floor is then about 8 µm on the Table 1 metric).
+noise (docs/calibration.md §8: the model-free floor is then about 8 µm on the Table 1 metric).
 """
 
 import numpy as np

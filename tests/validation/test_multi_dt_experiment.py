@@ -21,7 +21,7 @@ def test_band_cut_at_two_pi_over_eta_has_the_k41_range_of_physics_1_2():
     r = np.geomspace(20 * p.eta, 0.2 * p.L_int, 60)
     dll = longitudinal_structure_function(spectrum, r)
     slope = np.gradient(np.log(dll), np.log(r))
-    assert 0.64 < slope.min() and slope.max() < 0.72  # PHYSICS.md §1.2(b): 0.65–0.71
+    assert 0.64 < slope.min() and slope.max() < 0.72  # docs/flow.md §2.4: 0.65–0.71
     assert np.max(dll / (p.epsilon * r) ** (2 / 3)) == pytest.approx(1.91, abs=0.01)
 
 

@@ -71,7 +71,7 @@ def test_project_inverts_pixel_to_ray(calibrations, x, y, z):
 
 
 def test_line_parameters_are_the_exact_cubic_combination_of_the_plane_maps(calibrations):
-    # PHYSICS.md §6: with global cubic T_j, X₀ = mean_j T_j and a = Σ dz_j T_j / Σ dz_j²
+    # docs/calibration.md §3: with global cubic T_j, X₀ = mean_j T_j and a = Σ dz_j T_j / Σ dz_j²
     # are themselves cubic polynomials; the bicubic spline must reproduce them.
     cal = calibrations[1]
     z = np.array([p.z for p in cal.planes])
@@ -94,7 +94,7 @@ def test_pixels_outside_the_dots_are_nan_not_extrapolated(calibrations):
 
 
 def test_dot_centre_noise_sets_the_table1_error_but_hardly_the_model(rig):
-    # PHYSICS.md §10: on the Table 1 metric (each noisy dot triangulated from both
+    # docs/calibration.md §8: on the Table 1 metric (each noisy dot triangulated from both
     # cameras) d ≈ 160 µm per pixel of dot-centre noise: 0.05 px → about 8 µm. The model
     # itself averages the noise over 441 dots × 13 planes: its error at random points
     # stays far below.

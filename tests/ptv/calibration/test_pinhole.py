@@ -176,7 +176,10 @@ def test_bad_input_is_a_clear_error():
 
 
 def table1(cals, dots, plate):
-    """d_X, d_Y, d_Z, d (m): every noisy dot triangulated from both cameras (PHYSICS §7)."""
+    """d_X, d_Y, d_Z, d (m): every noisy dot triangulated from both cameras.
+
+    The Table 1 metric of docs/calibration.md §7.
+    """
     errors = table1_errors(cals, dots, DESIGN.indices, true_positions(plate))
     assert errors.coverage == 1.0
     return np.r_[errors.components, errors.d]
@@ -204,7 +207,7 @@ def pinhole_vs_model_free(rig_name):
 
 
 def test_conventional_rig_pinhole_matches_model_free():
-    # PHYSICS.md §10: windows normal to the cameras and no Scheimpflug: the full pinhole
+    # docs/calibration.md §8: windows normal to the cameras and no Scheimpflug: the full pinhole
     # equals the model-free calibration (measured: d ratio 1.001, every component ≤ 1.003).
     ratio, pin = pinhole_vs_model_free("conventional")
     assert np.all(ratio < 1.1), ratio
@@ -214,7 +217,7 @@ def test_conventional_rig_pinhole_matches_model_free():
 def test_paper_stereo_pinhole_gap():
     # Scheimpflug + 8° diagonal window obliquity: a zero-skew, refraction-free pinhole
     # cannot express the mapping. Measured (seed 0): d ratio 1.38 (d_X 1.26, d_Y 1.54,
-    # d_Z 1.38); PHYSICS.md §10 expects ~1.0–1.3 for in-plane and more for diagonal tilt.
+    # d_Z 1.38); docs/calibration.md §8 expects ~1.0–1.3 for in-plane and more for diagonal tilt.
     ratio, pin = pinhole_vs_model_free("paper-stereo")
     assert np.all(ratio > 1.1), ratio
     assert np.all(ratio < 3.0), ratio

@@ -20,7 +20,7 @@ HALF = np.array([0.05, 0.05, 0.006])
 
 
 def terms(u):
-    """PHYSICS.md §6's 19 terms, written out (independently of the implementation)."""
+    """The 19 terms of docs/calibration.md §6, written out (independently of the implementation)."""
     x1, x2, x3 = u.T
     return np.column_stack(
         [
@@ -161,7 +161,7 @@ def test_exact_refraction_data_leave_a_sub_micron_model_error(rig):
 
 
 def test_table1_error_equals_the_model_free_one(rig):
-    # PHYSICS.md §10: "Soloff equals it". Measured (seed 0, 0.05 px): d ratio 1.0003
+    # docs/calibration.md §8: Soloff matches it. Measured (seed 0, 0.05 px): d ratio 1.0003
     # with Gauss–Newton (d_X 1.0001, d_Y 0.9993, d_Z 1.0014), 1.0005 with the rays.
     plate = build_plate(DESIGN, Z, rng=0)
     obs = [observations(c, plate, noise=0.05, rng=i) for i, c in enumerate(rig.cameras)]

@@ -1,6 +1,6 @@
 """The classic Tsai model: recovery of a known Tsai camera, and the paper's comparison.
 
-Table 1 metric (PHYSICS.md §7): every noisy dot of every plane triangulated from both
+Table 1 metric (docs/calibration.md §7): every noisy dot of every plane triangulated from both
 cameras, Δ = P − X_true; d = mean |Δ|, d_X, d_Y, d_Z = mean |Δ_X|, ... .
 """
 
@@ -136,8 +136,8 @@ def test_exact_data_give_back_the_camera(spec, free):
 
 @pytest.mark.parametrize("spec", [CAM_A, CAM_B, CAM_C])
 def test_internal_origin_is_far_from_the_cameras_y0_plane(spec):
-    # PHYSICS.md §6 pitfall: the RAC divides by T_y. The fit works about an internal origin
-    # at least two RMS radii of the point cloud from the camera's y = 0 plane.
+    # docs/calibration.md §4, the T_y pitfall: the RAC divides by T_y. The fit works about an
+    # internal origin at least two RMS radii of the point cloud from the camera's y = 0 plane.
     cam, world, px = synthetic_data(spec)
     xd_s = (px[:, 0] - CENTRE[0]) * PITCH
     yd = (px[:, 1] - CENTRE[1]) * PITCH
@@ -255,8 +255,9 @@ def compare(rig_name, *, noise=0.05, seed=0):
 
 
 def test_without_scheimpflug_or_oblique_windows_tsai_matches_the_model_free_method():
-    # Claim 17 (PHYSICS.md §9): d_Tsai/d_new ≤ 1.5. Found: 1.00 (PHYSICS.md §10 also 1.00×):
-    # a window normal to the axis is, to this noise level, a pinhole plus radial distortion.
+    # Claim 17 (docs/claims.md #17): d_Tsai/d_new ≤ 1.5. Found: 1.00 (docs/calibration.md §8
+    # also 1.00×): a window normal to the axis is, to this noise level, a pinhole plus radial
+    # distortion.
     res = compare("conventional")
     comp_mf, d_mf = res["model-free"]
     assert 4e-6 < d_mf < 12e-6
@@ -268,7 +269,7 @@ def test_without_scheimpflug_or_oblique_windows_tsai_matches_the_model_free_meth
 
 
 def test_scheimpflug_and_oblique_windows_defeat_the_classic_tsai_model():
-    # Claim 16 (PHYSICS.md §9): d_Tsai/d_new ≥ 3 and every component ≥ 2 (paper 4.5, ≥ 2.9).
+    # Claim 16 (docs/claims.md #16): d_Tsai/d_new ≥ 3 and every component ≥ 2 (paper 4.5, ≥ 2.9).
     # Found on paper-stereo (8° diagonal window obliquity, Scheimpflug), 0.05 px noise,
     # five seeds: d ratio 6.4–6.5, components X 8.8–9.0, Y 10.1–10.3, Z 2.37–2.44.
     res = compare("paper-stereo")

@@ -125,13 +125,13 @@ def test_noise_free_bias_at_sigma_075(estimator):
     for image in (electrons, SENSOR.record(electrons, noise=False)):
         assert np.abs(bias(estimator, image, xy)).max() <= 0.02
     # On the expected-electron image the Gaussian estimators are far better still
-    # (PHYSICS.md §8: 3-point Gaussian on integrated pixels, 0.001 px at σ = 0.7).
+    # (docs/imaging.md §6: 3-point Gaussian on integrated pixels, 0.001 px at σ = 0.7).
     if estimator != "centroid":
         assert np.abs(bias(estimator, electrons, xy)).max() <= 0.002
 
 
 def test_centroid_bias_at_small_sigma_follows_the_pixel_integration_law():
-    """CoM of a pixel-integrated Gaussian: −(1/π) e^(−2π²σ²) sin 2πx̃ (PHYSICS.md §8)."""
+    """CoM of a pixel-integrated Gaussian: −(1/π) e^(−2π²σ²) sin 2πx̃ (docs/imaging.md §6)."""
     sigma = 0.4
     xy, electrons = sub_pixel_phases(sigma)
     err = bias("centroid", electrons, xy)

@@ -83,7 +83,7 @@ def test_plateau_mean_and_max():
 
 
 def test_turbulence_scales_reproduce_table_3():
-    # PHYSICS.md §3, recomputed from the printed u′ and ε with ν = 1e-6.
+    # docs/flow.md §4, recomputed from the printed u′ and ε with ν = 1e-6.
     s8 = turbulence_scales(0.15, 0.09)
     assert np.isclose(s8.eta, 57.7e-6, rtol=2e-3)
     assert np.isclose(s8.tau_eta, 3.33e-3, rtol=2e-3)

@@ -1,4 +1,5 @@
-"""Multi-Δt line fits against numpy's least squares, the §4 formulas and Monte Carlo truth."""
+"""Multi-Δt line fits against numpy's least squares, the formulas of docs/statistics.md §3.2
+and Monte Carlo truth."""
 
 import numpy as np
 import pytest
@@ -43,7 +44,7 @@ def test_wls_equals_weighted_lstsq_and_the_physics_formulas():
         assert np.isclose(fit.se_c1[i] ** 2, cov[0, 0], rtol=1e-9)
         assert np.isclose(fit.se_c2[i] ** 2, cov[1, 1], rtol=1e-9)
         assert np.isclose(fit.cov_c1c2[i], cov[0, 1], rtol=1e-9)
-        # PHYSICS.md §4 closed forms, literally.
+        # docs/statistics.md §3.2 closed forms, literally.
         s, sx, sxx = w.sum(), (w * x[i]).sum(), (w * x[i] ** 2).sum()
         sy, sxy = (w * y[i]).sum(), (w * x[i] * y[i]).sum()
         delta = s * sxx - sx**2

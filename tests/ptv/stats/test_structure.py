@@ -3,7 +3,7 @@
 Particles move in the simple shear u = G·x, G = g e_x e_yᵀ. G is nilpotent, so the
 acceleration G²x vanishes and the displacement is exactly ΔX̃ = Δt·G·x: S2 has no Δt³
 term. White Gaussian noise of known σ is added independently to every measured
-position, so the noise term is N = 4σ² (PHYSICS.md §4 with ρ = 0). The sample truth
+position, so the noise term is N = 4σ² (docs/statistics.md §1 with ρ = 0). The sample truth
 of a bin is the mean of [(G r)·e]² over its actual pairs, from `pair_sums` on the exact
 velocities at the measured positions.
 """
@@ -64,7 +64,7 @@ def test_time_resolved_fit_recovers_noise_free_s2_and_the_noise(time_resolved, m
     check_recovers_truth(sf, truth)
     assert sf.method == f"{method}-bootstrap" and sf.s2_boot.shape == (200, BINS.n_bins)
     assert np.median(sf.chi2_dof) < 2.5  # χ²₃/3 with an estimated covariance: heavy tail
-    # Raw S2 at the smallest Δt is biased upward by N/Δt² (PHYSICS.md §4, claim 6).
+    # Raw S2 at the smallest Δt is biased upward by N/Δt² (docs/statistics.md §3, claim #6).
     bias = (sf.raw_s2[:, 0] - truth) * DT[0] ** 2
     assert np.allclose(bias, 4 * SIGMA**2, rtol=0.1)
     assert sf.raw_s2[0, 0] > 5 * truth[0]

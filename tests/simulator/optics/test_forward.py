@@ -29,7 +29,7 @@ def _points_behind(rng, n, stack, depth=(0.001, 0.6), lateral=1.0):
 
 
 def test_single_interface_matches_the_quartic():
-    """(n_a² − n_w²) x²(ρ−x)² + n_a² h_w² x² − n_w² h_a² (ρ−x)² = 0 (PHYSICS.md §5)."""
+    """(n_a² − n_w²) x²(ρ−x)² + n_a² h_w² x² − n_w² h_a² (ρ−x)² = 0 (docs/optics.md §4.3)."""
     n_a, n_w, h_a = 1.0, 1.333, 0.4
     stack = FlatInterfaces([0, 0, 1.0], [h_a], [n_a, n_w])
     rng = np.random.default_rng(3)

@@ -43,7 +43,7 @@ def test_tilt_in_air_obeys_the_scheimpflug_rule(view_deg):
 
 
 def test_tilt_through_a_perpendicular_window_matches_the_paraxial_rule():
-    """tan θ_o,app = (n_a/n_w) tan θ_o and M from the apparent distance (PHYSICS.md §5)."""
+    """tan θ_o,app = (n_a/n_w) tan θ_o and M from the apparent distance (docs/optics.md §3)."""
     view = np.radians(35)
     h_w, t_g, distance = 0.3, 0.015, 0.9
     cam = look_at_camera([0, 0, 0], Lens(F, PITCH), distance=distance, azimuth=view,

@@ -1,4 +1,4 @@
-"""Pixel-integrated Gaussian spots against the formulas of PHYSICS.md §8."""
+"""Pixel-integrated Gaussian spots against the formulas of docs/imaging.md §3."""
 
 import math
 
@@ -73,7 +73,7 @@ def test_centroid_bias_small_for_three_pixel_spots(sigma):
 
 @pytest.mark.parametrize("sigma", [0.3, 0.4, 0.5])
 def test_centroid_bias_matches_analytic_peak_locking(sigma):
-    # PHYSICS.md §8: pixel-integrated CoM on an infinite window is biased by
+    # docs/imaging.md §6: pixel-integrated CoM on an infinite window is biased by
     # −(1/π) e^{−2π²σ²} sin 2πx̃; the next harmonic is (1/2π) e^{−8π²σ²} ≤ 1.3e-4 px.
     frac = np.linspace(-0.5, 0.5, 41)
     xy = np.column_stack([20 + frac, 10 - frac])

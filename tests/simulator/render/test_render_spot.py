@@ -1,4 +1,4 @@
-"""Spot size and brightness against the formulas of PHYSICS.md §8."""
+"""Spot size and brightness against the formulas of docs/imaging.md §1–2."""
 
 import math
 
@@ -17,7 +17,7 @@ from simulator.render.spot import (
     particle_electrons,
 )
 
-# The paper-like example of PHYSICS.md §8: 100 µm/px object side on a 5.5 µm sensor.
+# The paper-like example of docs/imaging.md §1: 100 µm/px object side on a 5.5 µm sensor.
 PITCH = 5.5e-6
 M = 0.055
 FNUM = 8.0
