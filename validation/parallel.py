@@ -20,6 +20,8 @@ order, never in order of arrival, and every function seeds its randomness from i
 
 import logging
 import os
+import signal
+import threading
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Protocol
@@ -174,25 +176,40 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
     # running threads.
     saved = {key: os.environ.get(key) for key in SINGLE_THREADED}
     try:
-        with (
-            dask.config.set(
-                {TRIM_THRESHOLD: None, "logging.distributed": "warning", **environment}
-            ),
-            LocalCluster(
-                n_workers=n,
-                threads_per_worker=1,
-                processes=True,
-                # A port of its own: with None the scheduler's HTTP server still tries
-                # the default 8787, and warns when another cluster holds it.
-                dashboard_address=":0",
-                env=SINGLE_THREADED,
-            ) as cluster,
-            Client(cluster) as client,
+        with dask.config.set(
+            {TRIM_THRESHOLD: None, "logging.distributed": "warning", **environment}
         ):
-            _set_environment(saved)
-            yield client
+            with _workers_ignore_ctrl_c():
+                cluster = LocalCluster(
+                    n_workers=n,
+                    threads_per_worker=1,
+                    processes=True,
+                    # A port of its own: with None the scheduler's HTTP server still
+                    # tries the default 8787, and warns when another cluster holds it.
+                    dashboard_address=":0",
+                    env=SINGLE_THREADED,
+                )
+            with cluster, Client(cluster) as client:
+                _set_environment(saved)
+                yield client
     finally:
         _set_environment(saved)
+
+
+@contextmanager
+def _workers_ignore_ctrl_c() -> Iterator[None]:
+    """Ignore SIGINT while the workers are spawned, so that they inherit that: Ctrl-C
+    reaches every process of the terminal's group, and the workers would each print a
+    KeyboardInterrupt traceback; this process closes them instead. Only the main thread
+    can change signal handlers (elsewhere this does nothing)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _set_environment(values: dict[str, str | None]) -> None:
