@@ -291,7 +291,7 @@ class ExperimentRun:
         def build(target: Path) -> None:
             target.mkdir()
             reference = flow_truth(
-                truth.snapshots_at_t(self.chunks),
+                truth.snapshots_at_t(self.chunks, progress=self.bar("truth")),
                 self.preset.parameters,
                 self.scenario.flow.spectrum,
                 self.settings.statistics,
@@ -413,7 +413,7 @@ class RungBuilder:
         cache = target / "chunks"
         tick = self.run.bar(f"ptv {variant}")
         if variant == "exact":
-            runs = exact_runs(self.truth, self.run.chunks, self.unlinked)
+            runs = exact_runs(self.truth, self.run.chunks, self.unlinked, progress=tick)
             result = self.reference_result(runs)
             self.save(result, target, "none: true trajectories")
         elif variant == "detection":

@@ -4,9 +4,14 @@ import sys
 import time
 from typing import TextIO
 
+#: Seconds between redraws on a terminal, and between lines in a log file.
+TERMINAL_INTERVAL_S = 0.2
+LOG_INTERVAL_S = 10.0
+
 
 class ProgressBar:
-    """Callable ``(done, total)`` that redraws one line on a stream.
+    """Callable ``(done, total)`` that redraws one line on a terminal; written to a file
+    or a pipe (a log), one plain line every :data:`LOG_INTERVAL_S` and one at the end.
 
     Parameters
     ----------
@@ -24,22 +29,27 @@ class ProgressBar:
         self.enabled = enabled
         self.start = time.monotonic()
         self._last = 0.0
+        isatty = getattr(self.stream, "isatty", None)
+        self.terminal = bool(isatty and isatty())
 
     def __call__(self, done: int, total: int) -> None:
         if not self.enabled:
             return
         now = time.monotonic()
-        if done < total and now - self._last < 0.2:
+        interval = TERMINAL_INTERVAL_S if self.terminal else LOG_INTERVAL_S
+        if done < total and now - self._last < interval:
             return
         self._last = now
-        width = 30
-        filled = int(width * done / max(total, 1))
         elapsed = now - self.start
         eta = elapsed / done * (total - done) if done else float("nan")
-        self.stream.write(
-            f"\r{self.label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total} "
-            f"{elapsed:5.0f} s elapsed, {eta:4.0f} s left"
-        )
-        if done >= total:
-            self.stream.write("\n")
+        timing = f"{done}/{total} {elapsed:5.0f} s elapsed, {eta:4.0f} s left"
+        if self.terminal:
+            width = 30
+            filled = int(width * done / max(total, 1))
+            bar = f"[{'#' * filled}{'.' * (width - filled)}]"
+            self.stream.write(f"\r{self.label} {bar} {timing}")
+            if done >= total:
+                self.stream.write("\n")
+        else:
+            self.stream.write(f"{self.label}: {timing}\n")
         self.stream.flush()

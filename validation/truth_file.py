@@ -272,15 +272,19 @@ class TruthFile:
         return out
 
     def snapshots_at_t(
-        self, chunks: Sequence[tuple[int, int]]
+        self, chunks: Sequence[tuple[int, int]], *, progress=None
     ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """Positions (P, 3) and velocities (P, 3) at t of every independent snapshot:
         those of Δt_0 with a shared first frame, of every Δt otherwise; read a chunk of
-        snapshots (ranges m0, m1) at a time."""
+        snapshots (ranges m0, m1) at a time, ``progress(done, total)`` called after
+        each."""
         groups = range(1 if self.shared_first_frame else len(self.dt))
+        total = len(groups) * len(chunks)
         for k in groups:
-            for m0, m1 in chunks:
+            for i, (m0, m1) in enumerate(chunks):
                 with h5py.File(self.path, "r") as f:
                     g = f[f"particles/dt{k}"]
                     x, u = g["positions_a"][m0:m1], g["velocity"][m0:m1]
+                if progress is not None:
+                    progress(k * len(chunks) + i + 1, total)
                 yield from zip(x, u, strict=True)

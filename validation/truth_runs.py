@@ -14,7 +14,7 @@ analysis volume (the only ones the statistics use); the counts per snapshot are 
 of every particle.
 """
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import reduce
 
@@ -76,7 +76,11 @@ def reference_run(
 
 
 def exact_runs(
-    truth: TruthFile, chunks: Iterable[tuple[int, int]], settings: PipelineSettings
+    truth: TruthFile,
+    chunks: Sequence[tuple[int, int]],
+    settings: PipelineSettings,
+    *,
+    progress: Callable[[int, int], None] | None = None,
 ) -> list[RunParticles]:
     """The true positions of every particle at t and t + Δt, per Δt.
 
@@ -84,15 +88,19 @@ def exact_runs(
     ----------
     truth : TruthFile
         The dataset's truth, read chunk by chunk.
-    chunks : iterable of (int, int)
+    chunks : sequence of (int, int)
         Snapshot ranges covering the snapshots to use, in order.
     settings : PipelineSettings
         Analysis volume.
+    progress : callable(done, total), optional
+        Called after each chunk.
     """
     per_k: list[list] = [[] for _ in truth.dt]
-    for m0, m1 in chunks:
+    for i, (m0, m1) in enumerate(chunks):
         for k, run in enumerate(truth.runs(m0, m1)):
             per_k[k].extend(in_volume(p[0], p[1], settings) for p in run.positions)
+        if progress is not None:
+            progress(i + 1, len(chunks))
     n_cam = len(truth.rig.camera_names)
     return [
         reference_run(k, float(dt), range(len(per_k[k])), per_k[k], n_cam)
