@@ -192,7 +192,6 @@ class _DetectionTally:
         return out
 
 
-
 def _triangulated_particles(detected, exact, visible, cameras, tally) -> np.ndarray:
     """Each particle's position from its detected centres in one frame of every camera.
 
@@ -424,5 +423,3 @@ def detected_runs(
         displacement_noise=displacement_noise,
     )
     return runs, quality
-
-
