@@ -13,9 +13,12 @@ thickness of the laser sheet, m, centred on the origin with its normal along Z),
     glass_thickness (m), obliquity_deg, obliquity_direction_deg (0: in the camera's
     horizontal plane, 45: about a diagonal), n_glass, n_water.
 
-Missing or unknown fields are errors that name the file and the field.
+Missing or unknown fields are errors that name the file and the field. Camera names
+become folder and file names: letters, digits, '.', '_' and '-', starting with a letter
+or digit (:data:`FILE_NAME_RULE`).
 """
 
+import re
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -79,6 +82,21 @@ class Rig:
     sheet: Box
     tank_inradius: float
     spec: dict
+
+
+#: Names that become folder and file names (cameras, scenarios): letters, digits, '.',
+#: '_' and '-', starting with a letter or digit, so that no name can point elsewhere
+#: ("../x", "/tmp/x") or hide.
+_FILE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+FILE_NAME_RULE = (
+    "1 to 64 letters, digits, '.', '_' or '-', starting with a letter or digit (it names "
+    "folders and files)"
+)
+
+
+def is_file_name(name: object) -> bool:
+    """Whether ``name`` may be used as a folder or file name (:data:`FILE_NAME_RULE`)."""
+    return isinstance(name, str) and _FILE_NAME.fullmatch(name) is not None
 
 
 class RigFileError(ValueError):
@@ -167,8 +185,8 @@ def _camera(table: dict, where: str, sheet: Box) -> tuple[str, Camera]:
         camera, plane_point=sheet.centre, plane_normal=(0.0, 0.0, 1.0), tilt=table["scheimpflug"]
     )
     name = table["name"]
-    if not isinstance(name, str) or not name:
-        raise RigFileError(f"{where}.name: expected a non-empty string, got {name!r}")
+    if not is_file_name(name):
+        raise RigFileError(f"{where}.name: expected {FILE_NAME_RULE}, got {name!r}")
     return name, camera
 
 

@@ -31,7 +31,7 @@ from ptv.pipeline import PipelineSettings
 from ptv.stats.run_statistics import StatisticsSettings
 from simulator.presets import FLOW_PRESETS
 from simulator.render.sensor import Sensor
-from simulator.rigs import rig_presets
+from simulator.rigs import FILE_NAME_RULE, is_file_name, rig_presets
 from simulator.spectra import SPECTRA
 
 
@@ -276,6 +276,8 @@ def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
     """
     if "name" not in spec or not isinstance(spec["name"], str):
         raise ScenarioError(f"{source}: a scenario needs a 'name' string")
+    if not is_file_name(spec["name"]):
+        raise ScenarioError(f"{source}: name must be {FILE_NAME_RULE}, got {spec['name']!r}")
     unknown = sorted(set(spec) - {"name", "description", "seed", *_SECTIONS})
     if unknown:
         raise ScenarioError(f"{source}: unknown table(s) or field(s) {', '.join(unknown)}")

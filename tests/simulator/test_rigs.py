@@ -96,3 +96,11 @@ def test_unknown_preset_and_bad_files(tmp_path):
     bad.write_text("name = [")
     with pytest.raises(RigFileError, match="not valid TOML"):
         load_rig(bad)
+
+
+@pytest.mark.parametrize("name", ["../../x", "/tmp/x", ".hidden", "", "cam 1", "a/b", 7])
+def test_camera_names_that_would_leave_the_output_folder_are_refused(name):
+    spec = preset_spec("paper-stereo")
+    spec["cameras"][0]["name"] = name
+    with pytest.raises(RigFileError, match=r"cameras\[0\]\.name: expected 1 to 64 letters"):
+        rig_from_dict(spec, source="mine.toml")

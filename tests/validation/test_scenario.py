@@ -194,3 +194,11 @@ def test_with_seed_changes_only_the_seed():
     assert reseeded == replace(scenario, seed=scenario.seed + 7)
     assert {**reseeded.as_dict(), "seed": scenario.seed} == scenario.as_dict()
     assert scenario.seed == load_scenario("default").seed  # the original is untouched
+
+
+@pytest.mark.parametrize("name", ["../../../esc", "/tmp/esc", "a b", ".."])
+def test_scenario_names_that_would_leave_the_working_folder_are_refused(tmp_path, name):
+    path = write(tmp_path / "bad.toml", f"name = {name!r}\n".replace("'", '"'))
+    with pytest.raises(ScenarioError, match="name must be 1 to 64 letters") as error:
+        load_scenario(path)
+    assert str(path) in str(error.value)
