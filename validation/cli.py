@@ -16,6 +16,7 @@ from simulator.presets import FLOW_PRESETS, flow_preset
 from simulator.rigs import load_rig, rig_presets
 from simulator.spectra import SPECTRA
 from simulator.turbulence import NU_WATER, TurbulenceParameters
+from validation.files import check_output_folder
 from validation.flow_summary import FlowSettings, summarize_flow
 from validation.progress import ProgressBar
 from validation.study_cli import add_study_parser
@@ -86,6 +87,7 @@ def _run_render(args: argparse.Namespace) -> int:
     from validation.parallel import check_parallel_options, executor
 
     check_parallel_options(args.workers, args.scheduler)
+    check_output_folder(args.out)
     rig = load_rig(args.rig)
     preset = flow_preset(args.preset)
     settings = RenderSettings(
@@ -101,6 +103,8 @@ def _run_render(args: argparse.Namespace) -> int:
 def _run_calibrate(args: argparse.Namespace) -> int:
     from validation.calibrate_dataset import calibrate_dataset
 
+    if args.out is not None:
+        check_output_folder(args.out)
     bar = ProgressBar("calibrate", enabled=not args.quiet)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     result = calibrate_dataset(Path(args.dataset), methods=methods, out=args.out, progress=bar)
@@ -142,7 +146,7 @@ def _run_experiment(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
     if args.seed is not None:
         scenario = scenario.with_seed(args.seed)
-    out = Path(args.out if args.out is not None else f"synptv-{scenario.name}")
+    out = check_output_folder(args.out if args.out is not None else f"synptv-{scenario.name}")
 
     def bar(stage: str) -> ProgressBar:
         return ProgressBar(stage, enabled=not args.quiet)
@@ -196,6 +200,7 @@ def _run_ptv(args: argparse.Namespace) -> int:
     from ptv.results import save_results, summary
     from validation.ptv_figures import save_ptv_figures
 
+    check_output_folder(args.out)
     try:
         dataset = open_dataset(args.dataset)
         calibrations = load_calibrations(args.calibration)

@@ -47,3 +47,27 @@ def write_text_atomic(path: Path, text: str) -> Path:
 def write_json_atomic(path: Path, value: object) -> Path:
     """:func:`write_text_atomic` of ``value`` as indented JSON (NaN written as null)."""
     return write_text_atomic(path, json.dumps(as_json(value), indent=2) + "\n")
+
+
+def check_output_folder(path: Path | str, option: str = "--out") -> Path:
+    """``path`` as a folder that can be created or written, checked before any work.
+
+    Raises
+    ------
+    ValueError
+        Naming ``option`` and the path: it is a file, lies under a file, or its nearest
+        existing folder cannot be written.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{option} {path} is a file, not a folder")
+    existing = path
+    while not existing.exists():
+        if existing.parent == existing:
+            break
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ValueError(f"{option} {path} lies under {existing}, which is a file")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"{option} {path}: {existing} is not writable")
+    return path

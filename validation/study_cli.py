@@ -35,7 +35,7 @@ from matplotlib.figure import Figure
 from simulator.presets import flow_preset
 from validation.calibration_study import relative_to_most_planes
 from validation.figures import obliquity_curves, plane_count_curves, save_figure
-from validation.files import as_json, write_json_atomic, write_text_atomic
+from validation.files import as_json, check_output_folder, write_json_atomic, write_text_atomic
 from validation.parallel import Executor, check_parallel_options, dask_client, executor
 from validation.progress import ProgressBar
 from validation.rendered_study import evaluate_point, study_points
@@ -438,6 +438,7 @@ def _run_study_command(args) -> int:
     if extra:
         option = "--planes" if "planes" in extra else "--dt-subsets"
         raise ValueError(f"{option} is an option of the {extra[0]} study, not of {args.study}")
+    check_output_folder(args.out)
     try:
         files = run_study(
             args.study,
