@@ -288,12 +288,10 @@ class NoiseSums:
     def rms(self) -> tuple[np.ndarray, np.ndarray]:
         """RMS position noise (3,) and displacement noise per Δt (K, 3), m; NaN where
         no particle was scored."""
-        with np.errstate(invalid="ignore", divide="ignore"):
-            position = np.sqrt(self.position / self.positions) if self.positions else None
+        with np.errstate(invalid="ignore"):  # no particle: 0/0 = NaN
+            position = np.sqrt(self.position / self.positions)
             displacement = np.sqrt(self.displacement / self.displacements[:, None])
-        if position is None:
-            position = np.full(3, np.nan)
-        return position, np.where(self.displacements[:, None] > 0, displacement, np.nan)
+        return position, displacement
 
 
 @dataclass(frozen=True, eq=False)
