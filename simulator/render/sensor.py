@@ -13,10 +13,17 @@ noise-free mode replaces k by min(μ, ⌊full_well⌋) and r by 0.
 How it stays exact and fast: every pixel without signal has the *same* DN
 distribution, that of a pure background pixel (Poisson(background) convolved with the
 read noise, scaled, rounded and clipped). It is tabulated once per sensor to double
-precision (tails below ~10⁻²⁰ dropped) and sampled by inversion: one uniform per pixel
-and a guide table, in a compiled loop. Pixels with signal > 0 (the spots' ROIs, a few
-percent of a particle image) follow the three steps above with NumPy's exact Poisson
-and normal generators. Both paths draw from the same exact distribution; nothing is
+precision (tails below ~10⁻²⁰ dropped) and sampled by inversion from 16 random bits per
+pixel: a look-up table of the 2¹⁶ equal cells of [0, 1) gives the DN of every cell that
+lies within one DN's share of the CDF; a pixel whose cell straddles a boundary (about
+one in a thousand) draws a double-precision uniform within its cell and searches the
+CDF. A pixel with a weak signal μ_s <= 25 e⁻ draws one uniform u and inverts the Poisson
+CDF of its signal electrons k_s; when k_s = 0 (u < e^{−μ_s}, three pixels in four on a
+particle image, most of them in the tails of the spots) it reads as a background pixel,
+sampled from the same table with the uniform u / e^{−μ_s}; otherwise its count is k_s
+plus a Poisson(background) draw. Brighter pixels follow the three steps above with
+NumPy's Poisson and normal generators. Every path draws from the same exact
+distribution (Poisson(μ_s) + Poisson(background) is Poisson(μ)); nothing is
 approximated by a Gaussian. When the background is so large that its table would be
 expensive (> 4·10⁶ entries, e.g. 10⁴ e⁻ at a gain of 4 DN/e⁻), every pixel takes the
 per-pixel path, which is exact but several times slower.
@@ -26,6 +33,7 @@ import logging
 from dataclasses import dataclass
 from functools import lru_cache
 from math import ceil, floor, sqrt
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -39,13 +47,41 @@ logger = logging.getLogger(__name__)
 _TAIL_SIGMAS = 12.0
 #: Beyond this many (k, DN) table entries the per-pixel path is used for every pixel.
 _MAX_TABLE_WORK = 4_000_000
-#: Smallest guide table: with many more cells than DN values, the search after the
-#: guide look-up almost never moves, which keeps the sampling loop free of mispredicted
-#: branches (6 ms instead of 11 ms on a 2048 × 1088 frame on the 2-core machine).
-_MIN_GUIDE = 1024
-#: Pixels per chunk of the table path (2 MiB of uniforms).
+#: Random bits per zero-signal pixel: the look-up tables have 2^16 cells.
+_CELL_BITS = 16
+#: Pixels per chunk of the table path (128 KiB of random bits).
 _CHUNK = 1 << 18
+#: Signals up to this many expected e⁻ invert the Poisson CDF in the compiled loop (at
+#: most ~μ_s + 1 steps); brighter pixels use NumPy's Poisson generator.
+_INVERSION_MAX = 25.0
 _FLOAT_MAX = float(np.finfo(np.float64).max)
+
+
+class BackgroundTable(NamedTuple):
+    """Inverse-CDF table of the DN of a pixel without signal.
+
+    Attributes
+    ----------
+    cdf : ndarray, shape (n,)
+        cdf[i] = P(DN <= dn_lo + i); cdf[-1] = 1.
+    cells : ndarray of int32, shape (2^16,)
+        For the uniforms u in cell j, [j, j + 1) / 2^16: the index i of their DN
+        (the first i with cdf[i] > u) when it is the same for the whole cell, else
+        −1 − (that index at the cell's lower end).
+    dn : ndarray of uint16, shape (2^16,)
+        The DN of each cell, dn_lo + cells[j], or ``straddles`` where the cell straddles
+        a CDF boundary.
+    dn_lo : int
+        Smallest DN tabulated.
+    straddles : int
+        A DN outside the table, marking the cells that straddle a boundary.
+    """
+
+    cdf: np.ndarray
+    cells: np.ndarray
+    dn: np.ndarray
+    dn_lo: int
+    straddles: int
 
 
 @dataclass(frozen=True)
@@ -148,22 +184,52 @@ class Sensor:
         )
         if table is None:
             _check_values(signal)
-            idx = np.arange(flat.size)
+            lit = np.arange(flat.size)
+            self._record_shot(out, lit, gen.poisson(self._capped(flat + self.background)), gen)
         else:
-            idx = _record_background(signal, gen, table, out)
-        if idx.size:
-            lam = np.minimum(flat[idx] + self.background, _poisson_cap(self.well))
-            counts = np.minimum(gen.poisson(lam), self.well).astype(np.float64)
-            if self.read_noise > 0:
-                counts += self.read_noise * gen.standard_normal(idx.size)
-            out[idx] = self._digitise(counts)
+            lit = _record_background(signal, gen, table, out)
+            self._record_signal(flat, lit, gen, table, out)
         logger.debug(
             "recorded %d px, %d with signal (%s path for the rest)",
             flat.size,
-            idx.size,
+            lit.size,
             "table" if table is not None else "per-pixel",
         )
         return out.reshape(signal.shape)
+
+    def _record_signal(
+        self,
+        flat: np.ndarray,
+        lit: np.ndarray,
+        gen: np.random.Generator,
+        table: BackgroundTable,
+        out: np.ndarray,
+    ) -> None:
+        """Record the pixels ``lit`` (signal > 0) into ``out``: weak signals by inversion
+        (one uniform per lit pixel), the rest with NumPy's Poisson generator."""
+        signal = flat[lit]
+        n, listed, shot = _invert_weak_signals(
+            signal, np.exp(-signal), lit, gen.random(lit.size), table, out
+        )
+        listed, shot = listed[:n], shot[:n]
+        bright = shot < 0
+        electrons = shot.copy()
+        electrons[bright] = gen.poisson(self._capped(flat[listed[bright]] + self.background))
+        if self.background > 0:
+            electrons[~bright] += gen.poisson(self.background, n - np.count_nonzero(bright))
+        self._record_shot(out, listed, electrons, gen)
+
+    def _capped(self, mean: np.ndarray) -> np.ndarray:
+        return np.minimum(mean, _poisson_cap(self.well))
+
+    def _record_shot(
+        self, out: np.ndarray, idx: np.ndarray, electrons: np.ndarray, gen: np.random.Generator
+    ) -> None:
+        """out[idx] = DN of ``electrons`` (saturated at the well) plus read noise."""
+        counts = np.minimum(electrons, self.well).astype(np.float64)
+        if self.read_noise > 0:
+            counts += self.read_noise * gen.standard_normal(idx.size)
+        out[idx] = self._digitise(counts)
 
     def _digitise(self, counts: np.ndarray) -> np.ndarray:
         dn = np.rint(self.gain * counts + self.offset)
@@ -192,31 +258,35 @@ def _check_values(arr: np.ndarray) -> None:
 
 
 def _record_background(
-    signal: np.ndarray,
-    gen: np.random.Generator,
-    table: tuple[np.ndarray, np.ndarray, int],
-    out: np.ndarray,
+    signal: np.ndarray, gen: np.random.Generator, table: BackgroundTable, out: np.ndarray
 ) -> np.ndarray:
     """Fill ``out`` at zero-signal pixels from the table; return the other pixels' indices.
 
-    Works in chunks so that the uniforms stay in cache and no frame-sized scratch
-    array is faulted in on every call.
+    Works in chunks so that the random bits stay in cache and no frame-sized scratch
+    array is faulted in on every call. Per chunk: 16 random bits per pixel (four per
+    64-bit word of the generator) give every pixel its cell's DN; then one uniform per
+    zero-signal pixel whose cell straddles a CDF boundary.
     """
-    cdf, guide, dn_lo = table
     flat = signal.reshape(-1)
     chunk = min(_CHUNK, flat.size)
-    uniforms = np.empty(chunk)
-    found = np.empty(chunk, dtype=np.int64)
+    lit = np.empty(chunk, dtype=np.int64)
+    straddling = np.empty(chunk, dtype=np.int64)
     parts = []
     for start in range(0, flat.size, chunk):
         stop = min(start + chunk, flat.size)
-        u = uniforms[: stop - start]
-        gen.random(out=u)
-        count = _sample_background(flat[start:stop], u, cdf, guide, dn_lo, out[start:stop], found)
-        if count < 0:
+        bits = gen.bit_generator.random_raw(-(-(stop - start) // 4))
+        _look_up_cells(bits, table.dn, out[start:stop])
+        n_lit, n_straddling = _split_pixels(
+            flat[start:stop], out[start:stop], table.straddles, lit, straddling
+        )
+        if n_lit < 0:
             _check_values(signal)
-        if count:
-            parts.append(found[:count] + start)
+        pixels = straddling[:n_straddling]
+        cell = (bits[pixels >> 2] >> (16 * (pixels & 3)).astype(np.uint64)) & np.uint64(0xFFFF)
+        uniform = (cell + gen.random(n_straddling)) / (1 << _CELL_BITS)
+        _fill_from_uniforms(pixels, uniform, table.cells, table.cdf, table.dn_lo, out[start:stop])
+        if n_lit:
+            parts.append(lit[:n_lit] + start)
     return np.concatenate(parts) if parts else np.empty(0, dtype=np.int64)
 
 
@@ -243,12 +313,8 @@ def _background_table(
     read_noise: float,
     full_well: float,
     bit_depth: int,
-) -> tuple[np.ndarray, np.ndarray, int] | None:
-    """Inverse-CDF table of the DN of a pixel without signal, or None if too large.
-
-    Returns ``(cdf, guide, dn_lo)``: cdf[i] = P(DN <= dn_lo + i) with cdf[-1] = 1, and
-    guide[j] = the first i with cdf[i] > j / len(guide).
-    """
+) -> BackgroundTable | None:
+    """Inverse-CDF table of the DN of a pixel without signal, or None if too large."""
     max_dn = (1 << bit_depth) - 1
     spread = _TAIL_SIGMAS * sqrt(background)
     k_lo = max(0, floor(background - spread - _TAIL_SIGMAS))
@@ -275,8 +341,9 @@ def _background_table(
         d = np.arange(dn_lo, dn_hi + 1, dtype=np.float64)
         if k.size * d.size > _MAX_TABLE_WORK:
             return None
-        lo = (d[None, :] - 0.5 - value[:, None]) / read
-        hi = (d[None, :] + 0.5 - value[:, None]) / read
+        with np.errstate(over="ignore"):  # a read noise ~1e-308 e⁻: ±inf, still exact
+            lo = (d[None, :] - 0.5 - value[:, None]) / read
+            hi = (d[None, :] + 0.5 - value[:, None]) / read
         lo[:, 0] = np.where(dn_lo == 0, -np.inf, lo[:, 0])
         hi[:, -1] = np.where(dn_hi == max_dn, np.inf, hi[:, -1])
         # P(lo < Z < hi) for Z ~ N(0, 1), in the form exact in both tails.
@@ -290,36 +357,120 @@ def _background_table(
     cdf = np.cumsum(pmf)
     cdf /= cdf[-1]
     cdf[-1] = 1.0
-    m = max(cdf.size, _MIN_GUIDE)
-    guide = np.searchsorted(cdf, np.arange(m) / m, side="right").astype(np.int64)
-    cdf.setflags(write=False)
-    guide.setflags(write=False)
-    return cdf, guide, dn_lo
+    lower = np.arange(1 << _CELL_BITS) / (1 << _CELL_BITS)
+    first = np.searchsorted(cdf, lower, side="right")  # the first i with cdf[i] > u
+    whole = cdf[first] >= lower + 1.0 / (1 << _CELL_BITS)
+    cells = np.where(whole, first, -1 - first).astype(np.int32)
+    dn_hi = dn_lo + cdf.size - 1
+    if dn_hi < 0xFFFF:
+        straddles = 0xFFFF
+    elif dn_lo > 0:
+        straddles = 0
+    else:  # every 16-bit DN is possible: no marker left (and a huge table anyway)
+        return None
+    dn = np.where(whole, dn_lo + first, straddles).astype(np.uint16)
+    for arr in (cdf, cells, dn):
+        arr.setflags(write=False)
+    return BackgroundTable(cdf, cells, dn, dn_lo, straddles)
+
+
+@njit(cache=True, inline="always")
+def _invert(cells, cdf, u):  # pragma: no cover (compiled)
+    """The index i of the DN of uniform u in [0, 1): the first i with cdf[i] > u."""
+    c = cells[min(int(u * cells.size), cells.size - 1)]
+    i = c if c >= 0 else -1 - c
+    while cdf[i] <= u:
+        i += 1
+    return i
 
 
 @njit(cache=True)
-def _sample_background(signal, uniforms, cdf, guide, dn_lo, out, idx):  # pragma: no cover
-    """Sample DN of zero-signal pixels by table inversion; list the others in ``idx``.
+def _look_up_cells(bits, dn, out):  # pragma: no cover (compiled)
+    """out[p] = dn[cell of pixel p]: bits 16·(p mod 4) … 16·(p mod 4) + 15 of word p // 4."""
+    n = out.size
+    for w in range(n >> 2):
+        word = bits[w]
+        out[4 * w] = dn[word & np.uint64(0xFFFF)]
+        out[4 * w + 1] = dn[(word >> np.uint64(16)) & np.uint64(0xFFFF)]
+        out[4 * w + 2] = dn[(word >> np.uint64(32)) & np.uint64(0xFFFF)]
+        out[4 * w + 3] = dn[word >> np.uint64(48)]
+    for p in range(n & ~3, n):
+        out[p] = dn[(bits[p >> 2] >> np.uint64(16 * (p & 3))) & np.uint64(0xFFFF)]
 
-    Returns the number of pixels listed in ``idx``, or −1 − p if pixel p is negative,
-    NaN or infinite.
+
+@njit(cache=True)
+def _split_pixels(signal, out, straddles, lit, straddling):  # pragma: no cover (compiled)
+    """List the pixels with signal in ``lit``, the zero-signal pixels whose cell
+    straddles a boundary (``out`` = ``straddles``) in ``straddling``.
+
+    Returns (len(lit), len(straddling)), or (−1, 0) if a pixel is negative, NaN or
+    infinite.
     """
-    m = guide.size
-    count = 0
+    n_lit = 0
+    n_straddling = 0
     for p in range(signal.size):
         s = signal[p]
-        if s == 0.0:
-            u = uniforms[p]
-            i = guide[min(int(u * m), m - 1)]
-            while cdf[i] <= u:
-                i += 1
-            out[p] = dn_lo + i
-        elif s > 0.0 and s <= _FLOAT_MAX:
-            idx[count] = p
-            count += 1
-        else:
-            return -1 - p
-    return count
+        if s != 0.0 or out[p] == straddles:
+            if s == 0.0:
+                straddling[n_straddling] = p
+                n_straddling += 1
+            elif s > 0.0 and s <= _FLOAT_MAX:
+                lit[n_lit] = p
+                n_lit += 1
+            else:
+                return -1, 0
+    return n_lit, n_straddling
+
+
+@njit(cache=True)
+def _fill_from_uniforms(pixels, u, cells, cdf, dn_lo, out):  # pragma: no cover
+    """out[pixels[j]] = the background DN of uniform u[j]."""
+    for j in range(pixels.size):
+        out[pixels[j]] = dn_lo + _invert(cells, cdf, u[j])
+
+
+@njit(cache=True)
+def _invert_weak_signals(signal, none, lit, u, table, out):  # pragma: no cover
+    """Signal electrons k_s ~ Poisson(μ_s) of the weak lit pixels, by inversion with u.
+
+    For lit pixel j (flat index lit[j], μ_s = signal[j], P(k_s = 0) = none[j] =
+    e^{−μ_s}, given so that NumPy computes it in SIMD): if μ_s > _INVERSION_MAX it
+    is listed with k = −1 (for the Poisson generator); else k_s is the inverse Poisson
+    CDF of u[j]. Where k_s = 0 the pixel reads as a background pixel: its DN, drawn from
+    the table with the uniform u[j] / e^{−μ_s}, goes to ``out``; otherwise it is listed
+    with k = k_s. Tails beyond μ_s + 12√μ_s + 12 e⁻, less likely than the rounding of the
+    cumulative sum (~10⁻¹⁵), go to that count.
+
+    Returns (n, listed, k): the first n entries of listed and k are the pixels left.
+    """
+    cdf, cells, _, dn_lo, _ = table
+    listed = np.empty(lit.size, np.int64)
+    shot = np.empty(lit.size, np.int64)
+    below_one = 1.0 - 2.0**-53
+    n = 0
+    for j in range(lit.size):
+        p = lit[j]
+        mu = signal[j]
+        if mu > _INVERSION_MAX:
+            listed[n] = p
+            shot[n] = -1
+            n += 1
+            continue
+        pk = none[j]
+        if u[j] < pk:
+            out[p] = dn_lo + _invert(cells, cdf, min(u[j] / pk, below_one))
+            continue
+        top = int(mu + 12.0 * sqrt(mu) + 12.0)
+        k = 0
+        total = pk
+        while u[j] >= total and k < top:
+            k += 1
+            pk *= mu / k
+            total += pk
+        listed[n] = p
+        shot[n] = k
+        n += 1
+    return n, listed, shot
 
 
 @njit(cache=True)

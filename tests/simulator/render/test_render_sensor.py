@@ -10,9 +10,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
-from simulator.render.sensor import Sensor, _background_table
+from simulator.render.sensor import Sensor, _background_table, _fill_from_uniforms
 
 N_SIDE = (400, 500)  # 2e5 pixels
 N = N_SIDE[0] * N_SIDE[1]
@@ -206,3 +208,50 @@ def test_bad_sensor_raises(kwargs, match):
 def test_bad_images_raise(image, match, noise):
     with pytest.raises(ValueError, match=match):
         Sensor().record(image, rng=0, noise=noise)
+
+
+@pytest.mark.parametrize(
+    ("signal", "background"),
+    [(3.0, 2.0), (20.0, 0.0), (1e-4, 4.9999)],
+    ids=["both", "weak", "tiny"],
+)
+def test_weak_signals_are_poisson_of_signal_plus_background(signal, background):
+    # Weak signals (<= 25 e⁻) invert the Poisson CDF of their own electrons and add the
+    # background's; the sum must be Poisson(signal + background).
+    sensor = Sensor(gain=1.0, read_noise=0.0, offset=0.0, bit_depth=16, background=background)
+    dn = sensor.record(np.full(N_SIDE, signal), rng=12).ravel()
+    k = np.arange(80)
+    counts = np.bincount(dn, minlength=k.size)[: k.size]
+    assert counts.sum() == N
+    assert chi2_pvalue(counts, N * stats.poisson.pmf(k, signal + background)) > 1e-3
+
+
+def test_weak_and_bright_signals_with_read_noise_follow_theory():
+    sensor = Sensor(gain=0.4, read_noise=8.0, offset=10.0, bit_depth=12, background=1.5)
+    for signal in (0.3, 24.0, 26.0, 300.0):
+        dn = sensor.record(np.full(N_SIDE, signal), rng=13)
+        m, v = poisson_read_moments(signal + 1.5, gain=0.4, read=8.0, offset=10.0)
+        assert_moments(dn, mean=m, var=v)
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    background=st.floats(0.0, 300.0),
+    gain=st.floats(0.05, 5.0),
+    read_noise=st.floats(0.0, 20.0),
+    u=st.lists(st.floats(0.0, 1.0, exclude_max=True), min_size=1, max_size=50),
+)
+def test_table_cells_invert_the_cdf(background, gain, read_noise, u):
+    # Every cell's DN (or its straddling mark) and the search from it give the first
+    # DN whose CDF exceeds u, as a plain binary search of the CDF does.
+    table = _background_table(background, gain, 10.0, read_noise, 10_000.0, 12)
+    cdf, cells, dn = table.cdf, table.cells, table.dn
+    u = np.array(u)
+    expected = table.dn_lo + np.searchsorted(cdf, u, side="right")
+    pixels = np.arange(u.size)
+    got = np.zeros(u.size, np.uint16)
+    _fill_from_uniforms(pixels, u, cells, cdf, table.dn_lo, got)
+    np.testing.assert_array_equal(got, expected)
+    cell = np.minimum((u * 2**16).astype(np.int64), 2**16 - 1)
+    whole = dn[cell] != table.straddles
+    np.testing.assert_array_equal(dn[cell][whole], expected[whole])
