@@ -22,7 +22,8 @@ HALF = 2
 #: (~0.01 px).
 _ITERATIONS = 12
 _TOLERANCE = 1e-3
-#: Groups are refined in this many interleaved chunks, in parallel.
+#: Groups are refined in this many chunks of consecutive groups (neighbours on the
+#: image, so that a chunk reads the image rows it has just read), in parallel.
 _CHUNKS = 64
 #: Accepted spot widths, px.
 _WIDTH_RANGE = (0.3, 3.0)
@@ -138,6 +139,81 @@ def _solve(normal, rhs, out, scale):  # pragma: no cover (compiled)
 
 
 @njit(cache=True)
+def _normal_equations(
+    img, rr, cc, r_lo, c_lo, params, ex, ey, jac, normal, rhs
+):  # pragma: no cover
+    """Upper triangle of JᵀJ and Jᵀ(I − model) of a group's fit, over its pixels."""
+    n_par = params.size
+    n_spots = (n_par - 1) // 4
+    normal[:, :] = 0.0
+    rhs[:] = 0.0
+    for p in range(rr.size):
+        i, j = cc[p] - c_lo, rr[p] - r_lo
+        model = params[n_par - 1]
+        jac[n_par - 1] = 1.0
+        for k in range(n_spots):
+            a = params[4 * k]
+            mx, dxc, dxw = ex[k, i, 0], ex[k, i, 1], ex[k, i, 2]
+            my, dyc, dyw = ey[k, j, 0], ey[k, j, 1], ey[k, j, 2]
+            model += a * mx * my
+            jac[4 * k] = mx * my
+            jac[4 * k + 1] = a * dxc * my
+            jac[4 * k + 2] = a * mx * dyc
+            jac[4 * k + 3] = a * (dxw * my + mx * dyw)
+        resid = float(img[rr[p], cc[p]]) - model
+        for u in range(n_par):
+            rhs[u] += jac[u] * resid
+            for v in range(u, n_par):
+                normal[u, v] += jac[u] * jac[v]
+
+
+@njit(cache=True)
+def _normal_equations_one(img, rr, cc, r_lo, c_lo, params, ex, ey, normal, rhs):  # pragma: no cover
+    """:func:`_normal_equations` for a lone spot, the sums held in registers (the same
+    operations in the same order, so the same bits, about twice as fast)."""
+    a, b = params[0], params[4]
+    r0 = r1 = r2 = r3 = r4 = 0.0
+    n00 = n01 = n02 = n03 = n04 = n11 = n12 = n13 = n14 = 0.0
+    n22 = n23 = n24 = n33 = n34 = n44 = 0.0
+    for p in range(rr.size):
+        i, j = cc[p] - c_lo, rr[p] - r_lo
+        mx, dxc, dxw = ex[i, 0], ex[i, 1], ex[i, 2]
+        my, dyc, dyw = ey[j, 0], ey[j, 1], ey[j, 2]
+        model = b + a * mx * my
+        j0 = mx * my
+        j1 = a * dxc * my
+        j2 = a * mx * dyc
+        j3 = a * (dxw * my + mx * dyw)
+        resid = float(img[rr[p], cc[p]]) - model
+        r0 += j0 * resid
+        n00 += j0 * j0
+        n01 += j0 * j1
+        n02 += j0 * j2
+        n03 += j0 * j3
+        n04 += j0 * 1.0
+        r1 += j1 * resid
+        n11 += j1 * j1
+        n12 += j1 * j2
+        n13 += j1 * j3
+        n14 += j1 * 1.0
+        r2 += j2 * resid
+        n22 += j2 * j2
+        n23 += j2 * j3
+        n24 += j2 * 1.0
+        r3 += j3 * resid
+        n33 += j3 * j3
+        n34 += j3 * 1.0
+        r4 += 1.0 * resid
+        n44 += 1.0 * 1.0
+    rhs[0], rhs[1], rhs[2], rhs[3], rhs[4] = r0, r1, r2, r3, r4
+    normal[0, 0], normal[0, 1], normal[0, 2], normal[0, 3], normal[0, 4] = n00, n01, n02, n03, n04
+    normal[1, 1], normal[1, 2], normal[1, 3], normal[1, 4] = n11, n12, n13, n14
+    normal[2, 2], normal[2, 3], normal[2, 4] = n22, n23, n24
+    normal[3, 3], normal[3, 4] = n33, n34
+    normal[4, 4] = n44
+
+
+@njit(cache=True)
 def _fit_group(img, rr, cc, params, work):  # pragma: no cover (compiled)
     """Gauss–Newton on (A, x₀, y₀, s) per spot and one background; True if converged.
 
@@ -163,26 +239,10 @@ def _fit_group(img, rr, cc, params, work):  # pragma: no cover (compiled)
             x0, y0, s = params[4 * k + 1], params[4 * k + 2], params[4 * k + 3]
             _axis_masses(c_lo, n_cols, x0, s, ex[k])
             _axis_masses(r_lo, n_rows, y0, s, ey[k])
-        normal[:, :] = 0.0
-        rhs[:] = 0.0
-        for p in range(rr.size):
-            i, j = cc[p] - c_lo, rr[p] - r_lo
-            model = params[n_par - 1]
-            jac[n_par - 1] = 1.0
-            for k in range(n_spots):
-                a = params[4 * k]
-                mx, dxc, dxw = ex[k, i, 0], ex[k, i, 1], ex[k, i, 2]
-                my, dyc, dyw = ey[k, j, 0], ey[k, j, 1], ey[k, j, 2]
-                model += a * mx * my
-                jac[4 * k] = mx * my
-                jac[4 * k + 1] = a * dxc * my
-                jac[4 * k + 2] = a * mx * dyc
-                jac[4 * k + 3] = a * (dxw * my + mx * dyw)
-            resid = float(img[rr[p], cc[p]]) - model
-            for u in range(n_par):
-                rhs[u] += jac[u] * resid
-                for v in range(u, n_par):
-                    normal[u, v] += jac[u] * jac[v]
+        if n_spots == 1:
+            _normal_equations_one(img, rr, cc, r_lo, c_lo, params, ex[0], ey[0], normal, rhs)
+        else:
+            _normal_equations(img, rr, cc, r_lo, c_lo, params, ex, ey, jac, normal, rhs)
         for u in range(n_par):
             for v in range(u + 1, n_par):
                 normal[v, u] = normal[u, v]
@@ -255,7 +315,7 @@ def refine_groups(img, x, y, width, level, members, offsets):  # pragma: no cove
         rr = np.empty(largest * (2 * HALF + 1) ** 2, np.int64)
         cc = np.empty_like(rr)
         params = np.empty(4 * largest + 1)
-        for g in range(chunk, n_groups, _CHUNKS):
+        for g in range(chunk * n_groups // _CHUNKS, (chunk + 1) * n_groups // _CHUNKS):
             group = members[offsets[g] : offsets[g + 1]]
             count = _window_pixels(x, y, group, rows, cols, rr, cc, seen)
             if count == 0:
