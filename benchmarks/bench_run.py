@@ -1,6 +1,6 @@
 """``synptv run`` end to end: seconds per stage of the ``default`` scenario.
 
-Target (docs/performance.md): the default scenario end to end in ≤ 10 min on this 2-core machine.
+Target (docs/performance.md): the default scenario end to end in ≤ 2 min on this 2-core machine.
 ``--quick`` runs the same stages on a tiny scenario (3 planes, 4 frame pairs per Δt,
 300 tracers), which shows the fixed costs, not the target.
 """
@@ -15,7 +15,7 @@ from validation.experiment import run_stages
 from validation.report import write_report
 from validation.scenario import load_scenario
 
-TARGET_S = 600.0
+TARGET_S = 120.0
 
 
 def _tiny(scenario):

@@ -441,6 +441,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as err:  # bad input: one line, status 2
         print(f"synptv {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # run and study say what they keep and resume
+        print(f"\nsynptv {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -138,39 +138,53 @@ def _solve(normal, rhs, out, scale):  # pragma: no cover (compiled)
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"reassoc", "contract"})
 def _normal_equations(
     img, rr, cc, r_lo, c_lo, params, ex, ey, jac, normal, rhs
 ):  # pragma: no cover
-    """Upper triangle of JᵀJ and Jᵀ(I − model) of a group's fit, over its pixels."""
+    """Upper triangle of JᵀJ and Jᵀ(I − model) of a group's fit, over its pixels.
+
+    ``jac`` (n_par + 1, ≥ n_pix) receives the Jacobian, one row per parameter, and the
+    residuals in its last row; each sum is then one dot product over the pixels, which
+    the compiler vectorises (hence the reassociation allowed here: the sums differ from
+    the pixel-by-pixel order only by rounding).
+    """
     n_par = params.size
     n_spots = (n_par - 1) // 4
-    normal[:, :] = 0.0
-    rhs[:] = 0.0
-    for p in range(rr.size):
+    n_pix = rr.size
+    resid = jac[n_par]
+    for p in range(n_pix):
         i, j = cc[p] - c_lo, rr[p] - r_lo
         model = params[n_par - 1]
-        jac[n_par - 1] = 1.0
+        jac[n_par - 1, p] = 1.0
         for k in range(n_spots):
             a = params[4 * k]
             mx, dxc, dxw = ex[k, i, 0], ex[k, i, 1], ex[k, i, 2]
             my, dyc, dyw = ey[k, j, 0], ey[k, j, 1], ey[k, j, 2]
             model += a * mx * my
-            jac[4 * k] = mx * my
-            jac[4 * k + 1] = a * dxc * my
-            jac[4 * k + 2] = a * mx * dyc
-            jac[4 * k + 3] = a * (dxw * my + mx * dyw)
-        resid = float(img[rr[p], cc[p]]) - model
-        for u in range(n_par):
-            rhs[u] += jac[u] * resid
-            for v in range(u, n_par):
-                normal[u, v] += jac[u] * jac[v]
+            jac[4 * k, p] = mx * my
+            jac[4 * k + 1, p] = a * dxc * my
+            jac[4 * k + 2, p] = a * mx * dyc
+            jac[4 * k + 3, p] = a * (dxw * my + mx * dyw)
+        resid[p] = float(img[rr[p], cc[p]]) - model
+    for u in range(n_par):
+        ju = jac[u]
+        total = 0.0
+        for p in range(n_pix):
+            total += ju[p] * resid[p]
+        rhs[u] = total
+        for v in range(u, n_par):
+            jv = jac[v]
+            total = 0.0
+            for p in range(n_pix):
+                total += ju[p] * jv[p]
+            normal[u, v] = total
 
 
 @njit(cache=True)
 def _normal_equations_one(img, rr, cc, r_lo, c_lo, params, ex, ey, normal, rhs):  # pragma: no cover
-    """:func:`_normal_equations` for a lone spot, the sums held in registers (the same
-    operations in the same order, so the same bits, about twice as fast)."""
+    """:func:`_normal_equations` for a lone spot, the sums held in registers, pixel by
+    pixel (5 × 5 pixels: too few to gain from vectorising)."""
     a, b = params[0], params[4]
     r0 = r1 = r2 = r3 = r4 = 0.0
     n00 = n01 = n02 = n03 = n04 = n11 = n12 = n13 = n14 = 0.0
@@ -226,7 +240,7 @@ def _fit_group(img, rr, cc, params, work):  # pragma: no cover (compiled)
     n_rows, n_cols = rr.max() - r_lo + 1, cc.max() - c_lo + 1
     ex = ex_all[:n_spots, :n_cols]  # pixel mass and its derivatives, per column
     ey = ey_all[:n_spots, :n_rows]  # and per row: the model is separable per spot
-    jac = jac_all[:n_par]
+    jac = jac_all[: n_par + 1]
     normal = normal_all[:n_par, :n_par]
     rhs = rhs_all[:n_par]
     step = step_all[:n_par]
@@ -373,7 +387,7 @@ def _workspace(spots):  # pragma: no cover (compiled)
     return (
         np.empty((spots, span, 3)),
         np.empty((spots, span, 3)),
-        np.empty(n_par),
+        np.empty((n_par + 1, spots * (2 * HALF + 1) ** 2)),
         np.empty((n_par, n_par)),
         np.empty(n_par),
         np.empty(n_par),

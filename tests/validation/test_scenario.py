@@ -128,6 +128,12 @@ def test_an_integer_is_accepted_for_a_float_field(tmp_path):
         ("[checks]\nc1_r_min_eta = 0.0\n", "checks.c1_r_min_eta"),
         ("[ptv]\nkolmogorov_c2 = -2.0\n", "kolmogorov_c2"),
         ("[ptv]\nmax_speed = 0.0\n", "max_speed"),
+        ("[particles]\nelectrons = inf\n", "particles.electrons"),
+        ("[particles]\ndiameter = nan\n", "particles.diameter"),
+        ("[ptv]\nr_range = [0.5e-3, inf]\n", "ptv.r_range"),
+        ("[particles]\ncount = 1_000_000_000\n", "particles.count"),
+        ("[particles]\nframes = 100_000_000\n", "particles.frames"),
+        ("[flow]\nmodes = 10_000_000\n", "flow.modes"),
     ],
 )
 def test_bad_fields_are_errors_that_name_the_file_and_the_field(tmp_path, body, field):
