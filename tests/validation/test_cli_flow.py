@@ -73,3 +73,15 @@ def test_bad_input_exits_2_with_one_line(capsys, args, message):
     err = capsys.readouterr().err
     assert message in err
     assert err.count("\n") == 1
+
+
+def test_ctrl_c_is_one_line_and_exit_130(capsys, monkeypatch):
+    import validation.cli
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(validation.cli, "summarize_flow", interrupted)
+    assert main(["flow", "--quiet"]) == 130
+    err = capsys.readouterr().err
+    assert err.strip() == "synptv flow: interrupted"

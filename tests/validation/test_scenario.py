@@ -56,7 +56,7 @@ def test_presets_round_trip_through_json(name):
 
 @given(
     seed=st.integers(0, 2**63 - 1),
-    count=st.integers(1, 10**6),
+    count=st.integers(1, 10**5),
     electrons=st.floats(1e-3, 1e6),
     gain=st.floats(1e-3, 10.0),
     r_low=st.floats(1e-6, 1e-2),
