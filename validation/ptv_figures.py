@@ -67,6 +67,19 @@ def plain_log_axis(axis, limits) -> None:
 
 
 def _loglog(ax) -> None:
+    """Log axes; where nothing positive was plotted (a run too thin to measure), a note
+    in the panel instead of matplotlib's error."""
+    lim = ax.dataLim
+    if not (np.isfinite([lim.x1, lim.y1]).all() and lim.x1 > 0 and lim.y1 > 0):
+        ax.text(
+            0.5,
+            0.5,
+            "nothing to plot: no positive values\n(too few matched particles?)",
+            transform=ax.transAxes,
+            ha="center",
+            va="center",
+        )
+        return
     ax.set_xscale("log")
     ax.set_yscale("log")
     plain_log_axis(ax.xaxis, ax.get_xlim())

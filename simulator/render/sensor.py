@@ -55,6 +55,8 @@ _CHUNK = 1 << 18
 #: most ~μ_s + 1 steps); brighter pixels use NumPy's Poisson generator.
 _INVERSION_MAX = 25.0
 _FLOAT_MAX = float(np.finfo(np.float64).max)
+#: The largest double below 1: (cell + u) / 2^16 may round up to 1, outside the CDF.
+_BELOW_ONE = 1.0 - 2.0**-53
 
 
 class BackgroundTable(NamedTuple):
@@ -283,7 +285,7 @@ def _record_background(
             _check_values(signal)
         pixels = straddling[:n_straddling]
         cell = (bits[pixels >> 2] >> (16 * (pixels & 3)).astype(np.uint64)) & np.uint64(0xFFFF)
-        uniform = (cell + gen.random(n_straddling)) / (1 << _CELL_BITS)
+        uniform = np.minimum((cell + gen.random(n_straddling)) / (1 << _CELL_BITS), _BELOW_ONE)
         _fill_from_uniforms(pixels, uniform, table.cells, table.cdf, table.dn_lo, out[start:stop])
         if n_lit:
             parts.append(lit[:n_lit] + start)
@@ -430,10 +432,10 @@ def _fill_from_uniforms(pixels, u, cells, cdf, dn_lo, out):  # pragma: no cover
 
 
 @njit(cache=True)
-def _invert_weak_signals(signal, none, lit, u, table, out):  # pragma: no cover
+def _invert_weak_signals(signal, p_zero, lit, u, table, out):  # pragma: no cover
     """Signal electrons k_s ~ Poisson(μ_s) of the weak lit pixels, by inversion with u.
 
-    For lit pixel j (flat index lit[j], μ_s = signal[j], P(k_s = 0) = none[j] =
+    For lit pixel j (flat index lit[j], μ_s = signal[j], P(k_s = 0) = p_zero[j] =
     e^{−μ_s}, given so that NumPy computes it in SIMD): if μ_s > _INVERSION_MAX it
     is listed with k = −1 (for the Poisson generator); else k_s is the inverse Poisson
     CDF of u[j]. Where k_s = 0 the pixel reads as a background pixel: its DN, drawn from
@@ -446,7 +448,6 @@ def _invert_weak_signals(signal, none, lit, u, table, out):  # pragma: no cover
     cdf, cells, _, dn_lo, _ = table
     listed = np.empty(lit.size, np.int64)
     shot = np.empty(lit.size, np.int64)
-    below_one = 1.0 - 2.0**-53
     n = 0
     for j in range(lit.size):
         p = lit[j]
@@ -456,9 +457,9 @@ def _invert_weak_signals(signal, none, lit, u, table, out):  # pragma: no cover
             shot[n] = -1
             n += 1
             continue
-        pk = none[j]
+        pk = p_zero[j]
         if u[j] < pk:
-            out[p] = dn_lo + _invert(cells, cdf, min(u[j] / pk, below_one))
+            out[p] = dn_lo + _invert(cells, cdf, min(u[j] / pk, _BELOW_ONE))
             continue
         top = int(mu + 12.0 * sqrt(mu) + 12.0)
         k = 0
