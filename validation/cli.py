@@ -26,6 +26,36 @@ class UsageError(ValueError):
     """Bad command-line input; reported in one line with exit status 2."""
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, exit status 2 (see :func:`main`)."""
+
+    def error(self, message: str):
+        raise _ParseError(f"{self.prog}: error: {message} (see {self.prog} -h)")
+
+
+class _ParseError(Exception):
+    """A bad command line, already worded for the user."""
+
+
+def _integer_at_least(minimum: int):
+    """An argparse type: an integer >= ``minimum``, else an error naming the option."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {value}")
+        return value
+
+    return parse
+
+
+SEED = _integer_at_least(0)
+COUNT = _integer_at_least(1)
+
+
 def _flow_parameters(args: argparse.Namespace) -> TurbulenceParameters:
     given = [v is not None for v in (args.u_rms, args.epsilon)]
     if any(given) and not all(given):
@@ -284,7 +314,7 @@ def _add_parallel_options(parser: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``synptv`` and its subcommands."""
-    parser = argparse.ArgumentParser(prog="synptv", description="A virtual 3D-PTV laboratory.")
+    parser = _Parser(prog="synptv", description="A virtual 3D-PTV laboratory.")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -304,7 +334,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="a preset (default, paper-8hz, paper-10hz, paper-12hz) or a scenario .toml file",
     )
     run.add_argument("--out", help="output folder (default ./synptv-<scenario>)")
-    run.add_argument("--seed", type=int, help="override the scenario's seed")
+    run.add_argument("--seed", type=SEED, help="override the scenario's seed")
     run.add_argument(
         "--keep-images",
         action="store_true",
@@ -326,11 +356,11 @@ def build_parser() -> argparse.ArgumentParser:
     flow.add_argument("--epsilon", type=float, help="dissipation rate in m^2/s^3")
     flow.add_argument("--nu", type=float, default=NU_WATER, help="kinematic viscosity, m^2/s")
     flow.add_argument("--spectrum", default="pope", choices=sorted(SPECTRA))
-    flow.add_argument("--particles", type=int, default=2000, help="particles per snapshot")
-    flow.add_argument("--snapshots", type=int, default=1000, help="independent realizations")
+    flow.add_argument("--particles", type=COUNT, default=2000, help="particles per snapshot")
+    flow.add_argument("--snapshots", type=COUNT, default=1000, help="independent realizations")
     flow.add_argument("--modes", type=int, default=200, help="KS modes")
     flow.add_argument("--unsteadiness", type=float, default=0.5, help="lambda in omega_n")
-    flow.add_argument("--seed", type=int, default=0)
+    flow.add_argument("--seed", type=SEED, default=0)
     flow.add_argument("--json", action="store_true", help="print one JSON object")
     flow.add_argument("--quiet", action="store_true", help="no progress bar")
     flow.set_defaults(run=_run_flow)
@@ -347,10 +377,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     render.add_argument("--preset", default="lem-10hz", help=f"one of {', '.join(FLOW_PRESETS)}")
     render.add_argument("--out", required=True, help="new folder to write")
-    render.add_argument("--frames", type=int, default=10, help="frame pairs per dt")
-    render.add_argument("--particles", type=int, default=1000, help="particles in the sheet")
-    render.add_argument("--planes", type=int, default=13, help="calibration traverse positions")
-    render.add_argument("--seed", type=int, default=0)
+    render.add_argument("--frames", type=COUNT, default=10, help="frame pairs per dt")
+    render.add_argument("--particles", type=COUNT, default=1000, help="particles in the sheet")
+    render.add_argument("--planes", type=COUNT, default=13, help="calibration traverse positions")
+    render.add_argument("--seed", type=SEED, default=0)
     _add_parallel_options(render)
     render.add_argument("--quiet", action="store_true", help="no progress bar")
     render.set_defaults(run=_run_render)
@@ -388,7 +418,7 @@ def build_parser() -> argparse.ArgumentParser:
     size.add_argument("--quick", action="store_true", help="CI size (default, about a minute)")
     size.add_argument("--full", action="store_true", help="the sizes the tolerances assume")
     claims.add_argument("--json", action="store_true", help="print a JSON list of claims")
-    claims.add_argument("--seed", type=int, default=0)
+    claims.add_argument("--seed", type=SEED, default=0)
     claims.add_argument("--quiet", action="store_true", help="no progress bar")
     claims.set_defaults(run=_run_claims)
 
@@ -407,7 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
     ptv.add_argument(
         "--max-speed", type=float, default=1.5, help="largest particle speed, m/s (link radius)"
     )
-    ptv.add_argument("--snapshots", type=int, help="process the first N snapshots per dt")
+    ptv.add_argument("--snapshots", type=COUNT, help="process the first N snapshots per dt")
     ptv.add_argument("--quiet", action="store_true", help="no progress bar")
     ptv.set_defaults(run=_run_ptv)
 
@@ -423,7 +453,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     scene.add_argument("--out", default="scene.png", help="PNG file to write")
     scene.add_argument("--plate", action="store_true", help="draw the calibration plate")
-    scene.add_argument("--particles", type=int, default=300, help="particles to draw (0: none)")
+    scene.add_argument(
+        "--particles", type=_integer_at_least(0), default=300, help="particles to draw (0: none)"
+    )
     scene.set_defaults(run=_run_scene)
     return parser
 
@@ -431,7 +463,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``synptv`` console script."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except _ParseError as err:
+        print(err, file=sys.stderr)
+        return 2
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",

@@ -65,7 +65,7 @@ def test_flow_from_u_rms_and_epsilon(capsys):
         (["--u-rms", "0.1", "--epsilon", "0.1", "--nu", "-1"], "nu must be"),
         (["--u-rms", "0.1"], "give both --u-rms and --epsilon"),
         (["--modes", "1"], "n_modes must be"),
-        (["--particles", "0"], "particles must be"),
+        (["--particles", "0"], "argument --particles: must be an integer >= 1, got 0"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(capsys, args, message):
@@ -85,3 +85,20 @@ def test_ctrl_c_is_one_line_and_exit_130(capsys, monkeypatch):
     assert main(["flow", "--quiet"]) == 130
     err = capsys.readouterr().err
     assert err.strip() == "synptv flow: interrupted"
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["run", "--seed", "-1"], "synptv run: error: argument --seed: must be an integer >= 0"),
+        (["scene", "--particles", "-5"], "argument --particles: must be an integer >= 0, got -5"),
+        (["render", "--frames", "two"], "argument --frames: must be an integer, got 'two'"),
+        (["ptv", "--snapshots", "0"], "argument --snapshots: must be an integer >= 1, got 0"),
+        (["nosuch"], "synptv: error: argument command: invalid choice: 'nosuch'"),
+    ],
+)
+def test_bad_command_lines_are_one_line_naming_the_option(capsys, argv, message):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err
+    assert err.count("\n") == 1
