@@ -17,7 +17,7 @@ import numpy as np
 import tifffile
 
 from ptv.calibration.io import save_calibrations
-from ptv.calibration.methods import CameraSheet, calibrate
+from ptv.calibration.methods import CALIBRATION_METHODS, CameraSheet, calibrate
 from ptv.calibration.targets import PlateDescription, find_dots
 from simulator.target import PlateDesign
 from validation.calibration_accuracy import PlaneDots, nominal_positions, table1_errors
@@ -118,6 +118,12 @@ def calibrate_dataset(
     -------
     DatasetCalibration
     """
+    unknown = [m for m in methods if m not in CALIBRATION_METHODS]
+    if unknown or not methods:
+        raise ValueError(
+            f"calibration methods must be some of {', '.join(CALIBRATION_METHODS)}; got "
+            f"{', '.join(map(repr, methods)) or 'none'}"
+        )
     folder = Path(folder)
     spec = _read_experiment(folder)
     description = PlateDescription.from_dict(spec["target"], source=str(folder / "experiment.json"))
@@ -138,9 +144,7 @@ def calibrate_dataset(
         dots.append(planes)
     design = _design(spec["target"])
     references = {"nominal": nominal_positions(design, z), "true": _true_positions(folder)}
-    out = Path(out) if out is not None else folder / "calibrations"
-    out.mkdir(parents=True, exist_ok=True)
-    table1, files, residuals, errors = {}, {}, {}, {}
+    table1, fitted_models, residuals, errors = {}, {}, {}, {}
     for method in methods:
         calibrations = {}
         for name, camera_dots in zip(cameras, dots, strict=True):
@@ -162,7 +166,13 @@ def calibrate_dataset(
             if expected is not None
         }
         table1[method] = {name: e.summary() for name, e in errors[method].items()}
-        files[method] = str(
-            save_calibrations(out / f"{method}.h5", calibrations, metadata={"dataset": str(folder)})
-        )
+        fitted_models[method] = calibrations
+    # Written only once every method has calibrated: a method that fails leaves no file.
+    out = Path(out) if out is not None else folder / "calibrations"
+    out.mkdir(parents=True, exist_ok=True)
+    metadata = {"dataset": str(folder)}
+    files = {
+        method: str(save_calibrations(out / f"{method}.h5", calibrations, metadata=metadata))
+        for method, calibrations in fitted_models.items()
+    }
     return DatasetCalibration(dots, residuals, table1, files, errors)

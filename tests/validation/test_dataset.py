@@ -144,3 +144,31 @@ def test_calibrate_command_finds_every_dot_and_scores_against_nominal_and_truth(
 def test_calibrate_command_on_a_folder_that_is_no_dataset(capsys, tmp_path):
     assert main(["calibrate", "--dataset", str(tmp_path), "--quiet"]) == 2
     assert "is not a dataset" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("methods", "message"), [(",", "got none"), ("model-free,foo", "got 'model-free', 'foo'")]
+)
+def test_calibrate_command_refuses_bad_methods_before_reading(capsys, tmp_path, methods, message):
+    # tmp_path is no dataset: the methods are checked first.
+    assert main(["calibrate", "--dataset", str(tmp_path), "--methods", methods, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "calibration methods must be some of model-free" in err and message in err
+    assert err.count("\n") == 1
+
+
+def test_a_method_that_fails_leaves_no_calibration_file(dataset, capsys, tmp_path, monkeypatch):
+    import validation.calibrate_dataset as module
+
+    def fails_for_tsai(method, planes, sheet):
+        if method == "tsai":
+            raise ValueError("tsai: refused")
+        return calibrate(method, planes, sheet)
+
+    calibrate = module.calibrate
+    monkeypatch.setattr(module, "calibrate", fails_for_tsai)
+    out, _ = dataset
+    args = ["calibrate", "--dataset", str(out), "--methods", "model-free,tsai"]
+    assert main([*args, "--out", str(tmp_path / "cal"), "--quiet"]) == 2
+    assert "tsai: refused" in capsys.readouterr().err
+    assert not (tmp_path / "cal").exists()
