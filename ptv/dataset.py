@@ -213,7 +213,16 @@ class Dataset:
             yield self.snapshots(k, limit=limit, cameras=cameras)
 
 
-def _read_description(folder: Path) -> dict:
+def read_description(folder: Path) -> dict:
+    """A dataset folder's experiment.json as a JSON object.
+
+    Raises
+    ------
+    FileNotFoundError
+        No experiment.json in ``folder``.
+    DatasetError
+        Not readable, not JSON or not an object (the message names the file).
+    """
     path = folder / "experiment.json"
     if not path.is_file():
         raise FileNotFoundError(f"{folder} is not a dataset folder: {path.name} is missing")
@@ -309,7 +318,7 @@ def open_dataset(folder: str | Path, *, check_files: bool = True) -> Dataset:
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"dataset folder {folder} does not exist")
-    spec = _read_description(folder)
+    spec = read_description(folder)
     path = folder / "experiment.json"
     shapes = _cameras(spec, path)
     dt = _dt(spec, path)

@@ -7,7 +7,7 @@ file per method. The Table 1 metric is computed against the nominal dot position
 in the paper) and, when the folder holds a ``truth.h5``, against the true centres too.
 """
 
-import json
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +19,7 @@ import tifffile
 from ptv.calibration.io import save_calibrations
 from ptv.calibration.methods import CALIBRATION_METHODS, CameraSheet, calibrate
 from ptv.calibration.targets import PlateDescription, find_dots
+from ptv.dataset import DatasetError, read_description
 from simulator.target import PlateDesign
 from validation.calibration_accuracy import PlaneDots, nominal_positions, table1_errors
 
@@ -53,16 +54,68 @@ class DatasetCalibration:
 
 
 def _read_experiment(folder: Path) -> dict:
+    """experiment.json with the fields calibrating needs checked (errors name file and
+    field)."""
+    spec = read_description(folder)
     path = folder / "experiment.json"
-    if not path.is_file():
-        raise ValueError(f"{folder} is not a dataset: {path.name} is missing")
-    return json.loads(path.read_text())
+    if not isinstance(spec.get("target"), dict):
+        raise DatasetError(
+            f"{path}: 'target' must be an object (the plate), got {spec.get('target')!r}"
+        )
+    z = spec.get("traverse_z")
+    if not (isinstance(z, list) and z and all(_finite_number(v) for v in z)):
+        raise DatasetError(
+            f"{path}: 'traverse_z' must be a list of plane positions in m, got {z!r}"
+        )
+    cameras = spec.get("cameras")
+    if not isinstance(cameras, dict) or not cameras:
+        raise DatasetError(f"{path}: 'cameras' must be a non-empty object, got {cameras!r}")
+    for name, info in cameras.items():
+        info = info if isinstance(info, dict) else {}
+        size = info.get("image_size")
+        if not (isinstance(size, list) and len(size) == 2 and all(_count(v) for v in size)):
+            raise DatasetError(
+                f"{path}: camera {name!r}: image_size must be [width, height] in px, got {size!r}"
+            )
+        for key in ("pixel_pitch", "focal_length"):
+            if not (_finite_number(info.get(key)) and info[key] > 0):
+                raise DatasetError(
+                    f"{path}: camera {name!r}: {key} must be a number > 0 in m, got "
+                    f"{info.get(key)!r}"
+                )
+    return spec
 
 
-def _design(target: dict) -> PlateDesign:
-    """The nominal plate of experiment.json's ``target``."""
+def _finite_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _count(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 1
+
+
+def _plate_image(path: Path) -> np.ndarray:
+    """A plate image; errors name the file."""
+    try:
+        return tifffile.imread(path)
+    except Exception as err:  # tifffile raises many kinds on a file that is no TIFF
+        raise DatasetError(f"{path}: not readable as a TIFF image ({err})") from None
+
+
+def _design(target: dict, path: Path) -> PlateDesign:
+    """The nominal plate of experiment.json's ``target`` (``path``, for errors)."""
     keys = ("pitch", "dot_diameter", "mark_diameter", "columns", "rows", "thickness")
-    return PlateDesign(**{key: target[key] for key in keys})
+    missing = [key for key in keys if key not in target]
+    if missing:
+        raise DatasetError(f"{path}: target: missing {', '.join(missing)}")
+    try:
+        return PlateDesign(**{key: target[key] for key in keys})
+    except (TypeError, ValueError) as err:
+        raise DatasetError(f"{path}: target: {err}") from None
+
+
+def _plane_path(folder: Path, camera: str, plane: int) -> Path:
+    return folder / "calibration" / camera / f"plane_{plane:02d}.tif"
 
 
 def _true_positions(folder: Path) -> np.ndarray | None:
@@ -70,8 +123,11 @@ def _true_positions(folder: Path) -> np.ndarray | None:
     path = folder / "truth.h5"
     if not path.is_file():
         return None
-    with h5py.File(path) as truth:
-        return truth["plate/dots_world"][:]
+    try:
+        with h5py.File(path, "r") as truth:
+            return truth["plate/dots_world"][:]
+    except (OSError, KeyError) as err:
+        raise DatasetError(f"{path}: cannot read plate/dots_world ({err})") from None
 
 
 def dot_positions(folder: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -87,7 +143,9 @@ def dot_positions(folder: Path) -> tuple[np.ndarray, np.ndarray]:
     if true is None:
         raise ValueError(f"{folder} has no truth.h5: the true dot centres are unknown")
     spec = _read_experiment(folder)
-    return true, nominal_positions(_design(spec["target"]), spec["traverse_z"])
+    return true, nominal_positions(
+        _design(spec["target"], folder / "experiment.json"), spec["traverse_z"]
+    )
 
 
 def calibrate_dataset(
@@ -117,6 +175,16 @@ def calibrate_dataset(
     Returns
     -------
     DatasetCalibration
+
+    Raises
+    ------
+    FileNotFoundError
+        ``folder`` holds no experiment.json.
+    ValueError
+        An unknown method; or (:class:`ptv.dataset.DatasetError`) a bad field of
+        experiment.json, a plate image missing or unreadable, an unreadable truth.h5,
+        all found before any dot is searched. Nothing is written unless every method
+        calibrates.
     """
     unknown = [m for m in methods if m not in CALIBRATION_METHODS]
     if unknown or not methods:
@@ -127,23 +195,29 @@ def calibrate_dataset(
     folder = Path(folder)
     spec = _read_experiment(folder)
     description = PlateDescription.from_dict(spec["target"], source=str(folder / "experiment.json"))
+    design = _design(spec["target"], folder / "experiment.json")
     z = [float(v) for v in spec["traverse_z"]]
     cameras = list(spec["cameras"])
+    paths = [[_plane_path(folder, name, j) for j in range(len(z))] for name in cameras]
+    missing = [path for row in paths for path in row if not path.is_file()]
+    if missing:
+        raise DatasetError(
+            f"{missing[0]}: plate image missing ({len(missing)} of {len(z) * len(cameras)})"
+        )
+    true = _true_positions(folder)  # read before the long work: a bad file fails now
     total = len(cameras) * (len(z) + len(methods))
     done = 0
     dots = []
-    for name in cameras:
+    for camera_paths in paths:
         planes = []
-        for j, zj in enumerate(z):
-            path = folder / "calibration" / name / f"plane_{j:02d}.tif"
-            found = find_dots(tifffile.imread(path), description, source=str(path))
+        for zj, path in zip(z, camera_paths, strict=True):
+            found = find_dots(_plate_image(path), description, source=str(path))
             planes.append(PlaneDots(zj, found.indices, found.pixels, description.pitch))
             done += 1
             if progress is not None:
                 progress(done, total)
         dots.append(planes)
-    design = _design(spec["target"])
-    references = {"nominal": nominal_positions(design, z), "true": _true_positions(folder)}
+    references = {"nominal": nominal_positions(design, z), "true": true}
     table1, fitted_models, residuals, errors = {}, {}, {}, {}
     for method in methods:
         calibrations = {}

@@ -137,7 +137,10 @@ def _run_calibrate(args: argparse.Namespace) -> int:
         check_output_folder(args.out)
     bar = ProgressBar("calibrate", enabled=not args.quiet)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    result = calibrate_dataset(Path(args.dataset), methods=methods, out=args.out, progress=bar)
+    try:
+        result = calibrate_dataset(Path(args.dataset), methods=methods, out=args.out, progress=bar)
+    except FileNotFoundError as err:
+        raise UsageError(str(err)) from None
     if args.json:
         json.dump(
             {

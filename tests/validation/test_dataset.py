@@ -1,6 +1,8 @@
 """``synptv render`` datasets: layout, images, truth consistent with the cameras, atomicity."""
 
 import json
+import os
+import shutil
 from dataclasses import replace
 
 import h5py
@@ -172,3 +174,61 @@ def test_a_method_that_fails_leaves_no_calibration_file(dataset, capsys, tmp_pat
     assert main([*args, "--out", str(tmp_path / "cal"), "--quiet"]) == 2
     assert "tsai: refused" in capsys.readouterr().err
     assert not (tmp_path / "cal").exists()
+
+
+def _spoil_experiment(spec: dict, case: str) -> None:
+    if case == "no traverse_z":
+        del spec["traverse_z"]
+    elif case == "string image size":
+        next(iter(spec["cameras"].values()))["image_size"] = "2048x1088"
+    elif case == "target without thickness":
+        del spec["target"]["thickness"]
+
+
+@pytest.mark.parametrize(
+    ("case", "file", "message"),
+    [
+        ("invalid JSON", "experiment.json", "not readable as JSON"),
+        ("no traverse_z", "experiment.json", "'traverse_z' must be a list"),
+        ("string image size", "experiment.json", "image_size must be [width, height]"),
+        ("target without thickness", "experiment.json", "target: missing thickness"),
+        ("missing plane", "plane_01.tif", "plate image missing"),
+        ("text as a plane", "plane_00.tif", "not readable as a TIFF image"),
+        ("truncated truth", "truth.h5", "cannot read plate/dots_world"),
+    ],
+)
+def test_calibrate_command_names_the_file_and_field_of_a_bad_dataset(
+    dataset, capsys, tmp_path, case, file, message
+):
+    # A copy of the dataset whose files are links to the original, one of them spoilt.
+    out, _ = dataset
+    broken = tmp_path / "ds"
+    shutil.copytree(out, broken, copy_function=os.symlink)
+    camera = sorted(p.name for p in (broken / "calibration").iterdir())[0]
+    plane = broken / "calibration" / camera / file
+    experiment = broken / "experiment.json"
+    if case == "invalid JSON":
+        experiment.unlink()
+        experiment.write_text('{"cameras": ')
+    elif file == "experiment.json":
+        spec = json.loads(experiment.read_text())
+        _spoil_experiment(spec, case)
+        experiment.unlink()
+        experiment.write_text(json.dumps(spec))
+    elif case == "missing plane":
+        plane.unlink()
+    elif case == "text as a plane":
+        plane.unlink()
+        plane.write_text("not an image\n")
+    else:
+        truth = broken / "truth.h5"
+        data = truth.read_bytes()
+        truth.unlink()
+        truth.write_bytes(data[: len(data) // 3])
+    calibrations = tmp_path / "cal"
+    args = ["calibrate", "--dataset", str(broken), "--methods", "model-free"]
+    assert main([*args, "--out", str(calibrations), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert message in err and file in err
+    assert err.count("\n") == 1
+    assert not calibrations.exists()
