@@ -7,6 +7,7 @@ file per method. The Table 1 metric is computed against the nominal dot position
 in the paper) and, when the folder holds a ``truth.h5``, against the true centres too.
 """
 
+import hashlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -100,6 +101,26 @@ def _plate_image(path: Path) -> np.ndarray:
         return tifffile.imread(path)
     except Exception as err:  # tifffile raises many kinds on a file that is no TIFF
         raise DatasetError(f"{path}: not readable as a TIFF image ({err})") from None
+
+
+def _check_plate_images(paths: list[Path], image_size: list[int]) -> None:
+    """One camera's plate images: each readable, of the declared [width, height], and no
+    two the same (a traverse that did not move)."""
+    width, height = image_size
+    first_seen = {}
+    for path in paths:
+        image = _plate_image(path)
+        if image.shape != (height, width):
+            raise DatasetError(
+                f"{path}: image of shape {image.shape}, but experiment.json gives "
+                f"{width} × {height} px for this camera"
+            )
+        digest = hashlib.sha256(image.tobytes()).hexdigest()
+        if digest in first_seen:
+            raise DatasetError(
+                f"{path}: the same image as {first_seen[digest].name} (a stuck traverse?)"
+            )
+        first_seen[digest] = path
 
 
 def _design(target: dict, path: Path) -> PlateDesign:
@@ -204,6 +225,8 @@ def calibrate_dataset(
         raise DatasetError(
             f"{missing[0]}: plate image missing ({len(missing)} of {len(z) * len(cameras)})"
         )
+    for name, camera_paths in zip(cameras, paths, strict=True):
+        _check_plate_images(camera_paths, spec["cameras"][name]["image_size"])
     true = _true_positions(folder)  # read before the long work: a bad file fails now
     total = len(cameras) * (len(z) + len(methods))
     done = 0

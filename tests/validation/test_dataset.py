@@ -195,6 +195,8 @@ def _spoil_experiment(spec: dict, case: str) -> None:
         ("missing plane", "plane_01.tif", "plate image missing"),
         ("text as a plane", "plane_00.tif", "not readable as a TIFF image"),
         ("truncated truth", "truth.h5", "cannot read plate/dots_world"),
+        ("stuck traverse", "plane_01.tif", "the same image as plane_00.tif"),
+        ("small plane", "plane_01.tif", "image of shape (10, 20), but experiment.json gives"),
     ],
 )
 def test_calibrate_command_names_the_file_and_field_of_a_bad_dataset(
@@ -220,6 +222,12 @@ def test_calibrate_command_names_the_file_and_field_of_a_bad_dataset(
     elif case == "text as a plane":
         plane.unlink()
         plane.write_text("not an image\n")
+    elif case == "stuck traverse":
+        plane.unlink()
+        plane.symlink_to(plane.with_name("plane_00.tif").resolve())
+    elif case == "small plane":
+        plane.unlink()
+        tifffile.imwrite(plane, np.zeros((10, 20), np.uint16))
     else:
         truth = broken / "truth.h5"
         data = truth.read_bytes()
