@@ -122,12 +122,53 @@ def _settings_dict(result: PtvResult) -> dict:
     }
 
 
+#: Below this fraction of the particles seen by the camera that sees fewest, a frame's
+#: matches are reported as too few (a healthy stereo pair matches 80–90 % of them).
+THIN_MATCH_FRACTION = 0.5
+
+
+def thin_data_warnings(counts: list[dict]) -> list[str]:
+    """Why a run is too thin to measure, one line per Δt and frame at fault.
+
+    Parameters
+    ----------
+    counts : list of dict
+        The ``counts`` entries of :func:`summary`.
+
+    Returns
+    -------
+    list of str
+        Empty for a healthy run. A frame (a or b) of a Δt is reported when its matches
+        are fewer than :data:`THIN_MATCH_FRACTION` of the detections of the camera that
+        sees fewest particles (a blank or saturated frame, a calibration of another rig
+        or swapped cameras), and a Δt with no link used at all.
+    """
+    lines = []
+    for c in counts:
+        where = f"Δt = {c['dt'] * 1e3:.4g} ms"
+        for frame in ("a", "b"):
+            seen = {camera: d[frame] for camera, d in c["detections"].items()}
+            fewest = min(seen, key=seen.get)
+            matched = c["matches"][frame]
+            if matched < THIN_MATCH_FRACTION * seen[fewest] or seen[fewest] == 0:
+                per_camera = ", ".join(f"{camera} {n}" for camera, n in seen.items())
+                lines.append(
+                    f"{where}, frame {frame}: {matched} matches from {per_camera} detections "
+                    f"(camera {fewest} sees fewest): check that frame's images and that the "
+                    "calibration is of this rig, cameras in the same order"
+                )
+        if c["links_used"] == 0:
+            lines.append(f"{where}: no link used: S2 and ε have no data at this Δt")
+    return lines
+
+
 def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     """The headline numbers of a run as a JSON-ready dict (SI units, None for NaN).
 
     Keys: ``dataset``, ``calibration``, ``cameras``, ``settings``, ``dt``, ``counts``
     (per Δt: snapshots processed, kept and skipped, detections per camera and frame,
-    matches per frame, links, links in the analysis volume, link radius), ``u_prime``,
+    matches per frame, links, links in the analysis volume, link radius), ``warnings``
+    (:func:`thin_data_warnings`), ``u_prime``,
     ``epsilon`` (plateau of (S2/C2)^{3/2}/r and of the paper's S2^{3/2}/r), ``subsets``
     (their plateau ε and its ratio to the all-Δt value), ``mean_displacement`` (the
     linearity check), ``noise`` (median c2 over fitted bins, σ_b per component from the
@@ -181,6 +222,7 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
         "statistics_dt": [float(v) for v in st.dt],
         "errors": st.errors,
         "counts": counts,
+        "warnings": thin_data_warnings(counts),
         "u_prime": None
         if up is None
         else {

@@ -249,6 +249,8 @@ def _run_ptv(args: argparse.Namespace) -> int:
     h5_path, json_path = save_results(result, out, calibration=str(args.calibration))
     figures = save_ptv_figures(result, out)
     s = summary(result, calibration=str(args.calibration))
+    for line in s["warnings"]:
+        print(f"synptv ptv: warning: {line}", file=sys.stderr)
     print(
         f"{'dt (ms)':>8s} {'snap':>5s} {'detections':>11s} {'matches':>8s} {'links':>7s} "
         f"{'outliers':>8s} {'used':>6s}"
