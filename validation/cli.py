@@ -16,7 +16,7 @@ from simulator.presets import FLOW_PRESETS, flow_preset
 from simulator.rigs import load_rig, rig_presets
 from simulator.spectra import SPECTRA
 from simulator.turbulence import NU_WATER, TurbulenceParameters
-from validation.files import check_output_folder
+from validation.files import check_output_folder, hold_output_folder
 from validation.flow_summary import FlowSettings, summarize_flow
 from validation.progress import ProgressBar
 from validation.study_cli import add_study_parser
@@ -184,19 +184,22 @@ def _run_experiment(args: argparse.Namespace) -> int:
     def bar(stage: str) -> ProgressBar:
         return ProgressBar(stage, enabled=not args.quiet)
 
-    try:
-        with executor(workers=args.workers, scheduler=args.scheduler) as ex:
-            stages = run_stages(
-                scenario, out, progress=bar, executor=ex, keep_images=args.keep_images
+    with hold_output_folder(out, "synptv run") as took_over:
+        if took_over:
+            print(f"synptv run: {took_over}", file=sys.stderr)
+        try:
+            with executor(workers=args.workers, scheduler=args.scheduler) as ex:
+                stages = run_stages(
+                    scenario, out, progress=bar, executor=ex, keep_images=args.keep_images
+                )
+        except KeyboardInterrupt:
+            print(
+                f"\nsynptv run: interrupted; finished stages and chunks are kept in {out}: "
+                "run the same command to resume",
+                file=sys.stderr,
             )
-    except KeyboardInterrupt:
-        print(
-            f"\nsynptv run: interrupted; finished stages and chunks are kept in {out}: run "
-            "the same command to resume",
-            file=sys.stderr,
-        )
-        return 130
-    html_path, json_path = write_report(scenario, stages, out)
+            return 130
+        html_path, json_path = write_report(scenario, stages, out)
     results = json.loads(json_path.read_text())
     for check in results["must_hold"]:
         mark = "PASS" if check["passed"] else "FAIL"

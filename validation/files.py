@@ -6,7 +6,10 @@ reader (or a run interrupted half-way) never sees a partial file.
 
 import json
 import os
+import socket
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -71,3 +74,79 @@ def check_output_folder(path: Path | str, option: str = "--out") -> Path:
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"{option} {path}: {existing} is not writable")
     return path
+
+
+#: The file that marks an output folder as held by a running command.
+LOCK_NAME = ".synptv.lock"
+
+
+@contextmanager
+def hold_output_folder(folder: Path | str, command: str) -> Iterator[str | None]:
+    """Hold ``folder`` (created if needed) for this process while ``command`` writes in it.
+
+    The lock is a file with the holder's pid, host and command, created exclusively and
+    removed on exit, with the folder if this call created it and nothing was written. A
+    lock whose process no longer runs on this host is stale: it is taken over, and the
+    context yields a line that says so (else None).
+
+    Raises
+    ------
+    ValueError
+        Another running process holds the folder (or one on another host, which cannot
+        be checked): the message names it and the lock file.
+    """
+    folder = Path(folder)
+    created = not folder.exists()
+    folder.mkdir(parents=True, exist_ok=True)
+    lock = folder / LOCK_NAME
+    note = None
+    while True:
+        try:
+            handle = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            holder = _lock_holder(lock)
+            who = f"{holder.get('command', 'a synptv command')} (pid {holder.get('pid')})"
+            if _running(holder):
+                raise ValueError(
+                    f"{folder} is in use by {who} on {holder.get('host')}: wait for it to "
+                    f"finish or choose another folder (if it is gone, remove {lock})"
+                ) from None
+            note = f"{folder}: took over the lock of {who}, which no longer runs"
+            lock.unlink(missing_ok=True)
+            continue
+        with os.fdopen(handle, "w") as stream:
+            json.dump(
+                {"pid": os.getpid(), "host": socket.gethostname(), "command": command}, stream
+            )
+        break
+    try:
+        yield note
+    finally:
+        lock.unlink(missing_ok=True)
+        if created and not any(folder.iterdir()):  # failed before writing: leave no trace
+            folder.rmdir()
+
+
+def _lock_holder(lock: Path) -> dict:
+    """The lock's holder, {} when the file is unreadable (a holder that died writing it)."""
+    try:
+        holder = json.loads(lock.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return {}
+    return holder if isinstance(holder, dict) else {}
+
+
+def _running(holder: dict) -> bool:
+    """Whether the holder may still run: on another host, assume so."""
+    pid = holder.get("pid")
+    if not isinstance(pid, int) or isinstance(pid, bool) or pid <= 0:
+        return False
+    if holder.get("host") != socket.gethostname():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # alive, owned by another user
+        return True
+    return True

@@ -35,7 +35,13 @@ from matplotlib.figure import Figure
 from simulator.presets import flow_preset
 from validation.calibration_study import relative_to_most_planes
 from validation.figures import obliquity_curves, plane_count_curves, save_figure
-from validation.files import as_json, check_output_folder, write_json_atomic, write_text_atomic
+from validation.files import (
+    as_json,
+    check_output_folder,
+    hold_output_folder,
+    write_json_atomic,
+    write_text_atomic,
+)
 from validation.parallel import Executor, check_parallel_options, dask_client, executor
 from validation.progress import ProgressBar
 from validation.rendered_study import evaluate_point, study_points
@@ -440,18 +446,21 @@ def _run_study_command(args) -> int:
         raise ValueError(f"{option} is an option of the {extra[0]} study, not of {args.study}")
     check_output_folder(args.out)
     try:
-        files = run_study(
-            args.study,
-            args.scenario,
-            Path(args.out),
-            chain=args.chain,
-            seeds=args.seeds,
-            values=_values(given.get(args.study), args.study),
-            settings=settings,
-            workers=args.workers,
-            scheduler=args.scheduler,
-            quiet=args.quiet,
-        )
+        with hold_output_folder(args.out, f"synptv study {args.study}") as took_over:
+            if took_over:
+                print(f"synptv study: {took_over}", file=sys.stderr)
+            files = run_study(
+                args.study,
+                args.scenario,
+                Path(args.out),
+                chain=args.chain,
+                seeds=args.seeds,
+                values=_values(given.get(args.study), args.study),
+                settings=settings,
+                workers=args.workers,
+                scheduler=args.scheduler,
+                quiet=args.quiet,
+            )
     except KeyboardInterrupt:
         print(
             f"\nsynptv study: interrupted; finished points are saved under "
