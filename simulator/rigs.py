@@ -18,6 +18,7 @@ become folder and file names: letters, digits, '.', '_' and '-', starting with a
 or digit (:data:`FILE_NAME_RULE`).
 """
 
+import itertools
 import re
 import tomllib
 from dataclasses import dataclass
@@ -117,35 +118,107 @@ def _check_fields(table: object, fields: dict[str, bool], where: str) -> dict:
     return table
 
 
-def _number(table: dict, key: str, where: str, *, positive: bool = True) -> float:
+#: Plausible range of every number of a rig file, SI units: (lowest, highest, unit).
+#: Values outside are refused by name, since they would fail later with an unrelated
+#: message or describe no laboratory (a 100 m sheet, water of index 100).
+_LIMITS = {
+    "width": (1e-3, 2.0, "m"),
+    "height": (1e-3, 2.0, "m"),
+    "thickness": (1e-5, 0.2, "m"),
+    "inradius": (0.01, 10.0, "m"),
+    "azimuth_deg": (-360.0, 360.0, "°"),
+    "elevation_deg": (-90.0, 90.0, "°"),
+    "distance": (0.01, 100.0, "m"),
+    "focal_length": (1e-3, 2.0, "m"),
+    "f_number": (0.5, 128.0, ""),
+    "pixel_pitch": (0.5e-6, 100e-6, "m"),
+    "water_path": (1e-3, 10.0, "m"),
+    "glass_thickness": (0.0, 0.5, "m"),
+    "obliquity_deg": (-80.0, 80.0, "°"),
+    "obliquity_direction_deg": (-360.0, 360.0, "°"),
+    "n_glass": (1.0, 2.5, ""),
+    "n_water": (1.0, 2.0, ""),
+}
+#: Sensor width and height, px, and the largest distortion coefficient (normalised
+#: image coordinates, where the edge of a 35 mm-class field lies near 0.4).
+_SENSOR_PX = (16, 16384)
+_DISTORTION_MAX = 10.0
+
+
+def _number(table: dict, key: str, where: str) -> float:
+    """``table[key]`` as a float within :data:`_LIMITS`, else a RigFileError naming it."""
     value = table[key]
     if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
-        raise RigFileError(f"{where}.{key}: expected a number, got {value!r}")
-    if positive and value <= 0:
-        raise RigFileError(f"{where}.{key}: must be > 0, got {value!r}")
+        raise RigFileError(f"{where}.{key}: expected a finite number, got {value!r}")
+    low, high, unit = _LIMITS[key]
+    if not low <= value <= high:
+        unit = unit if unit in ("", "°") else f" {unit}"
+        raise RigFileError(f"{where}.{key}: must be from {low:g} to {high:g}{unit}, got {value!r}")
     return float(value)
+
+
+def _distortion(table: dict, where: str, focal_length: float, pitch: float, size) -> tuple:
+    """(k1, k2, k3, p1, p2) of ``table``, bounded, and radially monotonic over the sensor.
+
+    A radial mapping r ↦ r (1 + k1 r² + k2 r⁴ + k3 r⁶) that turns back within the field
+    (up to 1.5 × the sensor's half-diagonal in normalised coordinates) folds the image
+    onto itself, which no lens does.
+    """
+    coefficients = table.get("distortion", [0.0] * 5)
+    if not (
+        isinstance(coefficients, list)
+        and len(coefficients) == 5
+        and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
+            for v in coefficients
+        )
+    ):
+        raise RigFileError(
+            f"{where}.distortion: expected 5 finite numbers [k1, k2, k3, p1, p2], "
+            f"got {coefficients!r}"
+        )
+    if max(abs(v) for v in coefficients) > _DISTORTION_MAX:
+        raise RigFileError(
+            f"{where}.distortion: coefficients must lie within ±{_DISTORTION_MAX:g}, "
+            f"got {coefficients!r}"
+        )
+    k1, k2, k3 = (float(v) for v in coefficients[:3])
+    r = np.linspace(0.0, 1.5 * 0.5 * np.hypot(*size) * pitch / focal_length, 512)
+    slope = 1 + 3 * k1 * r**2 + 5 * k2 * r**4 + 7 * k3 * r**6
+    if (slope <= 0).any():
+        raise RigFileError(
+            f"{where}.distortion: the radial distortion folds the image over at "
+            f"r = {r[np.argmax(slope <= 0)]:.3g} (normalised) within the field of view, "
+            f"got {coefficients!r}"
+        )
+    return tuple(float(v) for v in coefficients)
 
 
 def _camera(table: dict, where: str, sheet: Box) -> tuple[str, Camera]:
     _check_fields(table, _CAMERA, where)
+    if not is_file_name(table["name"]):
+        raise RigFileError(f"{where}.name: expected {FILE_NAME_RULE}, got {table['name']!r}")
     size = table["sensor_size"]
+    low, high = _SENSOR_PX
     if not (
         isinstance(size, list)
         and len(size) == 2
-        and all(isinstance(v, int) and v > 0 for v in size)
+        and all(isinstance(v, int) and not isinstance(v, bool) and low <= v <= high for v in size)
     ):
-        raise RigFileError(f"{where}.sensor_size: expected [width, height] in px, got {size!r}")
-    distortion = table.get("distortion", [0.0] * 5)
-    if not (isinstance(distortion, list) and len(distortion) == 5):
-        raise RigFileError(f"{where}.distortion: expected [k1, k2, k3, p1, p2], got {distortion!r}")
+        raise RigFileError(
+            f"{where}.sensor_size: expected [width, height], each from {low} to {high} px, "
+            f"got {size!r}"
+        )
     if not isinstance(table["scheimpflug"], bool):
         raise RigFileError(
             f"{where}.scheimpflug: expected true or false, got {table['scheimpflug']!r}"
         )
-    k1, k2, k3, p1, p2 = (float(v) for v in distortion)
+    focal_length = _number(table, "focal_length", where)
+    pitch = _number(table, "pixel_pitch", where)
+    k1, k2, k3, p1, p2 = _distortion(table, where, focal_length, pitch, size)
     lens = Lens(
-        focal_length=_number(table, "focal_length", where),
-        pixel_pitch=_number(table, "pixel_pitch", where),
+        focal_length=focal_length,
+        pixel_pitch=pitch,
         sensor_size=(size[0], size[1]),
         k1=k1,
         k2=k2,
@@ -160,34 +233,61 @@ def _camera(table: dict, where: str, sheet: Box) -> tuple[str, Camera]:
         w = _check_fields(table["window"], _WINDOW, w_where)
         window = WindowSpec(
             water_path=_number(w, "water_path", w_where),
-            glass_thickness=_number(w, "glass_thickness", w_where, positive=False),
-            obliquity=np.deg2rad(_number(w, "obliquity_deg", w_where, positive=False))
+            glass_thickness=_number(w, "glass_thickness", w_where),
+            obliquity=np.deg2rad(_number(w, "obliquity_deg", w_where))
             if "obliquity_deg" in w
             else 0.0,
-            obliquity_direction=np.deg2rad(
-                _number(w, "obliquity_direction_deg", w_where, positive=False)
-            )
+            obliquity_direction=np.deg2rad(_number(w, "obliquity_direction_deg", w_where))
             if "obliquity_direction_deg" in w
             else 0.0,
             **{k: _number(w, k, w_where) for k in ("n_glass", "n_water") if k in w},
         )
-    camera = look_at_camera(
-        np.array(sheet.centre),
-        lens,
-        distance=_number(table, "distance", where),
-        azimuth=np.deg2rad(_number(table, "azimuth_deg", where, positive=False)),
-        elevation=np.deg2rad(_number(table, "elevation_deg", where, positive=False))
-        if "elevation_deg" in table
-        else 0.0,
-        window=window,
+    distance = _number(table, "distance", where)
+    azimuth = np.deg2rad(_number(table, "azimuth_deg", where))
+    elevation = (
+        np.deg2rad(_number(table, "elevation_deg", where)) if "elevation_deg" in table else 0.0
     )
-    camera = focus_on_plane(
-        camera, plane_point=sheet.centre, plane_normal=(0.0, 0.0, 1.0), tilt=table["scheimpflug"]
-    )
-    name = table["name"]
-    if not is_file_name(name):
-        raise RigFileError(f"{where}.name: expected {FILE_NAME_RULE}, got {name!r}")
-    return name, camera
+    try:
+        camera = look_at_camera(
+            np.array(sheet.centre),
+            lens,
+            distance=distance,
+            azimuth=azimuth,
+            elevation=elevation,
+            window=window,
+        )
+        camera = focus_on_plane(
+            camera,
+            plane_point=sheet.centre,
+            plane_normal=(0.0, 0.0, 1.0),
+            tilt=table["scheimpflug"],
+        )
+    except ValueError as err:  # a geometry no camera can have (worded by the optics)
+        raise RigFileError(f"{where}: {err}") from None
+    return table["name"], camera
+
+
+def check_sheet_in_water(camera: Camera, sheet: Box, tank_inradius: float, where: str) -> None:
+    """Raise RigFileError unless the whole sheet lies in the water: inside the tank's
+    inscribed sphere and beyond the wet face of the camera's window."""
+    half = 0.5 * np.asarray(sheet.size)
+    signs = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
+    corners = np.asarray(sheet.centre) + signs * half
+    reach = float(np.linalg.norm(corners, axis=1).max())
+    if reach > tank_inradius:
+        raise RigFileError(
+            f"{where}: the sheet reaches {reach:.3g} m from the centre, beyond the tank's "
+            f"inradius {tank_inradius:g} m"
+        )
+    window = camera.interfaces
+    if window is not None:
+        depth = corners @ window.normal - window.offsets[-1]
+        if depth.min() <= 0:
+            raise RigFileError(
+                f"{where}.window: a corner of the sheet lies {-depth.min() * 1e3:.3g} mm on the "
+                "camera's side of the window's wet face: lengthen water_path or reduce "
+                "obliquity_deg"
+            )
 
 
 def check_sees_sheet(name: str, camera: Camera, sheet: Box, where: str) -> None:
@@ -205,6 +305,7 @@ def rig_from_dict(spec: dict, *, source: str = "<rig>") -> Rig:
     s = _check_fields(spec["sheet"], _SHEET, f"{source}: sheet")
     sheet = Box(tuple(_number(s, k, f"{source}: sheet") for k in ("width", "height", "thickness")))
     t = _check_fields(spec["tank"], _TANK, f"{source}: tank")
+    tank_inradius = _number(t, "inradius", f"{source}: tank")
     cameras_spec = spec["cameras"]
     if not isinstance(cameras_spec, list) or len(cameras_spec) < 1:
         raise RigFileError(f"{source}: cameras: expected at least one [[cameras]] table")
@@ -212,6 +313,7 @@ def rig_from_dict(spec: dict, *, source: str = "<rig>") -> Rig:
     for i, table in enumerate(cameras_spec):
         where = f"{source}: cameras[{i}]"
         name, camera = _camera(table, where, sheet)
+        check_sheet_in_water(camera, sheet, tank_inradius, where)
         check_sees_sheet(name, camera, sheet, where)
         names.append(name)
         cameras.append(camera)
@@ -223,7 +325,7 @@ def rig_from_dict(spec: dict, *, source: str = "<rig>") -> Rig:
         cameras=tuple(cameras),
         camera_names=tuple(names),
         sheet=sheet,
-        tank_inradius=_number(t, "inradius", f"{source}: tank"),
+        tank_inradius=tank_inradius,
         spec=spec,
     )
 
@@ -248,7 +350,11 @@ def load_rig(name_or_path: str | Path) -> Rig:
     if path.suffix == ".toml" or path.exists():
         if not path.is_file():
             raise RigFileError(f"rig file {str(path)!r} does not exist")
-        text, source = path.read_text(), str(path)
+        source = str(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as err:
+            raise RigFileError(f"{source}: not readable as a UTF-8 text file ({err})") from None
     else:
         presets = rig_presets()
         if str(name_or_path) not in presets:

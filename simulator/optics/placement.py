@@ -105,9 +105,7 @@ def viewing_direction(azimuth: float, elevation: float) -> np.ndarray:
     )
 
 
-def window_for(
-    center: np.ndarray, target: np.ndarray, spec: WindowSpec
-) -> FlatInterfaces:
+def window_for(center: np.ndarray, target: np.ndarray, spec: WindowSpec) -> FlatInterfaces:
     """The window of ``spec`` between a camera centre and a target (see module docstring)."""
     line = np.asarray(target, dtype=np.float64) - np.asarray(center, dtype=np.float64)
     a = line / np.linalg.norm(line)
@@ -165,9 +163,9 @@ def look_at_camera(
     stack = window_for(center, target, window)
     if not stack.camera_height(center) > 0:
         raise ValueError(
-            f"the window (water path {window.water_path!r} m, glass {window.glass_thickness!r} m, "
-            f"obliquity {window.obliquity!r} rad) does not fit between the camera and the target "
-            f"at distance {distance!r} m"
+            f"the window (water path {window.water_path:g} m, glass {window.glass_thickness:g} m, "
+            f"obliquity {np.rad2deg(window.obliquity):g}°) does not fit between the camera and "
+            f"the target at distance {distance:g} m"
         )
     forward = solve_chief_rays(center, target[None, :], stack).directions[0]
     return Camera(center, look_rotation(forward), lens, stack)

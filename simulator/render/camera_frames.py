@@ -150,7 +150,9 @@ def record_particles(
         blur = np.where(seen, defocus_blur(camera, p), np.nan)
         diameter = np.sqrt(geometric**2 + diffraction**2 + blur**2)
         xy[lit] = xy_lit
-        sigma[lit] = gaussian_sigma(diameter, convention=optics.convention)
+        sigma_lit = np.full(len(p), np.nan)  # a particle outside the view has no spot
+        sigma_lit[seen] = gaussian_sigma(diameter[seen], convention=optics.convention)
+        sigma[lit] = sigma_lit
         electrons[lit] = particle_electrons(
             lighting.particle_diameter,
             p[:, 2],

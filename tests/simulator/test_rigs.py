@@ -55,6 +55,16 @@ def test_conventional_has_untilted_sensors_and_perpendicular_windows():
         assert np.isclose(abs(camera.interfaces.normal @ camera.axis), 1.0, atol=1e-3)
 
 
+def spec_with(path, value):
+    """The paper-stereo description with the field at ``path`` (keys, indices) set."""
+    spec = preset_spec("paper-stereo")
+    table = spec
+    for key in path[:-1]:
+        table = table[key]
+    table[path[-1]] = value
+    return spec
+
+
 def test_missing_field_is_named():
     spec = preset_spec("paper-stereo")
     del spec["cameras"][1]["window"]["water_path"]
@@ -104,3 +114,51 @@ def test_camera_names_that_would_leave_the_output_folder_are_refused(name):
     spec["cameras"][0]["name"] = name
     with pytest.raises(RigFileError, match=r"cameras\[0\]\.name: expected 1 to 64 letters"):
         rig_from_dict(spec, source="mine.toml")
+
+
+def test_binary_rig_file_is_named(tmp_path):
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(b"\xff\xfe\x00name")
+    with pytest.raises(RigFileError, match="binary.toml: not readable as a UTF-8 text file"):
+        load_rig(binary)
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "message"),
+    [
+        (("cameras", 0, "window", "n_water"), 100.0, r"window\.n_water: must be from 1 to 2"),
+        (("cameras", 0, "distortion"), [1e6, 0, 0, 0, 0], r"distortion: coefficients .* ±10"),
+        (("cameras", 0, "distortion"), ["a", 0, 0, 0, 0], r"distortion: expected 5 finite"),
+        (("cameras", 1, "focal_length"), float("inf"), r"focal_length: expected a finite"),
+        (("cameras", 1, "pixel_pitch"), 1e-3, r"pixel_pitch: must be from 5e-07 to 0.0001 m"),
+        (("cameras", 0, "sensor_size"), [10**6, 1088], r"sensor_size: .* from 16 to 16384 px"),
+        (("cameras", 0, "sensor_size"), [True, 1088], r"sensor_size"),
+        (("sheet", "width"), 1e9, r"sheet\.width: must be from 0.001 to 2 m"),
+    ],
+)
+def test_implausible_values_are_refused_with_the_limit(path, value, message):
+    with pytest.raises(RigFileError, match=message):
+        rig_from_dict(spec_with(path, value), source="mine.toml")
+
+
+def test_distortion_that_folds_the_field_of_view_over_is_refused():
+    # r (1 + k1 r²) turns back at r = 1/√(−3 k1): 0.187 for k1 = −9.5, inside 1.5 × the
+    # sensor's half-diagonal, 0.191 in normalised coordinates (f = 50 mm, 2048 × 1088 px
+    # of 5.5 µm); for k1 = −8 it turns back at 0.204, beyond.
+    with pytest.raises(RigFileError, match="folds the image over"):
+        rig_from_dict(spec_with(("cameras", 0, "distortion"), [-9.5, 0, 0, 0, 0]), source="m")
+    rig_from_dict(spec_with(("cameras", 0, "distortion"), [-8.0, 0, 0, 0, 0]))
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "message"),
+    [
+        (("tank", "inradius"), 0.05, r"the sheet reaches 0.0709 m .* inradius 0.05 m"),
+        (("cameras", 0, "window", "water_path"), 0.03, r"window: a corner of the sheet lies"),
+        (("cameras", 0, "window", "obliquity_deg"), 70.0, r"window: a corner of the sheet lies"),
+        (("cameras", 0, "distance"), 0.1, r"cameras\[0\]: the window .* does not fit"),
+    ],
+)
+def test_geometry_with_the_sheet_out_of_the_water_is_refused(path, value, message):
+    with pytest.raises(RigFileError, match=message):
+        rig_from_dict(spec_with(path, value), source="mine.toml")

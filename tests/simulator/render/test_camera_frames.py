@@ -61,3 +61,13 @@ def test_bad_positions_are_rejected(camera):
         record_particles(camera, np.zeros((3, 2)), lighting=ParticleLighting(), sensor=NOISELESS)
     with pytest.raises(ValueError, match="particle_diameter"):
         ParticleLighting(particle_diameter=0.0)
+
+
+def test_a_lit_particle_outside_the_view_is_invisible_and_the_others_are_drawn(camera):
+    lighting = ParticleLighting()
+    # One particle at the sheet centre, one 1 m off to the side: lit, outside every view.
+    positions = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    frame = record_particles(camera, positions, lighting=lighting, sensor=NOISELESS, rng=0)
+    assert frame.visible.tolist() == [True, False]
+    assert np.isnan(frame.xy[1]).all() and np.isnan(frame.sigma[1])
+    assert np.isfinite(frame.sigma[0])
