@@ -8,6 +8,7 @@ in the paper) and, when the folder holds a ``truth.h5``, against the true centre
 """
 
 import hashlib
+import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -23,6 +24,7 @@ from ptv.calibration.targets import PlateDescription, find_dots
 from ptv.dataset import DatasetError, read_description
 from simulator.target import PlateDesign
 from validation.calibration_accuracy import PlaneDots, nominal_positions, table1_errors
+from validation.files import staged_output
 
 Progress = Callable[[int, int], None]
 
@@ -121,6 +123,34 @@ def _check_plate_images(paths: list[Path], image_size: list[int]) -> None:
                 f"{path}: the same image as {first_seen[digest].name} (a stuck traverse?)"
             )
         first_seen[digest] = path
+
+
+#: RMS image shift of the dots between two traverse positions below which the plate is
+#: taken not to have moved, px: a few times the scatter of a dot centre found twice on
+#: independent noise (~0.02 px), far below the shift of a 1 mm step seen at any angle.
+STUCK_TRAVERSE_SHIFT_PX = 0.1
+
+
+def _check_traverse_moved(planes: list[PlaneDots], paths: list[Path]) -> None:
+    """Refuse two traverse positions whose dots sit at the same pixels (the images differ
+    only by noise: the traverse did not move)."""
+    for (a, path_a), (b, path_b) in itertools.pairwise(zip(planes, paths, strict=True)):
+        rows_a = {tuple(index): k for k, index in enumerate(a.indices.tolist())}
+        common = [
+            (rows_a[tuple(index)], k)
+            for k, index in enumerate(b.indices.tolist())
+            if tuple(index) in rows_a
+        ]
+        if not common:
+            continue
+        ka, kb = np.array(common).T
+        shift = np.sqrt(np.mean(np.sum((a.pixels[ka] - b.pixels[kb]) ** 2, axis=1)))
+        if shift < STUCK_TRAVERSE_SHIFT_PX:
+            raise DatasetError(
+                f"{path_b}: the plate's dots sit where they were in {path_a.name} "
+                f"({shift:.3f} px RMS over {len(common)} dots, though traverse_z moved "
+                f"{abs(b.z - a.z) * 1e3:g} mm): a stuck traverse?"
+            )
 
 
 def _design(target: dict, path: Path) -> PlateDesign:
@@ -239,6 +269,7 @@ def calibrate_dataset(
             done += 1
             if progress is not None:
                 progress(done, total)
+        _check_traverse_moved(planes, camera_paths)
         dots.append(planes)
     references = {"nominal": nominal_positions(design, z), "true": true}
     table1, fitted_models, residuals, errors = {}, {}, {}, {}
@@ -266,10 +297,9 @@ def calibrate_dataset(
         fitted_models[method] = calibrations
     # Written only once every method has calibrated: a method that fails leaves no file.
     out = Path(out) if out is not None else folder / "calibrations"
-    out.mkdir(parents=True, exist_ok=True)
     metadata = {"dataset": str(folder)}
-    files = {
-        method: str(save_calibrations(out / f"{method}.h5", calibrations, metadata=metadata))
-        for method, calibrations in fitted_models.items()
-    }
+    with staged_output(out) as staging:
+        for method, calibrations in fitted_models.items():
+            save_calibrations(staging / f"{method}.h5", calibrations, metadata=metadata)
+    files = {method: str(out / f"{method}.h5") for method in fitted_models}
     return DatasetCalibration(dots, residuals, table1, files, errors)

@@ -16,9 +16,15 @@ from simulator.presets import FLOW_PRESETS, flow_preset
 from simulator.rigs import load_rig, rig_presets
 from simulator.spectra import SPECTRA
 from simulator.turbulence import NU_WATER, TurbulenceParameters
-from validation.files import check_output_folder, hold_output_folder
+from validation.files import (
+    check_output_folder,
+    hold_new_folder,
+    hold_output_folder,
+    staged_output,
+)
 from validation.flow_summary import FlowSettings, summarize_flow
 from validation.progress import ProgressBar
+from validation.scenario import SIZE_LIMITS
 from validation.study_cli import add_study_parser
 
 
@@ -37,8 +43,9 @@ class _ParseError(Exception):
     """A bad command line, already worded for the user."""
 
 
-def _integer_at_least(minimum: int):
-    """An argparse type: an integer >= ``minimum``, else an error naming the option."""
+def _integer_at_least(minimum: int, maximum: int | None = None, why: str = ""):
+    """An argparse type: an integer from ``minimum`` (to ``maximum``), else an error
+    naming the option and the limit."""
 
     def parse(text: str) -> int:
         try:
@@ -47,9 +54,16 @@ def _integer_at_least(minimum: int):
             raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
         if value < minimum:
             raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {value}")
+        if maximum is not None and value > maximum:
+            raise argparse.ArgumentTypeError(f"must be at most {maximum}{why}, got {value}")
         return value
 
     return parse
+
+
+def _size(name: str):
+    """An argparse type for the size ``name`` of :data:`SIZE_LIMITS`."""
+    return _integer_at_least(*SIZE_LIMITS[name])
 
 
 SEED = _integer_at_least(0)
@@ -117,30 +131,42 @@ def _run_render(args: argparse.Namespace) -> int:
     from validation.parallel import check_parallel_options, executor
 
     check_parallel_options(args.workers, args.scheduler)
-    check_output_folder(args.out)
+    out = check_output_folder(args.out)
     rig = load_rig(args.rig)
     preset = flow_preset(args.preset)
     settings = RenderSettings(
         frames=args.frames, particles=args.particles, planes=args.planes, seed=args.seed
     )
     bar = ProgressBar("render", enabled=not args.quiet)
-    with executor(workers=args.workers, scheduler=args.scheduler) as ex:
-        out = write_dataset(Path(args.out), rig, preset, settings, executor=ex, progress=bar)
+    with hold_new_folder(out, "synptv render") as took_over:
+        _say_took_over("render", took_over)
+        with executor(workers=args.workers, scheduler=args.scheduler) as ex:
+            write_dataset(out, rig, preset, settings, executor=ex, progress=bar)
     print(f"dataset written to {out}")
     return 0
+
+
+def _say_took_over(command: str, note: str | None) -> None:
+    """Print the line of a stale lock taken over, if any."""
+    if note:
+        print(f"synptv {command}: {note}", file=sys.stderr)
 
 
 def _run_calibrate(args: argparse.Namespace) -> int:
     from validation.calibrate_dataset import calibrate_dataset
 
-    if args.out is not None:
-        check_output_folder(args.out)
+    dataset = Path(args.dataset)
+    if not dataset.is_dir():
+        raise UsageError(f"--dataset {dataset}: no such folder")
+    out = check_output_folder(args.out if args.out is not None else dataset / "calibrations")
     bar = ProgressBar("calibrate", enabled=not args.quiet)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    try:
-        result = calibrate_dataset(Path(args.dataset), methods=methods, out=args.out, progress=bar)
-    except FileNotFoundError as err:
-        raise UsageError(str(err)) from None
+    with hold_output_folder(out, "synptv calibrate") as took_over:
+        _say_took_over("calibrate", took_over)
+        try:
+            result = calibrate_dataset(dataset, methods=methods, out=out, progress=bar)
+        except FileNotFoundError as err:
+            raise UsageError(str(err)) from None
     if args.json:
         json.dump(
             {
@@ -185,8 +211,7 @@ def _run_experiment(args: argparse.Namespace) -> int:
         return ProgressBar(stage, enabled=not args.quiet)
 
     with hold_output_folder(out, "synptv run") as took_over:
-        if took_over:
-            print(f"synptv run: {took_over}", file=sys.stderr)
+        _say_took_over("run", took_over)
         try:
             with executor(workers=args.workers, scheduler=args.scheduler) as ex:
                 stages = run_stages(
@@ -236,7 +261,7 @@ def _run_ptv(args: argparse.Namespace) -> int:
     from ptv.results import save_results, summary
     from validation.ptv_figures import save_ptv_figures
 
-    check_output_folder(args.out)
+    out = check_output_folder(args.out)
     try:
         dataset = open_dataset(args.dataset)
         calibrations = load_calibrations(args.calibration)
@@ -244,13 +269,18 @@ def _run_ptv(args: argparse.Namespace) -> int:
         raise UsageError(str(err)) from None
     settings = PipelineSettings(max_speed=args.max_speed, snapshots=args.snapshots)
     bar = ProgressBar("ptv", enabled=not args.quiet)
-    try:
-        result = run_pipeline(ImageDetector(dataset), calibrations, settings, progress=bar)
-    except FileNotFoundError as err:
-        raise UsageError(str(err)) from None
-    out = Path(args.out)
-    h5_path, json_path = save_results(result, out, calibration=str(args.calibration))
-    figures = save_ptv_figures(result, out)
+    with hold_output_folder(out, "synptv ptv") as took_over:
+        _say_took_over("ptv", took_over)
+        try:
+            result = run_pipeline(ImageDetector(dataset), calibrations, settings, progress=bar)
+        except FileNotFoundError as err:
+            raise UsageError(str(err)) from None
+        with staged_output(out) as staging:  # results and figures replace the old together
+            written = [
+                *save_results(result, staging, calibration=str(args.calibration)),
+                *save_ptv_figures(result, staging).values(),
+            ]
+    h5_path, json_path, *figures = (out / path.name for path in written)
     s = summary(result, calibration=str(args.calibration))
     for line in s["warnings"]:
         print(f"synptv ptv: warning: {line}", file=sys.stderr)
@@ -290,7 +320,7 @@ def _run_ptv(args: argparse.Namespace) -> int:
     )
     print(f"mean displacement vs dt: offset (X, Y, Z) {offset} um")
     print(f"results written to {h5_path} and {json_path}")
-    print(f"figures written to {', '.join(str(p) for p in figures.values())}")
+    print(f"figures written to {', '.join(str(p) for p in figures)}")
     return 0
 
 
@@ -364,9 +394,13 @@ def build_parser() -> argparse.ArgumentParser:
     flow.add_argument("--epsilon", type=float, help="dissipation rate in m^2/s^3")
     flow.add_argument("--nu", type=float, default=NU_WATER, help="kinematic viscosity, m^2/s")
     flow.add_argument("--spectrum", default="pope", choices=sorted(SPECTRA))
-    flow.add_argument("--particles", type=COUNT, default=2000, help="particles per snapshot")
-    flow.add_argument("--snapshots", type=COUNT, default=1000, help="independent realizations")
-    flow.add_argument("--modes", type=int, default=200, help="KS modes")
+    flow.add_argument(
+        "--particles", type=_size("count"), default=2000, help="particles per snapshot"
+    )
+    flow.add_argument(
+        "--snapshots", type=_size("frames"), default=1000, help="independent realizations"
+    )
+    flow.add_argument("--modes", type=_size("modes"), default=200, help="KS modes")
     flow.add_argument("--unsteadiness", type=float, default=0.5, help="lambda in omega_n")
     flow.add_argument("--seed", type=SEED, default=0)
     flow.add_argument("--json", action="store_true", help="print one JSON object")
@@ -385,9 +419,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     render.add_argument("--preset", default="lem-10hz", help=f"one of {', '.join(FLOW_PRESETS)}")
     render.add_argument("--out", required=True, help="new folder to write")
-    render.add_argument("--frames", type=COUNT, default=10, help="frame pairs per dt")
-    render.add_argument("--particles", type=COUNT, default=1000, help="particles in the sheet")
-    render.add_argument("--planes", type=COUNT, default=13, help="calibration traverse positions")
+    render.add_argument("--frames", type=_size("frames"), default=10, help="frame pairs per dt")
+    render.add_argument(
+        "--particles", type=_size("count"), default=1000, help="particles in the sheet"
+    )
+    render.add_argument(
+        "--planes", type=_size("planes"), default=13, help="calibration traverse positions"
+    )
     render.add_argument("--seed", type=SEED, default=0)
     _add_parallel_options(render)
     render.add_argument("--quiet", action="store_true", help="no progress bar")

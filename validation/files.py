@@ -6,6 +6,7 @@ reader (or a run interrupted half-way) never sees a partial file.
 
 import json
 import os
+import shutil
 import socket
 import tempfile
 from collections.abc import Iterator
@@ -81,24 +82,20 @@ LOCK_NAME = ".synptv.lock"
 
 
 @contextmanager
-def hold_output_folder(folder: Path | str, command: str) -> Iterator[str | None]:
-    """Hold ``folder`` (created if needed) for this process while ``command`` writes in it.
+def hold_lock(lock: Path | str, command: str) -> Iterator[str | None]:
+    """Hold the lock file ``lock`` for this process while ``command`` runs.
 
-    The lock is a file with the holder's pid, host and command, created exclusively and
-    removed on exit, with the folder if this call created it and nothing was written. A
-    lock whose process no longer runs on this host is stale: it is taken over, and the
-    context yields a line that says so (else None).
+    The lock holds the holder's pid, host and command; it is created exclusively and
+    removed on exit. A lock whose process no longer runs on this host is stale: it is
+    taken over, and the context yields a line that says so (else None).
 
     Raises
     ------
     ValueError
-        Another running process holds the folder (or one on another host, which cannot
-        be checked): the message names it and the lock file.
+        Another running process holds the lock (or one on another host, which cannot be
+        checked): the message names it and the lock file.
     """
-    folder = Path(folder)
-    created = not folder.exists()
-    folder.mkdir(parents=True, exist_ok=True)
-    lock = folder / LOCK_NAME
+    lock = Path(lock)
     note = None
     while True:
         try:
@@ -108,10 +105,10 @@ def hold_output_folder(folder: Path | str, command: str) -> Iterator[str | None]
             who = f"{holder.get('command', 'a synptv command')} (pid {holder.get('pid')})"
             if _running(holder):
                 raise ValueError(
-                    f"{folder} is in use by {who} on {holder.get('host')}: wait for it to "
-                    f"finish or choose another folder (if it is gone, remove {lock})"
+                    f"{lock.parent} is in use by {who} on {holder.get('host')}: wait for it "
+                    f"to finish or choose another folder (if it is gone, remove {lock})"
                 ) from None
-            note = f"{folder}: took over the lock of {who}, which no longer runs"
+            note = f"{lock.parent}: took over the lock of {who}, which no longer runs"
             lock.unlink(missing_ok=True)
             continue
         with os.fdopen(handle, "w") as stream:
@@ -123,8 +120,62 @@ def hold_output_folder(folder: Path | str, command: str) -> Iterator[str | None]
         yield note
     finally:
         lock.unlink(missing_ok=True)
-        if created and not any(folder.iterdir()):  # failed before writing: leave no trace
-            folder.rmdir()
+
+
+@contextmanager
+def hold_output_folder(folder: Path | str, command: str) -> Iterator[str | None]:
+    """Hold ``folder`` (created if needed) with :func:`hold_lock` on its
+    :data:`LOCK_NAME` file while ``command`` writes in it; on exit the folders this call
+    created are removed again where nothing was written in them."""
+    folder = Path(folder)
+    created = [p for p in (folder, *folder.parents) if not p.exists()]
+    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        with hold_lock(folder / LOCK_NAME, command) as note:
+            yield note
+    finally:
+        for path in created:  # failed before writing: leave no trace
+            if any(path.iterdir()):
+                break
+            path.rmdir()
+
+
+@contextmanager
+def hold_new_folder(folder: Path | str, command: str) -> Iterator[str | None]:
+    """Hold the name of a folder that must not exist yet (``command`` builds it elsewhere
+    and renames it into place): the lock sits beside it, ``.<name>.synptv.lock``.
+
+    Raises
+    ------
+    ValueError
+        ``folder`` exists, or another running command holds its name.
+    """
+    folder = Path(folder)
+    if folder.exists():
+        raise ValueError(f"output folder {str(folder)!r} already exists; choose a new one")
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    with hold_lock(folder.parent / f".{folder.name}{LOCK_NAME}", command) as note:
+        yield note
+
+
+@contextmanager
+def staged_output(folder: Path | str) -> Iterator[Path]:
+    """A private folder inside ``folder`` for a command to write its files into.
+
+    When the block ends without error, each file is renamed into ``folder`` (replacing
+    an earlier one of the same name); when it raises, all are discarded. Either way
+    ``folder`` then holds the earlier output or the whole new one, never a mixture
+    left by a failure half-way.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=".staging-", dir=folder))
+    try:
+        yield staging
+        for path in sorted(staging.iterdir()):
+            os.replace(path, folder / path.name)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
 
 
 def _lock_holder(lock: Path) -> dict:

@@ -166,8 +166,8 @@ _SECTIONS = {
 }
 
 
-#: Sizes a scenario may ask for: (smallest, largest, why the largest).
-_SIZE_LIMITS = {
+#: (lowest, highest, why) of every size a scenario or a command line may ask for.
+SIZE_LIMITS = {
     "modes": (1, 10_000, " (a KS field of 10⁴ modes already resolves 4 decades)"),
     "planes": (3, 200, ""),
     "count": (1, 100_000, " (10⁵ tracers are 0.045 particles per pixel on 2048 × 1088)"),
@@ -244,11 +244,11 @@ def _check(scenario: Scenario, source: str) -> None:
             f"calibration.plate must be 'realistic' or 'ideal', got {scenario.calibration.plate!r}"
         )
     for where, value, (minimum, maximum, why) in (
-        ("flow.modes", scenario.flow.modes, _SIZE_LIMITS["modes"]),
-        ("calibration.planes", scenario.calibration.planes, _SIZE_LIMITS["planes"]),
-        ("particles.count", scenario.particles.count, _SIZE_LIMITS["count"]),
-        ("particles.frames", scenario.particles.frames, _SIZE_LIMITS["frames"]),
-        ("ptv.bins", scenario.ptv.bins, _SIZE_LIMITS["bins"]),
+        ("flow.modes", scenario.flow.modes, SIZE_LIMITS["modes"]),
+        ("calibration.planes", scenario.calibration.planes, SIZE_LIMITS["planes"]),
+        ("particles.count", scenario.particles.count, SIZE_LIMITS["count"]),
+        ("particles.frames", scenario.particles.frames, SIZE_LIMITS["frames"]),
+        ("ptv.bins", scenario.ptv.bins, SIZE_LIMITS["bins"]),
     ):
         if not minimum <= value <= maximum:
             fail(f"{where} must be from {minimum} to {maximum}{why}, got {value}")

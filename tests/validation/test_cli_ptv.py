@@ -85,3 +85,36 @@ def test_ptv_command_reports_bad_input_in_one_line(dataset, tmp_path, capsys):
     assert main([*argv, "--max-speed", "-1", "--quiet"]) == 2
     assert "max_speed must be a finite number > 0" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+def test_a_failure_after_the_pipeline_leaves_the_earlier_output_untouched(
+    dataset, tmp_path, capsys, monkeypatch
+):
+    import validation.ptv_figures
+
+    folder, calibration = dataset
+    out = tmp_path / "out"
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration)]
+    argv += ["--out", str(out), "--snapshots", "1", "--quiet"]
+    assert main(argv) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def fails(result, folder):
+        raise ValueError("a figure cannot be drawn")
+
+    monkeypatch.setattr(validation.ptv_figures, "save_ptv_figures", fails)
+    assert main([*argv, "--max-speed", "1.2"]) == 2  # results that differ, if written
+    assert "a figure cannot be drawn" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # no lock, no staging
+
+
+def test_a_folder_held_by_another_command_is_refused_before_the_pipeline(dataset, tmp_path, capsys):
+    from validation.files import hold_output_folder
+
+    folder, calibration = dataset
+    out = tmp_path / "out"
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration)]
+    with hold_output_folder(out, "synptv ptv"):
+        assert main([*argv, "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "is in use by synptv ptv" in err and err.count("\n") == 1

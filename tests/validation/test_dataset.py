@@ -196,6 +196,7 @@ def _spoil_experiment(spec: dict, case: str) -> None:
         ("text as a plane", "plane_00.tif", "not readable as a TIFF image"),
         ("truncated truth", "truth.h5", "cannot read plate/dots_world"),
         ("stuck traverse", "plane_01.tif", "the same image as plane_00.tif"),
+        ("noisy stuck traverse", "plane_01.tif", "dots sit where they were in plane_00.tif"),
         ("small plane", "plane_01.tif", "image of shape (10, 20), but experiment.json gives"),
     ],
 )
@@ -225,6 +226,11 @@ def test_calibrate_command_names_the_file_and_field_of_a_bad_dataset(
     elif case == "stuck traverse":
         plane.unlink()
         plane.symlink_to(plane.with_name("plane_00.tif").resolve())
+    elif case == "noisy stuck traverse":  # the first plane again, on fresh sensor noise
+        first = tifffile.imread(plane.with_name("plane_00.tif"))
+        noise = np.random.default_rng(0).normal(0.0, 0.01 * first.max(), first.shape)
+        plane.unlink()
+        tifffile.imwrite(plane, np.clip(first + noise, 0, 65535).astype(np.uint16))
     elif case == "small plane":
         plane.unlink()
         tifffile.imwrite(plane, np.zeros((10, 20), np.uint16))

@@ -9,7 +9,13 @@ import sys
 import pytest
 
 from validation.cli import main
-from validation.files import LOCK_NAME, check_output_folder, hold_output_folder
+from validation.files import (
+    LOCK_NAME,
+    check_output_folder,
+    hold_new_folder,
+    hold_output_folder,
+    staged_output,
+)
 
 
 def test_output_folders_that_cannot_be_written_are_refused_by_name(tmp_path):
@@ -75,4 +81,37 @@ def test_a_folder_created_for_nothing_is_removed(tmp_path):
     with pytest.raises(RuntimeError):
         with hold_output_folder(tmp_path / "new" / "out", "synptv run"):
             raise RuntimeError("failed before writing")
-    assert not (tmp_path / "new" / "out").exists()
+    assert sorted(tmp_path.iterdir()) == []  # "new" was created for it too
+
+
+def test_a_new_folder_is_held_by_its_name_and_must_not_exist(tmp_path):
+    (tmp_path / "taken").mkdir()
+    with pytest.raises(ValueError, match="already exists"):
+        with hold_new_folder(tmp_path / "taken", "synptv render"):
+            pass
+    with hold_new_folder(tmp_path / "ds", "synptv render"):
+        assert not (tmp_path / "ds").exists()  # built elsewhere, renamed into place
+        with pytest.raises(ValueError, match="in use by synptv render"):
+            with hold_new_folder(tmp_path / "ds", "synptv render"):
+                pass
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"]
+
+
+def test_staged_output_replaces_the_old_files_together_or_not_at_all(tmp_path):
+    (tmp_path / "results.h5").write_text("old results")
+    (tmp_path / "figure.png").write_text("old figure")
+    with pytest.raises(RuntimeError):
+        with staged_output(tmp_path) as staging:
+            (staging / "results.h5").write_text("new results")
+            raise RuntimeError("drawing the figure failed")
+    assert {p.name: p.read_text() for p in tmp_path.iterdir()} == {
+        "results.h5": "old results",
+        "figure.png": "old figure",
+    }
+    with staged_output(tmp_path) as staging:
+        (staging / "results.h5").write_text("new results")
+        (staging / "figure.png").write_text("new figure")
+    assert {p.name: p.read_text() for p in tmp_path.iterdir()} == {
+        "results.h5": "new results",
+        "figure.png": "new figure",
+    }
