@@ -158,7 +158,8 @@ class Dataset:
         FileNotFoundError
             The file is missing.
         DatasetError
-            Not readable as an image, not 2-D, or of the wrong size.
+            Not readable as an image, not 2-D, of the wrong size, not grey levels, or
+            with NaN or infinite pixels.
         """
         path = self.frame_path(k, camera, m, frame)
         if not path.is_file():
@@ -176,6 +177,13 @@ class Dataset:
                 f"image of the wrong size: {image.shape[1]} × {image.shape[0]} px, but "
                 f"experiment.json gives {expected[1]} × {expected[0]} px for camera {camera!r}",
             )
+        if not np.issubdtype(image.dtype, np.number) or np.issubdtype(
+            image.dtype, np.complexfloating
+        ):
+            raise _fail(path, f"expected grey levels (integers or reals), got {image.dtype}")
+        if np.issubdtype(image.dtype, np.floating) and not np.isfinite(image).all():
+            bad = int(np.count_nonzero(~np.isfinite(image)))
+            raise _fail(path, f"{bad} pixels are NaN or infinite")
         return image
 
     def snapshot(self, k: int, m: int, cameras: Sequence[str] | None = None) -> Snapshot:

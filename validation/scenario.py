@@ -32,7 +32,7 @@ from ptv.pipeline import PipelineSettings
 from ptv.stats.run_statistics import StatisticsSettings
 from simulator.presets import FLOW_PRESETS
 from simulator.render.sensor import Sensor
-from simulator.rigs import FILE_NAME_RULE, is_file_name, rig_presets
+from simulator.rigs import FILE_NAME_RULE, RigFileError, is_file_name, load_rig, rig_presets
 from simulator.spectra import SPECTRA
 
 
@@ -332,7 +332,11 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         if not path.is_file():
             what = "is a folder, not a file" if path.is_dir() else "does not exist"
             raise ScenarioError(f"scenario file {str(path)!r} {what}")
-        text, source = path.read_text(), str(path)
+        source = str(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as err:
+            raise ScenarioError(f"{source}: not readable as a UTF-8 text file ({err})") from None
     else:
         presets = scenario_presets()
         if str(name_or_path) not in presets:
@@ -356,6 +360,10 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
             f"{source}: rig.name: unknown rig {scenario.rig.name!r}, neither a rig preset "
             f"({', '.join(rig_presets())}) nor a rig file"
         )
+    try:
+        load_rig(scenario.rig.name)  # a bad rig file is refused now, not inside the run
+    except RigFileError as err:
+        raise ScenarioError(f"{source}: rig.name: {err}") from None
     return scenario
 
 

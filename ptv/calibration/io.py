@@ -371,10 +371,15 @@ def load_calibrations(path: str | os.PathLike) -> dict[str, CameraModel]:
     FileNotFoundError
         No such file.
     CalibrationFileError
-        Not HDF5, an HDF5 file of another program, a newer format version, an unknown
+        A folder, not HDF5, an HDF5 file of another program, a newer format version, an unknown
         model, or missing or malformed entries (the message names the file).
     """
     path = Path(path)
+    if path.is_dir():
+        raise CalibrationFileError(
+            f"{path} is a folder, not a calibration file (synptv calibrate writes "
+            "<method>.h5 files into its folder)"
+        )
     if not path.is_file():
         raise FileNotFoundError(f"calibration file {path} does not exist")
     try:

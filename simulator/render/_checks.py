@@ -46,9 +46,9 @@ def real_array(name: str, value: object) -> np.ndarray:
 def first_bad(name: str, arr: np.ndarray, bad: np.ndarray, expected: str) -> ValueError:
     """A ValueError naming the first entry of ``arr`` flagged in ``bad``."""
     idx = np.unravel_index(int(np.flatnonzero(bad)[0]), arr.shape)
-    where = idx[0] if len(idx) == 1 else tuple(int(i) for i in idx)
+    where = int(idx[0]) if len(idx) == 1 else tuple(int(i) for i in idx)
     n_bad = int(np.count_nonzero(bad))
     return ValueError(
-        f"{name} must be {expected}; {n_bad} entr{'y' if n_bad == 1 else 'ies'} are not, "
-        f"first at index {where}: {arr[idx]!r}"
+        f"{name} must be {expected}; {n_bad} {'entry is' if n_bad == 1 else 'entries are'} "
+        f"not, first at index {where}: {arr[idx].item()!r}"
     )

@@ -333,6 +333,13 @@ def test_bad_datasets_are_refused(tmp_path):
     small = open_dataset(_tiny_dataset(tmp_path / "small", image=(32, 48)))
     with pytest.raises(DatasetError, match=r"wrong size: 32 × 48 px.*64 × 64 px"):
         small.read_frame(0, "cam1", 0, "a")
+    nan = open_dataset(_tiny_dataset(tmp_path / "nan"))
+    path = nan.frame_path(0, "cam2", 0, "b")
+    frame = np.full((64, 64), 100.0, dtype=np.float32)
+    frame[3, :5] = np.nan
+    tifffile.imwrite(path, frame)
+    with pytest.raises(DatasetError, match=rf"{path}: 5 pixels are NaN or infinite"):
+        nan.read_frame(0, "cam2", 0, "b")
 
 
 def test_cameras_must_match_the_calibration(rendered):

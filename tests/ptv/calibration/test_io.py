@@ -138,6 +138,11 @@ def test_missing_file(tmp_path):
         load_calibrations(tmp_path / "nothere.h5")
 
 
+def test_a_folder_is_no_file(tmp_path):
+    with pytest.raises(CalibrationFileError, match="is a folder, not a calibration file"):
+        load_calibrations(tmp_path)
+
+
 def test_not_hdf5(tmp_path):
     path = tmp_path / "notes.h5"
     path.write_text("camera 1: f = 50 mm\n")
