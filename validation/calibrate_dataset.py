@@ -258,6 +258,11 @@ def calibrate_dataset(
     for name, camera_paths in zip(cameras, paths, strict=True):
         _check_plate_images(camera_paths, spec["cameras"][name]["image_size"])
     true = _true_positions(folder)  # read before the long work: a bad file fails now
+    if true is not None and true.shape[0] != len(z):
+        raise DatasetError(
+            f"{folder / 'truth.h5'}: plate/dots_world holds {true.shape[0]} plate positions, "
+            f"but experiment.json's traverse_z gives {len(z)}"
+        )
     total = len(cameras) * (len(z) + len(methods))
     done = 0
     dots = []

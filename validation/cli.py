@@ -23,7 +23,7 @@ from validation.files import (
     staged_output,
 )
 from validation.flow_summary import FlowSettings, summarize_flow
-from validation.progress import ProgressBar
+from validation.progress import ProgressBar, say_interrupted
 from validation.scenario import SIZE_LIMITS
 from validation.study_cli import add_study_parser
 
@@ -218,10 +218,9 @@ def _run_experiment(args: argparse.Namespace) -> int:
                     scenario, out, progress=bar, executor=ex, keep_images=args.keep_images
                 )
         except KeyboardInterrupt:
-            print(
-                f"\nsynptv run: interrupted; finished stages and chunks are kept in {out}: "
-                "run the same command to resume",
-                file=sys.stderr,
+            say_interrupted(
+                f"synptv run: interrupted; finished stages and chunks are kept in {out}: "
+                "run the same command to resume"
             )
             return 130
         html_path, json_path = write_report(scenario, stages, out)
@@ -353,7 +352,9 @@ def _add_parallel_options(parser: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``synptv`` and its subcommands."""
     parser = _Parser(prog="synptv", description="A virtual 3D-PTV laboratory.")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", help="log the libraries' details and warnings"
+    )
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser(
@@ -515,7 +516,9 @@ def main(argv: list[str] | None = None) -> int:
         print(err, file=sys.stderr)
         return 2
     logging.basicConfig(
-        level=logging.INFO if args.verbose else logging.WARNING,
+        # The libraries' warnings are per snapshot or per chunk; each command sums them
+        # up (summary.json, the report, its warning lines), so they show only with -v.
+        level=logging.INFO if args.verbose else logging.ERROR,
         format="%(levelname)s %(name)s: %(message)s",
     )
     try:
@@ -524,7 +527,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"synptv {args.command}: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:  # run and study say what they keep and resume
-        print(f"\nsynptv {args.command}: interrupted", file=sys.stderr)
+        say_interrupted(f"synptv {args.command}: interrupted")
         return 130
 
 

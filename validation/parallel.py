@@ -152,9 +152,9 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
 
     if workers is not None and scheduler is not None:
         raise ValueError("give --workers or --scheduler, not both")
-    logging.getLogger("distributed").setLevel(
-        min(logging.getLogger().getEffectiveLevel(), logging.WARNING)
-    )
+    # Dask logs at this process's level, on the workers too (errors only unless -v).
+    level = logging.getLogger().getEffectiveLevel()
+    logging.getLogger("distributed").setLevel(level)
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
@@ -168,17 +168,20 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
     n = (os.cpu_count() or 1) if workers is None else workers
     if not isinstance(n, int) or n < 1:
         raise ValueError(f"--workers must be an integer >= 1, got {workers!r}")
-    environment = {f"{_PRE_SPAWN}.{key}": value for key, value in SINGLE_THREADED.items()}
-    # The nannies write SINGLE_THREADED into this process's os.environ before spawning a
-    # worker; put this process's values back once the workers are up and at the end.
+    # Read by each worker's Dask as it starts: it logs at this process's level.
+    worker_environ = {
+        **SINGLE_THREADED,
+        "DASK_LOGGING__DISTRIBUTED": logging.getLevelName(level).lower(),
+    }
+    environment = {f"{_PRE_SPAWN}.{key}": value for key, value in worker_environ.items()}
+    # The nannies write these variables into this process's os.environ before spawning
+    # a worker; put this process's values back once the workers are up and at the end.
     # Left at one thread, the statistics computed here between the chunks would run on
     # one core, and numba refuses to compile once the variable no longer matches its
     # running threads.
-    saved = {key: os.environ.get(key) for key in SINGLE_THREADED}
+    saved = {key: os.environ.get(key) for key in worker_environ}
     try:
-        with dask.config.set(
-            {TRIM_THRESHOLD: None, "logging.distributed": "warning", **environment}
-        ):
+        with dask.config.set({TRIM_THRESHOLD: None, **environment}):
             with _workers_ignore_ctrl_c():
                 cluster = LocalCluster(
                     n_workers=n,
@@ -187,7 +190,7 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
                     # A port of its own: with None the scheduler's HTTP server still
                     # tries the default 8787, and warns when another cluster holds it.
                     dashboard_address=":0",
-                    env=SINGLE_THREADED,
+                    env=worker_environ,
                 )
             with cluster, Client(cluster) as client:
                 _set_environment(saved)

@@ -53,3 +53,10 @@ class ProgressBar:
         else:
             self.stream.write(f"{self.label}: {timing}\n")
         self.stream.flush()
+
+
+def say_interrupted(line: str, stream: TextIO | None = None) -> None:
+    """Print ``line`` for a command stopped by Ctrl-C, on a line of its own: after the
+    terminal's ``^C`` and a progress bar's unfinished line, but no blank line in a log."""
+    stream = sys.stderr if stream is None else stream
+    print(("\n" if stream.isatty() else "") + line, file=stream)

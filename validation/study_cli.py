@@ -43,7 +43,7 @@ from validation.files import (
     write_text_atomic,
 )
 from validation.parallel import Executor, check_parallel_options, dask_client, executor
-from validation.progress import ProgressBar
+from validation.progress import ProgressBar, say_interrupted
 from validation.rendered_study import evaluate_point, study_points
 from validation.scenario import Scenario, load_scenario, scenario_presets
 from validation.study_calibration import obliquity_sweep, planes_sweep
@@ -462,10 +462,9 @@ def _run_study_command(args) -> int:
                 quiet=args.quiet,
             )
     except KeyboardInterrupt:
-        print(
-            f"\nsynptv study: interrupted; finished points are saved under "
-            f"{Path(args.out) / args.study / 'points'}: run the same command to resume",
-            file=sys.stderr,
+        say_interrupted(
+            f"synptv study: interrupted; finished points are saved under "
+            f"{Path(args.out) / args.study / 'points'}: run the same command to resume"
         )
         return 130
     print(
