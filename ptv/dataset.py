@@ -34,6 +34,8 @@ from pathlib import Path
 import numpy as np
 import tifffile
 
+from ptv.names import FILE_NAME_RULE, is_file_name
+
 __all__ = [
     "DEFAULT_PARTICLE_IMAGES",
     "Dataset",
@@ -249,6 +251,8 @@ def _cameras(spec: dict, path: Path) -> dict[str, tuple[int, int]]:
         raise _fail(path, "'cameras' must be a non-empty object {name: {image_size: [w, h]}}")
     shapes = {}
     for name, entry in cams.items():
+        if not is_file_name(name):  # it names the folders of the camera's images
+            raise _fail(path, f"camera name: expected {FILE_NAME_RULE}, got {name!r}")
         size = entry.get("image_size") if isinstance(entry, dict) else None
         if not (isinstance(size, list) and len(size) == 2 and all(_positive_int(v) for v in size)):
             raise _fail(

@@ -85,9 +85,10 @@ class Rig:
     spec: dict
 
 
-#: Names that become folder and file names (cameras, scenarios): letters, digits, '.',
-#: '_' and '-', starting with a letter or digit, so that no name can point elsewhere
-#: ("../x", "/tmp/x") or hide.
+#: Camera names become folder and file names: letters, digits, '.', '_' and '-',
+#: starting with a letter or digit, so that no name can point elsewhere ("../x",
+#: "/tmp/x") or hide. The rule of ``ptv.names``, which the simulator may not import; a
+#: test holds the two to the same answers.
 _FILE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 FILE_NAME_RULE = (
     "1 to 64 letters, digits, '.', '_' or '-', starting with a letter or digit (it names "

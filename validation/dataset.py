@@ -169,6 +169,7 @@ def _experiment_description(
     }
 
 
+
 def _header(rig: Rig, preset: FlowPreset, settings: RenderSettings):
     """Writes the flow, the cameras and the rig into a new truth.h5."""
 

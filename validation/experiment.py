@@ -129,7 +129,9 @@ def _write_json(path: Path, data) -> None:
 
 def detect_images_chunk(snapshots: tuple[int, int], *, folder: Path, detector: DetectorSettings):
     """Detections of one chunk of a dataset's particle images (read from its TIFF files)."""
-    return ImageDetector(open_dataset(folder, check_files=False), detector).detect_chunk(*snapshots)
+    return ImageDetector(open_dataset(folder, check_files=False), detector).detect_chunk(
+        *snapshots
+    )
 
 
 def render_detections_chunk(snapshots: tuple[int, int], *, job, folder: Path):

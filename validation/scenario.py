@@ -28,11 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from ptv.calibration.methods import CALIBRATION_METHODS
+from ptv.names import FILE_NAME_RULE, is_file_name
 from ptv.pipeline import PipelineSettings
 from ptv.stats.run_statistics import StatisticsSettings
 from simulator.presets import FLOW_PRESETS
 from simulator.render.sensor import Sensor
-from simulator.rigs import FILE_NAME_RULE, RigFileError, is_file_name, load_rig, rig_presets
+from simulator.rigs import RigFileError, load_rig, rig_presets
 from simulator.spectra import SPECTRA
 
 

@@ -48,6 +48,7 @@ from ptv.calibration.polynomial import Polynomial2D
 from ptv.calibration.soloff import SoloffCalibration
 from ptv.calibration.tsai import TsaiCalibration
 from ptv.camera_model import CameraModel
+from ptv.names import check_file_name
 
 log = logging.getLogger(__name__)
 
@@ -277,12 +278,6 @@ def _array(
 
 
 # -- files ---------------------------------------------------------------------------------
-def _check_name(name: object) -> str:
-    if not isinstance(name, str) or not name or "/" in name or name in (".", ".."):
-        raise ValueError(f"camera names must be non-empty strings without '/', got {name!r}")
-    return name
-
-
 def save_calibrations(
     path: str | os.PathLike,
     calibrations: Mapping[str, CameraModel],
@@ -325,7 +320,7 @@ def save_calibrations(
                 f"camera {name!r}: cannot save a {type(cal).__name__} "
                 f"(the file format knows {known})"
             )
-        codecs[_check_name(name)] = codec
+        codecs[check_file_name(name, "camera name")] = codec
     reserved = {"format", "format_version", "written_by"}
     for key in metadata or {}:
         if not isinstance(key, str) or key in reserved:

@@ -333,6 +333,12 @@ def test_bad_datasets_are_refused(tmp_path):
     small = open_dataset(_tiny_dataset(tmp_path / "small", image=(32, 48)))
     with pytest.raises(DatasetError, match=r"wrong size: 32 × 48 px.*64 × 64 px"):
         small.read_frame(0, "cam1", 0, "a")
+    escaping = _tiny_dataset(tmp_path / "escaping")
+    spec = json.loads((escaping / "experiment.json").read_text())
+    spec["cameras"]["../../cam1"] = spec["cameras"].pop("cam1")
+    (escaping / "experiment.json").write_text(json.dumps(spec))
+    with pytest.raises(DatasetError, match=r"camera name: expected 1 to 64 .*'\.\./\.\./cam1'"):
+        open_dataset(escaping)
     nan = open_dataset(_tiny_dataset(tmp_path / "nan"))
     path = nan.frame_path(0, "cam2", 0, "b")
     frame = np.full((64, 64), 100.0, dtype=np.float32)
