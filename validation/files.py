@@ -82,8 +82,8 @@ LOCK_NAME = ".synptv.lock"
 
 
 @contextmanager
-def hold_lock(lock: Path | str, command: str) -> Iterator[str | None]:
-    """Hold the lock file ``lock`` for this process while ``command`` runs.
+def hold_lock(lock: Path | str, command: str, held: Path) -> Iterator[str | None]:
+    """Hold the lock file ``lock`` of the folder ``held`` while ``command`` runs.
 
     The lock holds the holder's pid, host and command; it is created exclusively and
     removed on exit. A lock whose process no longer runs on this host is stale: it is
@@ -105,10 +105,10 @@ def hold_lock(lock: Path | str, command: str) -> Iterator[str | None]:
             who = f"{holder.get('command', 'a synptv command')} (pid {holder.get('pid')})"
             if _running(holder):
                 raise ValueError(
-                    f"{lock.parent} is in use by {who} on {holder.get('host')}: wait for it "
+                    f"{held} is in use by {who} on {holder.get('host')}: wait for it "
                     f"to finish or choose another folder (if it is gone, remove {lock})"
                 ) from None
-            note = f"{lock.parent}: took over the lock of {who}, which no longer runs"
+            note = f"{held}: took over the lock of {who}, which no longer runs"
             lock.unlink(missing_ok=True)
             continue
         with os.fdopen(handle, "w") as stream:
@@ -131,7 +131,7 @@ def hold_output_folder(folder: Path | str, command: str) -> Iterator[str | None]
     created = [p for p in (folder, *folder.parents) if not p.exists()]
     folder.mkdir(parents=True, exist_ok=True)
     try:
-        with hold_lock(folder / LOCK_NAME, command) as note:
+        with hold_lock(folder / LOCK_NAME, command, folder) as note:
             yield note
     finally:
         for path in created:  # failed before writing: leave no trace
@@ -154,7 +154,7 @@ def hold_new_folder(folder: Path | str, command: str) -> Iterator[str | None]:
     if folder.exists():
         raise ValueError(f"output folder {str(folder)!r} already exists; choose a new one")
     folder.parent.mkdir(parents=True, exist_ok=True)
-    with hold_lock(folder.parent / f".{folder.name}{LOCK_NAME}", command) as note:
+    with hold_lock(folder.parent / f".{folder.name}{LOCK_NAME}", command, folder) as note:
         yield note
 
 
