@@ -129,9 +129,7 @@ def _write_json(path: Path, data) -> None:
 
 def detect_images_chunk(snapshots: tuple[int, int], *, folder: Path, detector: DetectorSettings):
     """Detections of one chunk of a dataset's particle images (read from its TIFF files)."""
-    return ImageDetector(open_dataset(folder, check_files=False), detector).detect_chunk(
-        *snapshots
-    )
+    return ImageDetector(open_dataset(folder, check_files=False), detector).detect_chunk(*snapshots)
 
 
 def render_detections_chunk(snapshots: tuple[int, int], *, job, folder: Path):
@@ -140,13 +138,19 @@ def render_detections_chunk(snapshots: tuple[int, int], *, job, folder: Path):
 
 
 def _ptv_figures(result: PtvResult, folder: Path, truth: dict) -> None:
-    r = np.array([np.nan if v is None else v for v in truth["r"]])
-    s2 = np.array([np.nan if v is None else v for v in truth["s2_sample"]])
+    def column(key: str) -> np.ndarray:
+        return np.array([np.nan if v is None else v for v in truth[key]])
+
+    r = column("r")
     save_ptv_figures(
         result,
         folder,
-        reference_s2=(r, s2, "sample truth (exact velocities)"),
-        reference_epsilon=truth["epsilon_exact_d_ll"],
+        reference_s2=(r, column("s2_sample"), "sample truth (exact velocities)"),
+        epsilon_reference=(r, column("s2_exact"), "ε(r) of the exact D_LL"),
+        epsilon_levels=[
+            (truth["epsilon_exact_d_ll"], "plateau of the exact D_LL (the check's reference)"),
+            (truth["epsilon_input"], "input ε"),
+        ],
     )
 
 

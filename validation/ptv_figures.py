@@ -7,6 +7,7 @@ on real data), displacements in µm, Δt in ms; S2 in m²/s² and ε in m²/s³.
 """
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
@@ -238,11 +239,18 @@ def structure_figure(result: PtvResult, *, reference: Reference | None = None) -
     return figure
 
 
-def epsilon_figure(result: PtvResult, *, reference: float | None = None) -> Figure:
+def epsilon_figure(
+    result: PtvResult,
+    *,
+    reference: Reference | None = None,
+    levels: Sequence[tuple[float, str]] = (),
+) -> Figure:
     """Fig. 6b: ε(r) = (S2/C2)^{3/2}/r and the paper's S2^{3/2}/r, with the plateau.
 
-    The plateau range is shaded; the band is the plateau ε ± 1 s.e. ``reference`` adds a
-    horizontal line (e.g. a known ε).
+    The plateau range is shaded; the band is the plateau ε ± 1 s.e. ``reference`` =
+    (r in m, S2 in m²/s², label) adds the ε(r) of that S2 through the same C2 (e.g. of
+    the exact D_LL); each of ``levels`` = (ε in m²/s³, label) a horizontal line (e.g.
+    the input ε).
     """
     st = result.statistics
     prof = st.profile
@@ -285,7 +293,18 @@ def epsilon_figure(result: PtvResult, *, reference: float | None = None) -> Figu
         )
         ax.plot([lo, hi], [p.epsilon, p.epsilon], color="C0", lw=1.0)
     if reference is not None:
-        ax.axhline(reference, color="C3", lw=1.2, ls=":", label=f"reference ε = {reference:.3g}")
+        rr, s2, label = np.asarray(reference[0]), np.asarray(reference[1]), reference[2]
+        shown = np.isfinite(s2) & (s2 > 0) & np.isfinite(rr) & (rr > 0)
+        ax.plot(
+            rr[shown] * 1e3,
+            (s2[shown] / c2) ** 1.5 / rr[shown],
+            "-",
+            color="C3",
+            lw=1.2,
+            label=label,
+        )
+    for (value, label), style in zip(levels, (":", "-."), strict=False):
+        ax.axhline(value, color="0.3", lw=1.1, ls=style, label=f"{label}: {value:.3g}")
     _loglog(ax)
     ax.set_xlabel("r (mm)")
     ax.set_ylabel("ε(r) (m²/s³)")
@@ -300,15 +319,20 @@ def save_ptv_figures(
     folder: str | os.PathLike,
     *,
     reference_s2: Reference | None = None,
-    reference_epsilon: float | None = None,
+    epsilon_reference: Reference | None = None,
+    epsilon_levels: Sequence[tuple[float, str]] = (),
 ) -> dict[str, Path]:
-    """Write the four PNGs of :data:`FIGURE_FILES` into ``folder``; returns their paths."""
+    """Write the four PNGs of :data:`FIGURE_FILES` into ``folder``; returns their paths.
+
+    ``reference_s2`` is drawn in Fig. 6a, ``epsilon_reference`` and ``epsilon_levels``
+    in Fig. 6b (see :func:`structure_figure` and :func:`epsilon_figure`).
+    """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     figures = {
         "fig5a": raw_structure_figure(result),
         "fig5b": q_versus_dt2_figure(result),
         "fig6a": structure_figure(result, reference=reference_s2),
-        "fig6b": epsilon_figure(result, reference=reference_epsilon),
+        "fig6b": epsilon_figure(result, reference=epsilon_reference, levels=epsilon_levels),
     }
     return {key: save_figure(fig, folder / FIGURE_FILES[key]) for key, fig in figures.items()}

@@ -119,7 +119,7 @@ def test_camera_names_that_would_leave_the_output_folder_are_refused(name):
 def test_binary_rig_file_is_named(tmp_path):
     binary = tmp_path / "binary.toml"
     binary.write_bytes(b"\xff\xfe\x00name")
-    with pytest.raises(RigFileError, match="binary.toml: not readable as a UTF-8 text file"):
+    with pytest.raises(RigFileError, match=r"binary\.toml: not readable as a UTF-8 text file"):
         load_rig(binary)
 
 

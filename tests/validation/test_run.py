@@ -137,6 +137,28 @@ def test_results_hold_table1_table3_and_the_error_budget(runs):
     ]
     quantities = [row["quantity"] for row in results["table3"]]
     assert quantities[:2] == ["u' (m/s)", "ε (m²/s³)"]
+    # The reference column's scales follow from its u' and ε as the input's from theirs:
+    # η ∝ ε^(-1/4) at fixed ν, L_int = u'³/ε.
+    rows = {row["quantity"]: row for row in results["table3"]}
+    u, eps = rows["u' (m/s)"], rows["ε (m²/s³)"]
+    eta, l_int = rows["η (µm)"], rows["L_int = u'³/ε (cm)"]
+    assert eta["reference"] / eta["input"] == pytest.approx(
+        (eps["input"] / eps["reference"]) ** 0.25, rel=1e-9
+    )
+    assert l_int["reference"] / l_int["input"] == pytest.approx(
+        (u["reference"] / u["input"]) ** 3 * eps["input"] / eps["reference"], rel=1e-9
+    )
+
+
+def test_the_report_says_what_the_run_shows_with_its_numbers(runs):
+    root, _, _, _ = runs
+    results = json.loads((root / "a" / "results.json").read_text())
+    page = (root / "a" / "report.html").read_text()
+    assert "What this run shows" in page
+    d = results["calibration"]["table1"]["model-free"]["nominal"]["d_um"]
+    epsilon = results["ptv"]["model-free"]["checks"]["epsilon"]["relative_to_exact_d_ll"]
+    assert f"model-free {d:.3g} µm" in page
+    assert f"the plateau ε within {100 * epsilon:.3g} %" in page
 
 
 def test_noise_free_trajectories_give_the_sample_truth_within_their_error(runs):
