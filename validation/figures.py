@@ -36,44 +36,78 @@ def save_figure(figure: Figure, path: str | os.PathLike, *, dpi: int = 110) -> P
     return path
 
 
-def _mean_over_planes(errors: PositionErrors) -> tuple[np.ndarray, np.ndarray]:
-    """Per (X, Y) dot site: nominal position (mm) and mean 3-D error over planes (µm)."""
+def _site_means(errors: PositionErrors) -> tuple[np.ndarray, np.ndarray]:
+    """Per (X, Y) dot site: nominal position (S, 2) in mm, and the mean over the planes
+    of |Δ|, Δ_X, Δ_Y, Δ_Z (S, 4) in µm."""
     sites = np.round(errors.truth[:, :2], 3)  # dots of different planes share (X, Y) to 1 mm
     keys, inverse = np.unique(sites, axis=0, return_inverse=True)
-    distance = np.linalg.norm(errors.delta, axis=1)
-    total = np.bincount(inverse.ravel(), weights=np.nan_to_num(distance), minlength=len(keys))
-    count = np.bincount(inverse.ravel(), weights=np.isfinite(distance), minlength=len(keys))
-    with np.errstate(invalid="ignore"):
-        return keys * 1e3, total / count * 1e6
+    values = np.column_stack([np.linalg.norm(errors.delta, axis=1), errors.delta])
+    seen = np.isfinite(values[:, 0])
+    count = np.bincount(inverse.ravel(), weights=seen, minlength=len(keys))
+    means = np.empty((len(keys), 4))
+    for k in range(4):
+        total = np.bincount(
+            inverse.ravel(), weights=np.where(seen, values[:, k], 0.0), minlength=len(keys)
+        )
+        with np.errstate(invalid="ignore"):
+            means[:, k] = total / count * 1e6
+    return keys * 1e3, means
+
+
+#: Rows of :func:`error_maps`: title, colour map, and whether the scale is signed.
+_MAP_ROWS = (
+    ("mean |Δ| (µm)", "viridis", False),
+    ("mean Δ_X (µm)", "RdBu_r", True),
+    ("mean Δ_Y (µm)", "RdBu_r", True),
+    ("mean Δ_Z (µm)", "RdBu_r", True),
+)
 
 
 def error_maps(errors_by_method: Mapping[str, PositionErrors], *, title: str = "") -> Figure:
-    """The paper's Fig. 3: mean 3-D error of each dot site over the planes, per method.
+    """The paper's Fig. 3: error of each dot site, mean over the planes, per method.
 
-    Each panel shares one colour scale so methods compare at a glance; the panel title
-    gives the Table 1 components.
+    One column per method, whose title gives the Table 1 components; the first row is
+    the 3-D error |Δ|, the others the signed components Δ_X, Δ_Y, Δ_Z. Every panel has
+    a colour scale of its own (up to its 99th percentile; symmetric about zero for the
+    components), so that a method's structure shows however large its errors are:
+    compare methods by the numbers, not by the colours.
     """
     methods = list(errors_by_method)
     figure, axes = plt.subplots(
-        1, len(methods), figsize=(4.2 * len(methods), 4.0), squeeze=False, layout="constrained"
+        len(_MAP_ROWS),
+        len(methods),
+        figsize=(3.9 * len(methods), 3.3 * len(_MAP_ROWS)),
+        squeeze=False,
+        layout="constrained",
     )
-    maps = {m: _mean_over_planes(e) for m, e in errors_by_method.items()}
-    vmax = max(np.nanpercentile(v, 99) for _, v in maps.values())
-    for ax, method in zip(axes[0], methods, strict=True):
-        xy, value = maps[method]
-        image = ax.scatter(
-            xy[:, 0], xy[:, 1], c=value, s=28, marker="s", vmin=0, vmax=vmax, cmap="viridis"
-        )
-        dx, dy, dz = errors_by_method[method].components * 1e6
-        ax.set_title(
-            f"{method}\nd_X {dx:.1f}, d_Y {dy:.1f}, d_Z {dz:.1f}, "
-            f"d {errors_by_method[method].d * 1e6:.1f} µm",
+    for column, method in enumerate(methods):
+        errors = errors_by_method[method]
+        xy, means = _site_means(errors)
+        for row, (label, cmap, signed) in enumerate(_MAP_ROWS):
+            ax, value = axes[row, column], means[:, row]
+            top = float(np.nanpercentile(np.abs(value), 99)) if np.isfinite(value).any() else 1.0
+            top = top if top > 0 else 1.0
+            image = ax.scatter(
+                xy[:, 0],
+                xy[:, 1],
+                c=value,
+                s=14,
+                marker="s",
+                vmin=-top if signed else 0.0,
+                vmax=top,
+                cmap=cmap,
+            )
+            figure.colorbar(image, ax=ax, label=label, shrink=0.85)
+            ax.set_aspect("equal")
+            if row == len(_MAP_ROWS) - 1:
+                ax.set_xlabel("X (mm)")
+            if column == 0:
+                ax.set_ylabel("Y (mm)")
+        dx, dy, dz = errors.components * 1e6
+        axes[0, column].set_title(
+            f"{method}\nd_X {dx:.1f}, d_Y {dy:.1f}, d_Z {dz:.1f}, d {errors.d * 1e6:.1f} µm",
             fontsize=9,
         )
-        ax.set_xlabel("X (mm)")
-        ax.set_aspect("equal")
-    axes[0, 0].set_ylabel("Y (mm)")
-    figure.colorbar(image, ax=axes[0].tolist(), label="mean |Δ| over planes (µm)", shrink=0.8)
     if title:
         figure.suptitle(title)
     return figure

@@ -43,6 +43,11 @@ def peak_locking_figure(locking: Mapping[str, PeakLocking]) -> Figure:
     return figure
 
 
+#: The c1 / truth axis of the error budget, the same for every run so that runs compare;
+#: points beyond it are marked on its edge.
+BUDGET_AXIS = (0.8, 1.2)
+
+
 def budget_figure(
     r: np.ndarray, ratios: Mapping[str, np.ndarray], check_range: tuple[float, float]
 ) -> Figure:
@@ -57,16 +62,33 @@ def budget_figure(
     check_range : (float, float)
         r range of the c1 check, m (shaded).
     """
+    low, high = BUDGET_AXIS
     figure, ax = plt.subplots(figsize=(7.0, 4.4), layout="constrained")
     ax.axvspan(*(v * 1e3 for v in check_range), color="0.93", label="check range")
     ax.axhspan(0.95, 1.05, color="C2", alpha=0.12, label="±5 %")
     ax.axhline(1.0, color="k", lw=0.8)
+    clipped = False
     for i, (name, ratio) in enumerate(ratios.items()):
         ok = np.isfinite(ratio) & np.isfinite(r)
         ax.plot(r[ok] * 1e3, ratio[ok], "o-", ms=3.5, lw=1.0, color=f"C{i}", label=name)
+        for beyond, edge, marker in ((ratio > high, high, "^"), (ratio < low, low, "v")):
+            beyond &= ok
+            if beyond.any():  # points off the axis: an arrowhead on its edge
+                ax.plot(
+                    r[beyond] * 1e3,
+                    np.full(beyond.sum(), edge),
+                    marker,
+                    ms=7,
+                    color=f"C{i}",
+                    clip_on=False,
+                    zorder=5,
+                )
+                clipped = True
+    if clipped:
+        ax.plot([], [], "^", color="0.4", ms=7, label=f"off the axis ({low:g}–{high:g})")
     ax.set_xscale("log")
     plain_log_axis(ax.xaxis, ax.get_xlim())
-    ax.set_ylim(0.8, 1.2)
+    ax.set_ylim(low, high)
     ax.set_xlabel("r (mm)")
     ax.set_ylabel("c1 / sample-truth S2 of its pairs")
     ax.set_title("Error budget: noise-free S2 of each measurement against the truth", fontsize=10)
