@@ -20,12 +20,12 @@ from ptv.frames import DetectorSettings
 from ptv.pipeline import PipelineSettings
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
-from validation.dataset import particle_job
-from validation.experiment import render_settings
-from validation.parallel import DaskExecutor, dask_client
-from validation.particle_chunks import chunk_detections, render_chunk
-from validation.ptv_rung import ptv_chunk
-from validation.scenario import load_scenario
+from validation.dataset.render import particle_job
+from validation.run.experiment import render_settings
+from validation.run.particle_chunks import chunk_detections, render_chunk
+from validation.run.ptv_rung import ptv_chunk
+from validation.run.scenario import load_scenario
+from validation.workflow.parallel import DaskExecutor, dask_client
 
 TARGET_IMAGES_PER_S = 40.0
 TARGET_SPEEDUP = 1.7

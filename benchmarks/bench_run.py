@@ -11,9 +11,9 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from validation.experiment import run_stages
-from validation.report import write_report
-from validation.scenario import load_scenario
+from validation.report.run_report import write_report
+from validation.run.experiment import run_stages
+from validation.run.scenario import load_scenario
 
 TARGET_S = 120.0
 

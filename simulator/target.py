@@ -140,7 +140,7 @@ class Imperfections:
 #: Imperfections of a machined laboratory plate on a good traverse (docs/optics.md §6): 5 µm
 #: dot-position scatter (0.05 px at 0.1 mm per pixel), a 10 µm traverse, 0.1° of tilt.
 #: How the calibration comparison depends on the dot-centre scatter is a study of its
-#: own (``validation.calibration_study``): printed plates scatter by tenths of a pixel.
+#: own (``validation.studies.calibration_methods``): printed plates scatter by tenths of a pixel.
 REALISTIC = Imperfections(
     dot_position_std=5e-6,
     traverse_std=10e-6,

@@ -26,9 +26,12 @@ from simulator.presets import FLOW_PRESETS, flow_preset
 from simulator.rigs import load_rig
 from simulator.spectra import KolmogorovBandSpectrum
 from simulator.target import Imperfections, PlateDesign, build_plate, traverse_positions
-from validation.calibration_accuracy import synthetic_plane_dots
-from validation.calibration_study import calibrate_cameras, compare_methods, plane_count_study
-from validation.multi_dt_experiment import (
+from validation.studies.calibration_methods import (
+    calibrate_cameras,
+    compare_methods,
+    plane_count_study,
+)
+from validation.studies.multi_dt_experiment import (
     Measurement,
     MultiDtResult,
     add_dt3_term,
@@ -36,6 +39,7 @@ from validation.multi_dt_experiment import (
     band_limited_spectrum,
     simulate,
 )
+from validation.truth.calibration_errors import synthetic_plane_dots
 
 #: Correlation length of the spatially correlated noise of claim #9, m.
 CORRELATION_LENGTH = 3e-3

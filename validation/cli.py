@@ -16,16 +16,16 @@ from simulator.presets import FLOW_PRESETS, flow_preset
 from simulator.rigs import load_rig, rig_presets
 from simulator.spectra import SPECTRA
 from simulator.turbulence import NU_WATER, TurbulenceParameters
-from validation.files import (
+from validation.run.scenario import SIZE_LIMITS
+from validation.studies.cli import add_study_parser
+from validation.truth.flow_summary import FlowSettings, summarize_flow
+from validation.workflow.files import (
     check_output_folder,
     hold_new_folder,
     hold_output_folder,
     staged_output,
 )
-from validation.flow_summary import FlowSettings, summarize_flow
-from validation.progress import ProgressBar, say_interrupted
-from validation.scenario import SIZE_LIMITS
-from validation.study_cli import add_study_parser
+from validation.workflow.progress import ProgressBar, say_interrupted
 
 
 class UsageError(ValueError):
@@ -127,8 +127,8 @@ def _run_flow(args: argparse.Namespace) -> int:
 
 
 def _run_render(args: argparse.Namespace) -> int:
-    from validation.dataset import RenderSettings, write_dataset
-    from validation.parallel import check_parallel_options, executor
+    from validation.dataset.render import RenderSettings, write_dataset
+    from validation.workflow.parallel import check_parallel_options, executor
 
     check_parallel_options(args.workers, args.scheduler)
     out = check_output_folder(args.out)
@@ -153,7 +153,7 @@ def _say_took_over(command: str, note: str | None) -> None:
 
 
 def _run_calibrate(args: argparse.Namespace) -> int:
-    from validation.calibrate_dataset import calibrate_dataset
+    from validation.dataset.calibrate import calibrate_dataset
 
     dataset = Path(args.dataset)
     if not dataset.is_dir():
@@ -196,10 +196,10 @@ def _run_calibrate(args: argparse.Namespace) -> int:
 
 
 def _run_experiment(args: argparse.Namespace) -> int:
-    from validation.experiment import run_stages
-    from validation.parallel import check_parallel_options, executor
-    from validation.report import write_report
-    from validation.scenario import load_scenario
+    from validation.report.run_report import write_report
+    from validation.run.experiment import run_stages
+    from validation.run.scenario import load_scenario
+    from validation.workflow.parallel import check_parallel_options, executor
 
     check_parallel_options(args.workers, args.scheduler)
     scenario = load_scenario(args.scenario)
@@ -258,7 +258,7 @@ def _run_ptv(args: argparse.Namespace) -> int:
     from ptv.frames import ImageDetector
     from ptv.pipeline import PipelineSettings, run_pipeline
     from ptv.results import save_results, summary
-    from validation.ptv_figures import save_ptv_figures
+    from validation.report.ptv_figures import save_ptv_figures
 
     out = check_output_folder(args.out)
     try:
@@ -349,14 +349,8 @@ def _add_parallel_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``synptv`` and its subcommands."""
-    parser = _Parser(prog="synptv", description="A virtual 3D-PTV laboratory.")
-    parser.add_argument(
-        "-v", "--verbose", action="store_true", help="log the libraries' details and warnings"
-    )
-    sub = parser.add_subparsers(dest="command", required=True)
-
+def _add_run_parser(sub) -> None:
+    """The ``synptv run`` subcommand."""
     run = sub.add_parser(
         "run",
         help="a whole virtual experiment: simulate, render, calibrate, PTV, report vs truth",
@@ -383,6 +377,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no progress bars")
     run.set_defaults(run=_run_experiment)
 
+
+def _add_flow_parser(sub) -> None:
+    """The ``synptv flow`` subcommand."""
     flow = sub.add_parser(
         "flow",
         help="build a KS flow, sample particles, print prescribed and realized statistics",
@@ -408,6 +405,9 @@ def build_parser() -> argparse.ArgumentParser:
     flow.add_argument("--quiet", action="store_true", help="no progress bar")
     flow.set_defaults(run=_run_flow)
 
+
+def _add_render_parser(sub) -> None:
+    """The ``synptv render`` subcommand."""
     render = sub.add_parser(
         "render",
         help="render a dataset: plate images, particle image pairs per dt, truth",
@@ -432,6 +432,9 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--quiet", action="store_true", help="no progress bar")
     render.set_defaults(run=_run_render)
 
+
+def _add_calibrate_parser(sub) -> None:
+    """The ``synptv calibrate`` subcommand."""
     cal = sub.add_parser(
         "calibrate",
         help="calibrate a dataset's cameras from its plate images; print the Table 1 metric",
@@ -453,8 +456,9 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--quiet", action="store_true", help="no progress bar")
     cal.set_defaults(run=_run_calibrate)
 
-    add_study_parser(sub)
 
+def _add_claims_parser(sub) -> None:
+    """The ``synptv claims`` subcommand."""
     claims = sub.add_parser(
         "claims",
         help="regress the paper's claims against truth; exit status 1 if one fails",
@@ -469,6 +473,9 @@ def build_parser() -> argparse.ArgumentParser:
     claims.add_argument("--quiet", action="store_true", help="no progress bar")
     claims.set_defaults(run=_run_claims)
 
+
+def _add_ptv_parser(sub) -> None:
+    """The ``synptv ptv`` subcommand."""
     ptv = sub.add_parser(
         "ptv",
         help="run 3D-PTV on a dataset: particles, links, multi-dt S2, epsilon, u'",
@@ -488,6 +495,9 @@ def build_parser() -> argparse.ArgumentParser:
     ptv.add_argument("--quiet", action="store_true", help="no progress bar")
     ptv.set_defaults(run=_run_ptv)
 
+
+def _add_scene_parser(sub) -> None:
+    """The ``synptv scene`` subcommand."""
     scene = sub.add_parser(
         "scene",
         help="draw a picture of a rig: tank, windows, cameras, laser sheet, plate",
@@ -504,6 +514,23 @@ def build_parser() -> argparse.ArgumentParser:
         "--particles", type=_integer_at_least(0), default=300, help="particles to draw (0: none)"
     )
     scene.set_defaults(run=_run_scene)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``synptv`` and its subcommands."""
+    parser = _Parser(prog="synptv", description="A virtual 3D-PTV laboratory.")
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", help="log the libraries' details and warnings"
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    _add_run_parser(sub)
+    _add_flow_parser(sub)
+    _add_render_parser(sub)
+    _add_calibrate_parser(sub)
+    add_study_parser(sub)
+    _add_claims_parser(sub)
+    _add_ptv_parser(sub)
+    _add_scene_parser(sub)
     return parser
 
 

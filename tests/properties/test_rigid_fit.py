@@ -5,7 +5,7 @@ from hypothesis import assume, given
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from validation.matching_quality import rigid_fit
+from validation.truth.matching import rigid_fit
 
 seeds = st.integers(0, 2**32 - 1)
 

@@ -37,10 +37,10 @@ from ptv.stats.run_statistics import ANALYSIS_VOLUME, StatisticsSettings, comput
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign
-from validation.calibrate_dataset import calibrate_dataset
-from validation.calibration_accuracy import nominal_positions
-from validation.dataset import RenderSettings, write_dataset
-from validation.truth_file import TruthFile
+from validation.dataset.calibrate import calibrate_dataset
+from validation.dataset.render import RenderSettings, write_dataset
+from validation.dataset.truth_file import TruthFile
+from validation.truth.calibration_errors import nominal_positions
 
 SETTINGS = RenderSettings(frames=3, planes=3, particles=800)
 

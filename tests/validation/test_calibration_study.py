@@ -9,13 +9,13 @@ import pytest
 
 from simulator.rigs import load_rig
 from simulator.target import Imperfections, PlateDesign, build_plate, traverse_positions
-from validation.calibration_accuracy import synthetic_plane_dots
-from validation.calibration_study import (
+from validation.studies.calibration_methods import (
     compare_methods,
     obliquity_study,
     plane_count_study,
     plane_subset,
 )
+from validation.truth.calibration_errors import synthetic_plane_dots
 
 PLATE = build_plate(PlateDesign(), traverse_positions(), imperfections=Imperfections(), rng=0)
 

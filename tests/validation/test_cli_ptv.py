@@ -9,10 +9,10 @@ import pytest
 from ptv.calibration.io import load_calibrations, save_calibrations
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
-from validation.calibrate_dataset import calibrate_dataset
 from validation.cli import main
-from validation.dataset import RenderSettings, write_dataset
-from validation.ptv_figures import FIGURE_FILES
+from validation.dataset.calibrate import calibrate_dataset
+from validation.dataset.render import RenderSettings, write_dataset
+from validation.report.ptv_figures import FIGURE_FILES
 
 SETTINGS = RenderSettings(frames=2, planes=3, particles=600, n_modes=80, seed=5)
 
@@ -90,7 +90,7 @@ def test_ptv_command_reports_bad_input_in_one_line(dataset, tmp_path, capsys):
 def test_a_failure_after_the_pipeline_leaves_the_earlier_output_untouched(
     dataset, tmp_path, capsys, monkeypatch
 ):
-    import validation.ptv_figures
+    import validation.report.ptv_figures
 
     folder, calibration = dataset
     out = tmp_path / "out"
@@ -102,14 +102,14 @@ def test_a_failure_after_the_pipeline_leaves_the_earlier_output_untouched(
     def fails(result, folder):
         raise ValueError("a figure cannot be drawn")
 
-    monkeypatch.setattr(validation.ptv_figures, "save_ptv_figures", fails)
+    monkeypatch.setattr(validation.report.ptv_figures, "save_ptv_figures", fails)
     assert main([*argv, "--max-speed", "1.2"]) == 2  # results that differ, if written
     assert "a figure cannot be drawn" in capsys.readouterr().err
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # no lock, no staging
 
 
 def test_a_folder_held_by_another_command_is_refused_before_the_pipeline(dataset, tmp_path, capsys):
-    from validation.files import hold_output_folder
+    from validation.workflow.files import hold_output_folder
 
     folder, calibration = dataset
     out = tmp_path / "out"

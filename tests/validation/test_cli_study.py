@@ -6,11 +6,11 @@ import json
 import pytest
 from distributed import LocalCluster
 
-from validation.calibration_study import relative_to_most_planes
 from validation.cli import main
-from validation.scenario import load_scenario
-from validation.study_calibration import planes_sweep
-from validation.study_cli import run_study
+from validation.run.scenario import load_scenario
+from validation.studies.calibration_methods import relative_to_most_planes
+from validation.studies.calibration_sweeps import planes_sweep
+from validation.studies.cli import run_study
 
 
 class Stop(Exception):

@@ -13,7 +13,7 @@ import tifffile
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.cli import main
-from validation.dataset import RenderSettings, write_dataset
+from validation.dataset.render import RenderSettings, write_dataset
 
 SETTINGS = RenderSettings(frames=1, planes=2, particles=200, n_modes=60, seed=3)
 
@@ -160,7 +160,7 @@ def test_calibrate_command_refuses_bad_methods_before_reading(capsys, tmp_path, 
 
 
 def test_a_method_that_fails_leaves_no_calibration_file(dataset, capsys, tmp_path, monkeypatch):
-    import validation.calibrate_dataset as module
+    import validation.dataset.calibrate as module
 
     def fails_for_tsai(method, planes, sheet):
         if method == "tsai":

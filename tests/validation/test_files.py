@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from validation.cli import main
-from validation.files import (
+from validation.workflow.files import (
     LOCK_NAME,
     check_output_folder,
     hold_new_folder,

@@ -5,8 +5,8 @@ from scipy.spatial.transform import Rotation
 
 from ptv.stats.pairs import pair_sums
 from ptv.stats.run_statistics import S2Population, StatisticsSettings
-from validation.flow_truth import population_truth
-from validation.truth_file import TruthRun
+from validation.dataset.truth_file import TruthRun
+from validation.truth.flow import population_truth
 
 SETTINGS = StatisticsSettings(r_min=1e-3, r_max=30e-3, n_bins=8)
 DT = (1e-4, 3e-4)

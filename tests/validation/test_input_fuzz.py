@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.cli import main
-from validation.dataset import RenderSettings, write_dataset
+from validation.dataset.render import RenderSettings, write_dataset
 
 FUZZ = settings(
     max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
@@ -174,7 +174,7 @@ RIG = _preset_toml("simulator", "rig_presets", "paper-stereo")
 @FUZZ
 @given(spec=spoilt(SCENARIO))
 def test_run_accepts_or_refuses_any_scenario_file(spec, capsys):
-    with _workspace() as root, mock.patch("validation.experiment.run_stages", _stop):
+    with _workspace() as root, mock.patch("validation.run.experiment.run_stages", _stop):
         path = root / "mine.toml"
         path.write_text(to_toml(spec))
         argv = ["run", "--scenario", str(path), "--out", str(root / "out"), "--quiet"]
@@ -184,7 +184,7 @@ def test_run_accepts_or_refuses_any_scenario_file(spec, capsys):
 @FUZZ
 @given(data=st.binary(max_size=200) | st.text(max_size=200).map(str.encode))
 def test_run_refuses_any_bytes_as_a_scenario_file_in_one_line(data, capsys):
-    with _workspace() as root, mock.patch("validation.experiment.run_stages", _stop):
+    with _workspace() as root, mock.patch("validation.run.experiment.run_stages", _stop):
         path = root / "mine.toml"
         path.write_bytes(data)
         argv = ["run", "--scenario", str(path), "--out", str(root / "out"), "--quiet"]
@@ -194,7 +194,7 @@ def test_run_refuses_any_bytes_as_a_scenario_file_in_one_line(data, capsys):
 @FUZZ
 @given(spec=spoilt(RIG))
 def test_render_accepts_or_refuses_any_rig_file(spec, capsys):
-    with _workspace() as root, mock.patch("validation.dataset.write_dataset", _stop):
+    with _workspace() as root, mock.patch("validation.dataset.render.write_dataset", _stop):
         path = root / "rig.toml"
         path.write_text(to_toml(spec))
         argv = ["render", "--rig", str(path), "--out", str(root / "out"), "--quiet"]
@@ -235,7 +235,7 @@ def test_calibrate_accepts_or_refuses_any_experiment_json(small_dataset, data, c
     spec = data.draw(spoilt(json.loads((small_dataset / "experiment.json").read_text())))
     with (
         _dataset_with(small_dataset, spec) as (root, copy),
-        mock.patch("validation.calibrate_dataset.find_dots", _stop),
+        mock.patch("validation.dataset.calibrate.find_dots", _stop),
     ):
         argv = ["calibrate", "--dataset", str(copy), "--out", str(root / "cal"), "--quiet"]
         assert_accepted_or_refused_in_one_line(argv, copy / "experiment.json", root, capsys)

@@ -8,7 +8,7 @@ from ptv.stats.structure import time_resolved_sums
 from simulator.presets import flow_preset
 from simulator.spectra import C_KOLMOGOROV, KolmogorovBandSpectrum
 from simulator.truth import longitudinal_structure_function
-from validation.multi_dt_experiment import add_dt3_term, band_limited_spectrum
+from validation.studies.multi_dt_experiment import add_dt3_term, band_limited_spectrum
 
 PARAMETERS = flow_preset("lem-10hz").parameters
 

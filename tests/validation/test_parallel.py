@@ -6,7 +6,7 @@ import time
 import pytest
 
 from validation.cli import main
-from validation.parallel import (
+from validation.workflow.parallel import (
     IN_FLIGHT,
     DaskExecutor,
     InProcess,

@@ -12,9 +12,9 @@ from ptv.detect.store import DetectionStore, write_index
 from ptv.frames import DetectorSettings, ImageDetector
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
-from validation.dataset import DetectionOutput, RenderSettings, build_dataset, particle_job
-from validation.particle_chunks import render_chunk, snapshot_chunks
-from validation.truth_file import TruthFile
+from validation.dataset.render import DetectionOutput, RenderSettings, build_dataset, particle_job
+from validation.dataset.truth_file import TruthFile
+from validation.run.particle_chunks import render_chunk, snapshot_chunks
 
 SETTINGS = RenderSettings(frames=4, planes=2, particles=300, n_modes=60, seed=11)
 DETECTOR = DetectorSettings(saturation=4095.0)

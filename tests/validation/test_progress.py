@@ -2,7 +2,7 @@
 
 import io
 
-from validation.progress import ProgressBar
+from validation.workflow.progress import ProgressBar
 
 
 class _Terminal(io.StringIO):

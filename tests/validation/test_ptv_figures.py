@@ -5,7 +5,7 @@ import io
 import matplotlib.pyplot as plt
 import pytest
 
-from validation.ptv_figures import _loglog
+from validation.report.ptv_figures import _loglog
 
 
 @pytest.mark.parametrize(

@@ -9,8 +9,8 @@ import pytest
 from distributed import LocalCluster
 
 from validation.cli import main
-from validation.scenario import load_scenario
-from validation.study_cli import run_study
+from validation.run.scenario import load_scenario
+from validation.studies.cli import run_study
 
 TINY = """\
 name = "tiny"

@@ -9,7 +9,7 @@ from importlib import resources
 import numba
 import pytest
 
-import validation.experiment
+import validation.run.experiment
 from validation.cli import main
 
 TINY = """\
@@ -60,7 +60,7 @@ def runs(tmp_path_factory):
     shutil.copyfile(
         resources.files("simulator") / "rig_presets" / "paper-stereo.toml", root / "rig.toml"
     )
-    rung = validation.experiment.ptv_rung
+    rung = validation.run.experiment.ptv_rung
 
     def interrupt_for_model_free(store, cameras, *args, **kwargs):
         if type(cameras[0]).__name__ != "Camera":  # a calibration, not the true cameras
@@ -69,7 +69,7 @@ def runs(tmp_path_factory):
 
     argv = ["run", "--scenario", str(scenario), "--quiet", "--workers", "2", "--out"]
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(validation.experiment, "ptv_rung", interrupt_for_model_free)
+        patch.setattr(validation.run.experiment, "ptv_rung", interrupt_for_model_free)
         with pytest.raises(Interrupted):
             main([*argv, str(root / "a")])
     left_by_interruption = sorted(str(p.relative_to(root / "a")) for p in (root / "a").rglob("*"))

@@ -8,7 +8,7 @@ from simulator.particles import ANALYSIS_VOLUME, follow_snapshots
 from simulator.presets import flow_preset
 from simulator.spectra import KolmogorovBandSpectrum, PopeSpectrum
 from simulator.truth import longitudinal_structure_function
-from validation.sample_truth import sample_structure_function
+from validation.truth.sample import sample_structure_function
 
 PARAMS = flow_preset("lem-10hz").parameters
 

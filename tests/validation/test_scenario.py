@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
-from validation.scenario import (
+from validation.run.scenario import (
     PtvSection,
     ScenarioError,
     load_scenario,

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from validation.stages import STAGE_FILE, run_stage, stage_key
+from validation.workflow.stages import STAGE_FILE, run_stage, stage_key
 
 
 class Builder:

@@ -5,11 +5,9 @@ import math
 import pytest
 
 from simulator.presets import flow_preset
-from validation.figures import save_figure
-from validation.files import as_json
-from validation.scenario import load_scenario
-from validation.study_figures import multi_dt_figure
-from validation.study_multi_dt import (
+from validation.report.png import save_figure
+from validation.run.scenario import load_scenario
+from validation.studies.multi_dt import (
     dt_sweep,
     dt_task,
     noise_sweep,
@@ -19,6 +17,8 @@ from validation.study_multi_dt import (
     spread_indices,
     study_sizes,
 )
+from validation.studies.multi_dt_figures import multi_dt_figure
+from validation.workflow.files import as_json
 
 DEFAULT = load_scenario("default")
 SETTINGS = DEFAULT.as_dict()

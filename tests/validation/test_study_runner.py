@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from distributed import Client, LocalCluster
 
-from validation.parallel import dask_client
-from validation.study_runner import Sweep, SweepPoint, run_sweep, seed_sequence
+from validation.studies.runner import Sweep, SweepPoint, run_sweep, seed_sequence
+from validation.workflow.parallel import dask_client
 
 
 def square_task(settings: dict, options: dict, point: dict) -> dict:

@@ -5,7 +5,7 @@ from functools import reduce
 import numpy as np
 import pytest
 
-from validation.truth_runs import NoiseSums
+from validation.run.truth_rungs import NoiseSums
 
 
 def _errors(rng, snapshots, n_dt):

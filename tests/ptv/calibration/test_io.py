@@ -204,7 +204,7 @@ def test_baselines_round_trip_exactly(tmp_path, method):
     from ptv.calibration.methods import CameraSheet, calibrate
     from simulator.rigs import load_rig
     from simulator.target import Imperfections, PlateDesign, build_plate, traverse_positions
-    from validation.calibration_accuracy import synthetic_plane_dots
+    from validation.truth.calibration_errors import synthetic_plane_dots
 
     rig = load_rig("paper-stereo")
     plate = build_plate(PlateDesign(), traverse_positions(7), imperfections=Imperfections(), rng=0)

@@ -10,7 +10,7 @@ from ptv.calibration.polynomial import fit_polynomial2d
 from ptv.triangulate import triangulate
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions
-from validation.calibration_accuracy import synthetic_plane_dots
+from validation.truth.calibration_errors import synthetic_plane_dots
 
 DESIGN = PlateDesign()
 Z = traverse_positions()

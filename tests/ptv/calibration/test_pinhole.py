@@ -15,7 +15,7 @@ from ptv.calibration.pinhole import (
 )
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions
-from validation.calibration_accuracy import synthetic_plane_dots, table1_errors, true_positions
+from validation.truth.calibration_errors import synthetic_plane_dots, table1_errors, true_positions
 
 DESIGN = PlateDesign()
 Z = traverse_positions()

@@ -20,7 +20,7 @@ from ptv.calibration.tsai import (
 )
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions
-from validation.calibration_accuracy import synthetic_plane_dots, table1_errors, true_positions
+from validation.truth.calibration_errors import synthetic_plane_dots, table1_errors, true_positions
 
 PITCH = 5.5e-6
 SENSOR = (2048, 1088)

@@ -4,7 +4,7 @@ Each chunk is matched, linked and tested (:func:`ptv.pipeline.measure_snapshots`
 own; only the links whose X(t) lies in the analysis volume are kept (the only ones the
 statistics use: a paper-size run would otherwise carry 10⁷ links per rung), with the
 counts of every detection, match and link. The matched points of frame a of the first
-snapshots come back too, for the matching score (:mod:`validation.matching_quality`).
+snapshots come back too, for the matching score (:mod:`validation.truth.matching`).
 The chunks are joined in snapshot order, so the result does not depend on which worker
 measured which chunk.
 """
@@ -27,8 +27,8 @@ from ptv.pipeline import (
     run_particles,
 )
 from ptv.stats.run_statistics import compute_statistics
-from validation.chunk_map import map_chunks
-from validation.parallel import Executor
+from validation.workflow.chunk_map import map_chunks
+from validation.workflow.parallel import Executor
 
 #: Snapshots whose frame-a matches are scored against the truth.
 SCORED_SNAPSHOTS = 10
@@ -90,7 +90,7 @@ def ptv_rung(
     executor : Executor
         Where the chunks are measured.
     cache : Path, optional
-        Where finished chunks are kept (:func:`validation.chunk_map.map_chunks`).
+        Where finished chunks are kept (:func:`validation.workflow.chunk_map.map_chunks`).
     progress : callable(done, total), optional
         Called after each chunk.
 

@@ -4,7 +4,7 @@ Each point simulates exact double-frame runs of the scenario's flow (one indepen
 run of M snapshots per Δt, :func:`simulator.particles.double_frame`, whatever the
 scenario's ``shared_first_frame``: the conservative design, whose sampling noise does not
 cancel between the Δt as it does when they share frame a), measures them
-with white Gaussian position noise (:class:`validation.multi_dt_experiment.Measurement`)
+with white Gaussian position noise (:class:`validation.studies.multi_dt_experiment.Measurement`)
 and fits c₁Δt² + c₂ per separation bin (docs/statistics.md §3), beside the sample truth of the
 same pairs and the exact D_LL of the spectrum.
 
@@ -32,9 +32,9 @@ from simulator.particles import Box, DoubleFrameSample, double_frame
 from simulator.presets import FlowPreset, flow_preset
 from simulator.rigs import load_rig
 from simulator.spectra import SPECTRA, Spectrum
-from validation.multi_dt_experiment import Measurement, analyse
-from validation.scenario import Scenario, scenario_from_dict
-from validation.study_runner import Sweep, SweepPoint, seed_sequence
+from validation.run.scenario import Scenario, scenario_from_dict
+from validation.studies.multi_dt_experiment import Measurement, analyse
+from validation.studies.runner import Sweep, SweepPoint, seed_sequence
 
 #: Snapshots per Δt when the scenario asks for more and none are given.
 MAX_SNAPSHOTS = 100
@@ -139,7 +139,7 @@ def _analyse(
     measurement: Measurement,
     rng: np.random.SeedSequence,
 ) -> dict:
-    """:func:`validation.multi_dt_experiment.analyse` with the scenario's PTV settings."""
+    """:func:`validation.studies.multi_dt_experiment.analyse` with the scenario's PTV settings."""
     preset, spectrum, region = _flow(scenario)
     ptv = scenario.ptv
     result = analyse(

@@ -2,8 +2,8 @@
 
 Each function takes the :class:`ptv.pipeline.PtvResult` and returns a matplotlib
 Figure; :func:`save_ptv_figures` writes the four PNGs with
-:func:`validation.figures.save_figure`. Separations are shown in mm (η is not known
-on real data), displacements in µm, Δt in ms; S2 in m²/s² and ε in m²/s³.
+:func:`validation.report.png.save_figure`. Separations are shown in mm (η is not known on
+real data), displacements in µm, Δt in ms; S2 in m²/s² and ε in m²/s³.
 """
 
 import os
@@ -19,7 +19,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
 
 from ptv.pipeline import PtvResult
-from validation.figures import save_figure
+from validation.report.png import save_figure
 
 __all__ = [
     "FIGURE_FILES",

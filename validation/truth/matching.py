@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 
 from ptv.pipeline import PipelineSettings
 from ptv.stats.links import inside_box
-from validation.truth_file import TruthRun
+from validation.dataset.truth_file import TruthRun
 
 #: Nearest-neighbour distance within which pairs enter the rigid fit, m.
 _ALIGN_RADIUS = 0.5e-3

@@ -1,11 +1,11 @@
 """Map a function over the chunks of a run, keeping each result on disk as it arrives.
 
 :func:`map_chunks` runs ``fn`` on every chunk of snapshots through an executor
-(:mod:`validation.parallel`) and returns the results in chunk order, whatever order
+(:mod:`validation.workflow.parallel`) and returns the results in chunk order, whatever order
 they arrived in. With a cache folder, each result is saved there (pickle, written under
 a temporary name and renamed) the moment it arrives, and results already saved are
 loaded instead of computed: an interrupted stage, run again with the same inputs (the
-cache lives in the stage's own temporary folder, :func:`validation.stages.staging_folder`),
+cache lives in the stage's own temporary folder, :func:`validation.workflow.stages.staging_folder`),
 computes only the chunks it had not finished.
 """
 
@@ -14,7 +14,7 @@ import pickle
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from validation.parallel import Executor
+from validation.workflow.parallel import Executor
 
 Progress = Callable[[int, int], None]
 

@@ -10,7 +10,7 @@ from simulator.particles import ANALYSIS_VOLUME, Box, Progress, follow_snapshots
 from simulator.spectra import SPECTRA, Spectrum, discretise
 from simulator.truth import longitudinal_structure_function
 from simulator.turbulence import TurbulenceParameters
-from validation.sample_truth import sample_structure_function
+from validation.truth.sample import sample_structure_function
 
 #: Snapshot batches used to estimate the standard error of the sample S2.
 BATCHES = 10

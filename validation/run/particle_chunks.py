@@ -28,7 +28,7 @@ from simulator.render.camera_frames import ParticleLighting, record_particles
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig
 from simulator.spectra import Spectrum
-from validation.truth_file import TruthRun
+from validation.dataset.truth_file import TruthRun
 
 #: Largest number of snapshots in a chunk.
 MAX_CHUNK = 10

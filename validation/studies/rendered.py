@@ -3,7 +3,7 @@
 A point renders (or reuses) the scenario's dataset, detects the particles on its
 images, calibrates from its plate images, runs the PTV stack with the calibration and
 compares what it recovers with the truth, as ``synptv run`` does
-(:class:`validation.experiment.ExperimentRun`). Each point reuses the stages it does not
+(:class:`validation.run.experiment.ExperimentRun`). Each point reuses the stages it does not
 change, through their keys: the points of one seed share a work folder (shared by the
 studies of one output folder too), and
 
@@ -23,7 +23,7 @@ studies of one output folder too), and
 Every point gives, per calibration method: the Table 1 metric d of the calibration
 against the nominal dot positions (µm, every plane); the model error at random points
 of the volume (µm: the calibrations' triangulation of exactly projected points, in the
-calibration's frame); the matching yield and ghost fraction (:mod:`validation.matching_quality`);
+calibration's frame); the matching yield and ghost fraction (:mod:`validation.truth.matching`);
 c₁ against the sample truth of the very pairs its S2 used at the fitted bins nearest
 10η, 40η and 100η, and the plateau ε against the same estimator on the exact D_LL, each
 with its bootstrap standard error relative to the reference.
@@ -43,15 +43,15 @@ from ptv.triangulate import triangulate
 from simulator.presets import flow_preset
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig, load_rig, rig_from_dict
-from validation.calibrate_dataset import dot_positions
-from validation.calibration_study import MODEL_VOLUME, plane_subset, with_obliquity
-from validation.experiment import ExperimentRun, object_pixel
-from validation.flow_truth import population_truth
-from validation.matching_quality import rigid_fit
-from validation.parallel import Executor
-from validation.scenario import OutputSection, Scenario
-from validation.study_multi_dt import R_OVER_ETA, spread_indices
-from validation.truth_file import TruthFile
+from validation.dataset.calibrate import dot_positions
+from validation.dataset.truth_file import TruthFile
+from validation.run.experiment import ExperimentRun, object_pixel
+from validation.run.scenario import OutputSection, Scenario
+from validation.studies.calibration_methods import MODEL_VOLUME, plane_subset, with_obliquity
+from validation.studies.multi_dt import R_OVER_ETA, spread_indices
+from validation.truth.flow import population_truth
+from validation.truth.matching import rigid_fit
+from validation.workflow.parallel import Executor
 
 #: Plane counts of the plane study (the scenario's traverse always included).
 PLANE_COUNTS = (2, 3, 5, 7, 9, 13)
@@ -406,7 +406,7 @@ def c1_errors(
     eta: float,
 ) -> tuple[dict, dict]:
     """c₁/reference − 1 and its standard error at the fitted bins nearest r/η = 10, 40,
-    100 (:data:`validation.study_multi_dt.R_OVER_ETA`), keyed "10", "40", "100"
+    100 (:data:`validation.studies.multi_dt.R_OVER_ETA`), keyed "10", "40", "100"
     (None where no bin is fitted)."""
     usable = np.flatnonzero(fitted & np.isfinite(r) & np.isfinite(reference) & (reference > 0))
     errors, ses = {}, {}

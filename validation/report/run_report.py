@@ -15,12 +15,12 @@ import numpy as np
 
 from simulator.rigs import load_rig
 from simulator.turbulence import TurbulenceParameters
-from validation.comparison import compare_variant, error_budget, float_array, predicted_noise
-from validation.experiment import REFERENCE_VARIANTS, ExperimentStages
-from validation.figures import save_figure
-from validation.files import write_text_atomic
-from validation.report_figures import budget_figure, noise_figure
-from validation.scenario import Scenario, pipeline_settings
+from validation.report.png import save_figure
+from validation.report.run_figures import budget_figure, noise_figure
+from validation.run.checks import compare_variant, error_budget, float_array, predicted_noise
+from validation.run.experiment import REFERENCE_VARIANTS, ExperimentStages
+from validation.run.scenario import Scenario, pipeline_settings
+from validation.workflow.files import write_text_atomic
 
 #: What each rung of the error budget adds, and the rung it is compared with.
 _RUNGS = {
@@ -340,27 +340,28 @@ def what_this_run_shows(results: dict, methods: Sequence[str]) -> str:
     return " ".join(sentences)
 
 
-def render_html(results: dict, scenario: Scenario) -> str:
-    """The report page (figures referenced by relative paths under the run folder)."""
-    main = scenario.ptv.methods[0]
-    parts = [
-        "<!doctype html><html><head><meta charset='utf-8'>",
-        f"<title>synptv run: {html.escape(scenario.name)}</title>",
-        "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;}"
-        "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;"
-        "padding:3px 8px;text-align:right}th{background:#eee}img{max-width:100%}"
-        ".fail{color:#b00;font-weight:bold}.pass{color:#070}</style></head><body>",
-        f"<h1>Virtual experiment “{html.escape(scenario.name)}”</h1>",
-        f"<p>{html.escape(scenario.description)} (seed {scenario.seed}).</p>",
-        "<h2>Checks against truth</h2>",
-    ]
+def _checks_section(results: dict, scenario: Scenario) -> list[str]:
+    """Every check against truth, with its tolerance."""
+    parts = ["<h2>Checks against truth</h2>"]
     rows = [
         (m["id"], _fmt(m["value"]), m["tolerance"], "PASS" if m["passed"] else "FAIL")
         for m in results["must_hold"]
     ]
     parts.append(_table(["check", "value", "tolerance", ""], rows))
+    return parts
+
+
+def _findings_section(results: dict, scenario: Scenario) -> list[str]:
+    """The finding of the run in words ("what this run shows")."""
+    parts = []
     parts.append("<h2>What this run shows</h2>")
     parts.append(f"<p>{html.escape(what_this_run_shows(results, scenario.ptv.methods))}</p>")
+    return parts
+
+
+def _flow_section(results: dict, scenario: Scenario) -> list[str]:
+    """The prescribed flow and its scales."""
+    parts = []
     p = results["flow"]
     parts.append("<h2>Flow</h2>")
     parts.append(
@@ -379,6 +380,12 @@ def render_html(results: dict, scenario: Scenario) -> str:
             ],
         )
     )
+    return parts
+
+
+def _calibration_section(results: dict, scenario: Scenario) -> list[str]:
+    """Table 1 of every method and the Fig. 3 error maps."""
+    parts = []
     parts.append("<h2>Calibration (Table 1, Fig. 3)</h2>")
     rows = []
     for method, refs in results["calibration"]["table1"].items():
@@ -395,6 +402,12 @@ def render_html(results: dict, scenario: Scenario) -> str:
         "the world by a rigid motion (the frame rotation below).</p>"
     )
     parts.append(_img("calibrations/fig3_error_maps.png", "Fig. 3: error maps"))
+    return parts
+
+
+def _detection_section(results: dict, scenario: Scenario) -> list[str]:
+    """Detection errors, peak locking and matching quality."""
+    parts = []
     d = results["detection"]
     parts.append("<h2>Detection and matching</h2>")
     rows = [
@@ -435,6 +448,13 @@ def render_html(results: dict, scenario: Scenario) -> str:
         "volume; “sheet” the whole lit sheet, whose dim wings lose more particles to "
         "detection.</p>"
     )
+    return parts
+
+
+def _statistics_section(results: dict, scenario: Scenario) -> list[str]:
+    """The particles each S2 used, and Figs. 5 and 6 of every PTV run."""
+    main = scenario.ptv.methods[0]
+    parts = []
     parts.append("<h2>Statistics (Fig. 5, Fig. 6)</h2>")
     rows = []
     for variant, entry in results["ptv"].items():
@@ -461,6 +481,13 @@ def render_html(results: dict, scenario: Scenario) -> str:
             ("fig6b_epsilon.png", "Fig. 6b: ε(r), reference: the estimator on the exact D_LL"),
         ):
             parts.append(_img(f"ptv/{variant}/{fig}", caption))
+    return parts
+
+
+def _table3_section(results: dict, scenario: Scenario) -> list[str]:
+    """Table 3: the recovered flow against the input and the reference."""
+    main = scenario.ptv.methods[0]
+    parts = []
     parts.append("<h2>Table 3: recovered against truth</h2>")
     rows = [
         (t["quantity"], _fmt(t["recovered"]), _fmt(t["input"]), _fmt(t["reference"]))
@@ -486,6 +513,12 @@ def render_html(results: dict, scenario: Scenario) -> str:
         "from the same estimator; the input column differs from both by that deficit "
         "(η ∝ ε^(−1/4), R_λ ∝ ε^(−1/2), L_int ∝ 1/ε).</p>"
     )
+    return parts
+
+
+def _budget_section(results: dict, scenario: Scenario) -> list[str]:
+    """The error budget: what each source of error adds to c1 and ε."""
+    parts = []
     parts.append("<h2>Error budget</h2>")
     rows = [
         (
@@ -517,6 +550,13 @@ def render_html(results: dict, scenario: Scenario) -> str:
         "compared with the true cameras).</p>"
     )
     parts.append(_img("figures/error_budget.png", "c1 / sample truth for every rung"))
+    return parts
+
+
+def _noise_section(results: dict, scenario: Scenario) -> list[str]:
+    """The noise term c2 against the noise measured against the truth."""
+    main = scenario.ptv.methods[0]
+    parts = []
     parts.append("<h2>Noise</h2>")
     c = results["ptv"][main]["checks"]
     ratio_detection = results["ptv"]["detection"]["checks"]["c2"].get("median_over_prediction")
@@ -534,6 +574,37 @@ def render_html(results: dict, scenario: Scenario) -> str:
         "check range.</p>"
     )
     parts.append(_img("figures/noise.png", "c2 against the noise measured against truth"))
+    return parts
+
+
+#: The report's sections, in page order.
+_SECTIONS = (
+    _checks_section,
+    _findings_section,
+    _flow_section,
+    _calibration_section,
+    _detection_section,
+    _statistics_section,
+    _table3_section,
+    _budget_section,
+    _noise_section,
+)
+
+
+def render_html(results: dict, scenario: Scenario) -> str:
+    """The report page (figures referenced by relative paths under the run folder)."""
+    parts = [
+        "<!doctype html><html><head><meta charset='utf-8'>",
+        f"<title>synptv run: {html.escape(scenario.name)}</title>",
+        "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;}"
+        "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;"
+        "padding:3px 8px;text-align:right}th{background:#eee}img{max-width:100%}"
+        ".fail{color:#b00;font-weight:bold}.pass{color:#070}</style></head><body>",
+        f"<h1>Virtual experiment “{html.escape(scenario.name)}”</h1>",
+        f"<p>{html.escape(scenario.description)} (seed {scenario.seed}).</p>",
+    ]
+    for section in _SECTIONS:
+        parts += section(results, scenario)
     parts.append("</body></html>")
     return "\n".join(parts)
 

@@ -11,8 +11,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ptv.detect.peaklocking import PeakLocking
-from validation.comparison import NoisePrediction
-from validation.ptv_figures import plain_log_axis
+from validation.report.ptv_figures import plain_log_axis
+from validation.run.checks import NoisePrediction
 
 
 def peak_locking_figure(locking: Mapping[str, PeakLocking]) -> Figure:

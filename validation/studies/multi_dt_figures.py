@@ -5,7 +5,7 @@ over r (one curve per point, ±1 standard error shaded), the accuracy of c₁ at
 r/η, the plateau ε against the same estimator on the exact D_LL, c₂ against 4σ², and
 (noise study) the raw single-Δt S2 over the truth. Errors are shown in %, separations
 in units of η, noise in µm. Returns matplotlib Figures (Agg backend); write them with
-:func:`validation.figures.save_figure`.
+:func:`validation.report.calibration_figures.save_figure`.
 """
 
 from collections.abc import Mapping, Sequence
@@ -20,7 +20,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
-from validation.study_multi_dt import R_OVER_ETA
+from validation.studies.multi_dt import R_OVER_ETA
 
 
 @dataclass(frozen=True)
@@ -133,7 +133,7 @@ def multi_dt_figure(
     study : {"dt", "noise", "seeding"}
         Which study (sets the swept parameter).
     rows : sequence of dict
-        The table rows, one per point (:func:`validation.study_multi_dt.noise_task`).
+        The table rows, one per point (:func:`validation.studies.multi_dt.noise_task`).
     curves : sequence of dict
         The points' per-bin curves, in the order of ``rows``.
     eta : float

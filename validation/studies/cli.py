@@ -3,12 +3,12 @@
 Studies: ``planes``, ``dt``, ``noise``, ``seeding`` and ``obliquity``, on two chains:
 
 - ``rendered`` (default): every point through images, as ``synptv run`` measures
-  (:mod:`validation.rendered_study`); the points run one after the other, each
+  (:mod:`validation.studies.rendered`); the points run one after the other, each
   rendering, detecting and matching its chunks on the executor (this process, a local
   Dask cluster or a scheduler), and reusing the stages it shares with other points;
 - ``ideal``: the fast stand-in without images, exact dot projections plus noise
-  (``planes``, ``obliquity``: :mod:`validation.study_calibration`) or KS positions plus
-  noise (``dt``, ``noise``, ``seeding``: :mod:`validation.study_multi_dt`), one Dask task
+  (``planes``, ``obliquity``: :mod:`validation.studies.calibration_sweeps`) or KS positions plus
+  noise (``dt``, ``noise``, ``seeding``: :mod:`validation.studies.multi_dt`), one Dask task
   per point.
 
 ``--seeds K`` repeats every point with K independent seeds. Each point is saved as it
@@ -19,7 +19,7 @@ runs) go to ``<out>/work/``, where every study of ``<out>`` finds them. Output, 
 
     points/<point id>.json   inputs and result of each point (per seed)
     study.json               {"study", "chain", "scenario", "points": the table}
-    study.csv                the same table (:mod:`validation.study_table`)
+    study.csv                the same table (:mod:`validation.studies.table`)
     study.png                the summary figure
 """
 
@@ -33,30 +33,31 @@ from pathlib import Path
 from matplotlib.figure import Figure
 
 from simulator.presets import flow_preset
-from validation.calibration_study import relative_to_most_planes
-from validation.figures import obliquity_curves, plane_count_curves, save_figure
-from validation.files import (
-    as_json,
-    check_output_folder,
-    hold_output_folder,
-    write_json_atomic,
-    write_text_atomic,
-)
-from validation.parallel import Executor, check_parallel_options, dask_client, executor
-from validation.progress import ProgressBar, say_interrupted
-from validation.rendered_study import evaluate_point, study_points
-from validation.scenario import Scenario, load_scenario, scenario_presets
-from validation.study_calibration import obliquity_sweep, planes_sweep
-from validation.study_figures import multi_dt_figure
-from validation.study_multi_dt import (
+from validation.report.calibration_figures import obliquity_curves, plane_count_curves
+from validation.report.png import save_figure
+from validation.run.scenario import Scenario, load_scenario, scenario_presets
+from validation.studies.calibration_methods import relative_to_most_planes
+from validation.studies.calibration_sweeps import obliquity_sweep, planes_sweep
+from validation.studies.multi_dt import (
     DEFAULT_NOISE_UM,
     R_OVER_ETA,
     dt_sweep,
     noise_sweep,
     seeding_sweep,
 )
-from validation.study_runner import Sweep, load_point, run_sweep
-from validation.study_table import csv_text, study_figure
+from validation.studies.multi_dt_figures import multi_dt_figure
+from validation.studies.rendered import evaluate_point, study_points
+from validation.studies.runner import Sweep, load_point, run_sweep
+from validation.studies.table import csv_text, study_figure
+from validation.workflow.files import (
+    as_json,
+    check_output_folder,
+    hold_output_folder,
+    write_json_atomic,
+    write_text_atomic,
+)
+from validation.workflow.parallel import Executor, check_parallel_options, dask_client, executor
+from validation.workflow.progress import ProgressBar, say_interrupted
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,7 @@ class StudySettings:
         Position noise per component of the dt and seeding studies, µm.
     snapshots : int or None
         Snapshots per Δt of the multi-Δt studies (None: the scenario's frame pairs, at
-        most :data:`validation.study_multi_dt.MAX_SNAPSHOTS`).
+        most :data:`validation.studies.multi_dt.MAX_SNAPSHOTS`).
     """
 
     dot_noise_px: float = 0.05
@@ -98,7 +99,8 @@ def _calibration_figure(
 
 
 def _multi_dt_figure(sweep: Sweep, rows: list[dict], results: list[dict]) -> Figure:
-    """:func:`validation.study_figures.multi_dt_figure` of a dt, noise or seeding sweep."""
+    """:func:`~validation.studies.multi_dt_figures.multi_dt_figure` of a dt, noise or
+    seeding sweep."""
     eta = flow_preset(sweep.settings["flow"]["preset"]).parameters.eta
     return multi_dt_figure(sweep.study, rows, [r["curves"] for r in results], eta=eta)
 
@@ -173,7 +175,7 @@ def _title(sweep: Sweep) -> str:
 
 def _common_row(study: str, row: dict, seed: int) -> dict:
     """An ideal-chain row with the columns of every study table (null where the chain
-    does not measure them; see :mod:`validation.study_table`), its own columns kept."""
+    does not measure them; see :mod:`validation.studies.table`), its own columns kept."""
     common = {
         "seed": seed,
         "table1_d_um": row.get("table1_d_um"),

@@ -17,10 +17,10 @@ from simulator.target import (
     build_plate,
     traverse_positions,
 )
-from validation.calibration_accuracy import synthetic_plane_dots
-from validation.calibration_study import obliquity_rows, plane_count_errors
-from validation.scenario import Scenario, scenario_from_dict
-from validation.study_runner import Sweep, SweepPoint, seed_sequence
+from validation.run.scenario import Scenario, scenario_from_dict
+from validation.studies.calibration_methods import obliquity_rows, plane_count_errors
+from validation.studies.runner import Sweep, SweepPoint, seed_sequence
+from validation.truth.calibration_errors import synthetic_plane_dots
 
 #: Plane counts of the plane study (those above the scenario's traverse are dropped;
 #: the full traverse is always included).
@@ -104,7 +104,7 @@ def planes_task(settings: dict, options: dict, point: dict) -> dict:
     Returns
     -------
     dict
-        ``rows``: one row of :func:`validation.calibration_study.plane_count_errors`
+        ``rows``: one row of :func:`validation.studies.calibration_methods.plane_count_errors`
         (µm; the ratios to the full traverse are added over the whole sweep).
     """
     scenario = scenario_from_dict(settings)
@@ -138,7 +138,8 @@ def obliquity_task(settings: dict, options: dict, point: dict) -> dict:
     Returns
     -------
     dict
-        ``rows``: one row per method, as :func:`validation.calibration_study.obliquity_rows`.
+        ``rows``: one row per method, as
+        :func:`validation.studies.calibration_methods.obliquity_rows`.
     """
     scenario = scenario_from_dict(settings)
     rows = obliquity_rows(

@@ -23,8 +23,8 @@ from ptv.calibration.methods import CALIBRATION_METHODS, CameraSheet, calibrate
 from ptv.calibration.targets import PlateDescription, find_dots
 from ptv.dataset import DatasetError, read_description
 from simulator.target import PlateDesign
-from validation.calibration_accuracy import PlaneDots, nominal_positions, table1_errors
-from validation.files import staged_output
+from validation.truth.calibration_errors import TraverseDots, nominal_positions, table1_errors
+from validation.workflow.files import staged_output
 
 Progress = Callable[[int, int], None]
 
@@ -35,7 +35,7 @@ class DatasetCalibration:
 
     Attributes
     ----------
-    dots : list (per camera) of list (per plane) of PlaneDots
+    dots : list (per camera) of list (per plane) of TraverseDots
         Identified dots.
     max_plane_residual_px : dict
         Largest |T_j⁻¹(X, Y) − pixel| per camera over all planes, px (model-free).
@@ -131,7 +131,7 @@ def _check_plate_images(paths: list[Path], image_size: list[int]) -> None:
 STUCK_TRAVERSE_SHIFT_PX = 0.1
 
 
-def _check_traverse_moved(planes: list[PlaneDots], paths: list[Path]) -> None:
+def _check_traverse_moved(planes: list[TraverseDots], paths: list[Path]) -> None:
     """Refuse two traverse positions whose dots sit at the same pixels (the images differ
     only by noise: the traverse did not move)."""
     for (a, path_a), (b, path_b) in itertools.pairwise(zip(planes, paths, strict=True)):
@@ -270,7 +270,7 @@ def calibrate_dataset(
         planes = []
         for zj, path in zip(z, camera_paths, strict=True):
             found = find_dots(_plate_image(path), description, source=str(path))
-            planes.append(PlaneDots(zj, found.indices, found.pixels, description.pitch))
+            planes.append(TraverseDots(zj, found.indices, found.pixels, description.pitch))
             done += 1
             if progress is not None:
                 progress(done, total)

@@ -2,7 +2,7 @@
 
 A :class:`Sweep` is a top-level (picklable) task function, the plain inputs every point
 shares (the scenario's settings and the study's options) and the points. Each point
-runs as one Dask task on a :func:`validation.parallel.dask_client` (a ``LocalCluster``
+runs as one Dask task on a :func:`validation.workflow.parallel.dask_client` (a ``LocalCluster``
 of single-threaded worker processes, or an existing scheduler). The parent process
 writes each result as ``<folder>/<point id>.json`` the moment it arrives (temporary
 file, then rename), with the inputs it was computed from; a later run reuses a point
@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from validation.files import as_json, write_json_atomic
+from validation.workflow.files import as_json, write_json_atomic
 
 if TYPE_CHECKING:  # dask is imported when a sweep runs, not by every synptv command
     from distributed import Client
@@ -59,7 +59,7 @@ class Sweep:
     task : callable(settings, options, params) -> dict
         A top-level function returning a JSON-able result for one point.
     settings : dict
-        The scenario as :meth:`validation.scenario.Scenario.as_dict` gives it.
+        The scenario as :meth:`validation.run.scenario.Scenario.as_dict` gives it.
     options : dict
         The study's JSON-able options shared by every point.
     points : tuple of SweepPoint

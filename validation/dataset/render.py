@@ -12,11 +12,11 @@ Layout of a dataset folder (all lengths in m, times in s)::
                                           is the same image for every k, hard-linked);
                                           only when the particle images are kept
     truth.h5                              the simulator's ground truth (ptv never reads
-                                          it; layout in :mod:`validation.truth_file`)
+                                          it; layout in :mod:`validation.dataset.truth_file`)
 
 The plate images are rendered one task per camera and plane, the particles one task per
-chunk of snapshots (:mod:`validation.particle_chunks`), on any
-:class:`validation.parallel.Executor`; each task seeds its randomness from what it
+chunk of snapshots (:mod:`validation.run.particle_chunks`), on any
+:class:`validation.workflow.parallel.Executor`; each task seeds its randomness from what it
 draws, so the dataset is the same whichever executor runs it. :func:`build_dataset`
 resumes a folder it left half-written (the parts done are recorded in truth.h5); it can
 also detect the particles of every chunk in memory and write them as a detection store
@@ -51,15 +51,15 @@ from simulator.target import (
     build_plate,
     traverse_positions,
 )
-from validation.parallel import Executor, InProcess
-from validation.particle_chunks import (
+from validation.dataset.truth_file import TruthWriter
+from validation.run.particle_chunks import (
     ParticleJob,
     chunk_detections,
     render_chunk,
     snapshot_chunks,
     write_tiff,
 )
-from validation.truth_file import TruthWriter
+from validation.workflow.parallel import Executor, InProcess
 
 #: Version of the dataset layout (experiment.json and truth.h5).
 FORMAT_VERSION = 2
@@ -226,7 +226,7 @@ def particle_job(
     detector: DetectorSettings | None = None,
     images: Path | None = None,
 ) -> ParticleJob:
-    """The :class:`validation.particle_chunks.ParticleJob` of a dataset's particles."""
+    """The :class:`validation.run.particle_chunks.ParticleJob` of a dataset's particles."""
     if settings.spectrum not in SPECTRA:
         raise ValueError(f"unknown spectrum {settings.spectrum!r}; known: {', '.join(SPECTRA)}")
     return ParticleJob(

@@ -27,7 +27,7 @@ from ptv.frames import FrameDetections
 from ptv.pipeline import PipelineSettings
 from ptv.stats.links import RunParticles, inside_box
 from ptv.triangulate import triangulate
-from validation.truth_file import TruthFile, TruthRun
+from validation.dataset.truth_file import TruthFile, TruthRun
 
 #: Largest distance between a detection and the true image of its particle, px.
 ASSOCIATION_RADIUS = 1.0

@@ -28,8 +28,10 @@ from simulator.target import PhysicalPlate, PlateDesign
 
 
 @dataclass(frozen=True)
-class PlaneDots:
-    """Dots of one plane seen by one camera, identified by their grid indices.
+class TraverseDots:
+    """Dots one camera saw at one traverse position, identified by their grid indices
+    (what a calibration is fitted on and Table 1 is measured with; unlike
+    :class:`ptv.calibration.targets.PlaneDots`, it knows its traverse reading Z_j).
 
     Attributes
     ----------
@@ -104,7 +106,7 @@ def synthetic_plane_dots(
     *,
     noise_px: float,
     rng: np.random.Generator | int | None = None,
-) -> list[list[PlaneDots]]:
+) -> list[list[TraverseDots]]:
     """Dot observations without images: exact projections plus Gaussian centre noise.
 
     Parameters
@@ -120,7 +122,7 @@ def synthetic_plane_dots(
 
     Returns
     -------
-    list (per camera) of list (per plane) of PlaneDots
+    list (per camera) of list (per plane) of TraverseDots
         Dots whose centre projects onto the sensor.
     """
     rng = np.random.default_rng(rng)
@@ -132,7 +134,7 @@ def synthetic_plane_dots(
             xy = camera.project(plate.dot_centres(j))
             seen = np.isfinite(xy).all(axis=1)
             noisy = xy[seen] + rng.normal(0.0, noise_px, (int(seen.sum()), 2))
-            planes.append(PlaneDots(pose.z_nominal, indices[seen], noisy, plate.design.pitch))
+            planes.append(TraverseDots(pose.z_nominal, indices[seen], noisy, plate.design.pitch))
         out.append(planes)
     return out
 
@@ -150,7 +152,7 @@ def true_positions(plate: PhysicalPlate) -> np.ndarray:
 
 def table1_errors(
     calibrations: Sequence[CameraModel],
-    dots: Sequence[Sequence[PlaneDots]],
+    dots: Sequence[Sequence[TraverseDots]],
     indices: np.ndarray,
     expected: np.ndarray,
     *,
@@ -162,7 +164,7 @@ def table1_errors(
     ----------
     calibrations : sequence of C CameraModel
         One calibration per camera.
-    dots : sequence (per camera) of sequence (per plane) of PlaneDots
+    dots : sequence (per camera) of sequence (per plane) of TraverseDots
         Identified dots; a dot enters when every camera saw it.
     indices : ndarray of int, shape (D, 2)
         Grid indices of the plate's dots (the rows of ``expected``).

@@ -24,8 +24,8 @@ from simulator.particles import Box
 from simulator.spectra import SPECTRA
 from simulator.truth import longitudinal_structure_function
 from simulator.turbulence import TurbulenceParameters
-from validation.sample_truth import sample_structure_function
-from validation.truth_file import TruthFile
+from validation.dataset.truth_file import TruthFile
+from validation.truth.sample import sample_structure_function
 
 
 @dataclass(frozen=True)
@@ -137,7 +137,7 @@ class PopulationTruth:
 
     def as_dict(self) -> dict:
         """JSON-able form (NaN → None); ``dt`` and ``displacement_noise_m`` as in
-        ``detection.json``, so either feeds :func:`validation.comparison.predicted_noise`."""
+        ``detection.json``, so either feeds :func:`validation.run.checks.predicted_noise`."""
 
         def listed(a):
             return [None if not np.isfinite(v) else float(v) for v in a]
@@ -237,7 +237,7 @@ def flow_truth(
     ----------
     snapshots : iterable of (ndarray (P, 3), ndarray (P, 3))
         Positions (m) and exact velocities (m/s) at t of every independent snapshot
-        (:meth:`validation.truth_file.TruthFile.snapshots_at_t`).
+        (:meth:`validation.dataset.truth_file.TruthFile.snapshots_at_t`).
     parameters : TurbulenceParameters
         The flow.
     spectrum : str

@@ -1,15 +1,16 @@
 """``synptv run``: a whole virtual experiment, from the flow to a report against truth.
 
 Stages (each a folder of ``out``, reused when its inputs and the synptv version are
-unchanged, see :mod:`validation.stages`):
+unchanged, see :mod:`validation.workflow.stages`):
 
 ``dataset/``            simulate and render: plate images, truth.h5, and the particle
-                        images only when they are kept (:func:`validation.dataset.build_dataset`)
+                        images only when they are kept
+                        (:func:`validation.dataset.render.build_dataset`)
 ``detections/``         the particles detected on every image, once for every rung that
                         reads images (:mod:`ptv.detect.store`); when the dataset is built
                         in the same run they are detected in memory as the images are
                         rendered
-``truth/``              sample-truth S2, exact D_LL, reference ε (:mod:`validation.flow_truth`)
+``truth/``              sample-truth S2, exact D_LL, reference ε (:mod:`validation.truth.flow`)
 ``calibrations/``       every calibration method from the plate images, Table 1, Fig. 3
 ``ptv/<variant>/``      statistics of each rung of the error budget:
                         ``exact`` true trajectories; ``detection`` detected centres,
@@ -18,8 +19,8 @@ unchanged, see :mod:`validation.stages`):
 ``report.html``, ``results.json``, ``figures/``   the comparison with truth
 
 The images, the detections and the rungs are computed a chunk of snapshots at a time
-(:func:`validation.particle_chunks.snapshot_chunks`) on an executor
-(:mod:`validation.parallel`: this process, a local Dask cluster or a scheduler); the
+(:func:`validation.run.particle_chunks.snapshot_chunks`) on an executor
+(:mod:`validation.workflow.parallel`: this process, a local Dask cluster or a scheduler); the
 chunks are joined in snapshot order, so the results do not depend on the executor. The
 dataset, detection and rung stages keep their finished chunks when interrupted and the
 next run goes on from there.
@@ -53,27 +54,28 @@ from simulator.render.camera_frames import ParticleLighting, local_magnification
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig, load_rig
 from simulator.target import REALISTIC, Imperfections
-from validation.calibrate_dataset import calibrate_dataset
-from validation.chunk_map import map_chunks
-from validation.dataset import (
+from validation.dataset.calibrate import calibrate_dataset
+from validation.dataset.render import (
     FORMAT_VERSION,
     DetectionOutput,
     RenderSettings,
     build_dataset,
     particle_job,
 )
-from validation.figures import error_maps, save_figure
-from validation.flow_truth import flow_truth, population_truth
-from validation.matching_quality import score_matching
-from validation.parallel import Executor, InProcess
-from validation.particle_chunks import chunk_detections, render_chunk, snapshot_chunks
-from validation.ptv_figures import save_ptv_figures
-from validation.ptv_rung import ptv_rung
-from validation.report_figures import peak_locking_figure
-from validation.scenario import Scenario, pipeline_settings
-from validation.stages import StageOutcome, is_built, run_stage, stage_key, staging_folder
-from validation.truth_file import TruthFile
-from validation.truth_runs import detected_runs, detection_chunk, exact_runs
+from validation.dataset.truth_file import TruthFile
+from validation.report.calibration_figures import error_maps
+from validation.report.png import save_figure
+from validation.report.ptv_figures import save_ptv_figures
+from validation.report.run_figures import peak_locking_figure
+from validation.run.particle_chunks import chunk_detections, render_chunk, snapshot_chunks
+from validation.run.ptv_rung import ptv_rung
+from validation.run.scenario import Scenario, pipeline_settings
+from validation.run.truth_rungs import detected_runs, detection_chunk, exact_runs
+from validation.truth.flow import flow_truth, population_truth
+from validation.truth.matching import score_matching
+from validation.workflow.chunk_map import map_chunks
+from validation.workflow.parallel import Executor, InProcess
+from validation.workflow.stages import StageOutcome, is_built, run_stage, stage_key, staging_folder
 
 log = logging.getLogger(__name__)
 
@@ -84,7 +86,7 @@ ProgressFactory = Callable[[str], Callable[[int, int], None]]
 
 
 def render_settings(scenario: Scenario) -> RenderSettings:
-    """What :func:`validation.dataset.write_dataset` draws for a scenario."""
+    """What :func:`validation.dataset.render.write_dataset` draws for a scenario."""
     cal, particles = scenario.calibration, scenario.particles
     return RenderSettings(
         frames=particles.frames,
@@ -158,7 +160,7 @@ class ExperimentRun:
     """The stages of one scenario under a folder: what runs them, their times.
 
     ``synptv run`` builds them all (:func:`run_stages`); the studies on the rendered
-    chain (:mod:`validation.rendered_study`) build the ones a point needs, under folder
+    chain (:mod:`validation.studies.rendered`) build the ones a point needs, under folder
     names of their own, and reuse the others through their keys.
     """
 

@@ -1,6 +1,6 @@
 """Calibration method comparisons and studies: plane count and window obliquity.
 
-Every comparison reports both metrics of :mod:`validation.calibration_accuracy`: the
+Every comparison reports both metrics of :mod:`validation.truth.calibration_errors`: the
 paper's in-sample Table 1 metric and the pure model error at random points. Plane
 subsets span the full traverse depth (first, last and evenly spaced planes between)
 and are always evaluated on the dots of every plane.
@@ -24,8 +24,8 @@ from simulator.target import (
     build_plate,
     traverse_positions,
 )
-from validation.calibration_accuracy import (
-    PlaneDots,
+from validation.truth.calibration_errors import (
+    TraverseDots,
     model_errors,
     nominal_positions,
     synthetic_plane_dots,
@@ -60,7 +60,7 @@ def plane_subset(total: int, count: int) -> list[int]:
 def calibrate_cameras(
     method: str,
     rig: Rig,
-    dots: Sequence[Sequence[PlaneDots]],
+    dots: Sequence[Sequence[TraverseDots]],
     *,
     planes: Sequence[int] | None = None,
 ) -> list[CameraModel]:
@@ -75,7 +75,7 @@ def calibrate_cameras(
 def compare_methods(
     rig: Rig,
     plate: PhysicalPlate,
-    dots: Sequence[Sequence[PlaneDots]],
+    dots: Sequence[Sequence[TraverseDots]],
     *,
     methods: Sequence[str] = tuple(CALIBRATION_METHODS),
     rng: np.random.Generator | int | None = None,
@@ -103,7 +103,7 @@ def compare_methods(
 def plane_count_errors(
     rig: Rig,
     plate: PhysicalPlate,
-    dots: Sequence[Sequence[PlaneDots]],
+    dots: Sequence[Sequence[TraverseDots]],
     count: int,
     *,
     method: str = "model-free",
@@ -150,7 +150,7 @@ def relative_to_most_planes(rows: Sequence[dict[str, float]]) -> list[dict[str, 
 def plane_count_study(
     rig: Rig,
     plate: PhysicalPlate,
-    dots: Sequence[Sequence[PlaneDots]],
+    dots: Sequence[Sequence[TraverseDots]],
     *,
     counts: Sequence[int] = (2, 3, 5, 7, 9, 13),
     method: str = "model-free",

@@ -1,14 +1,11 @@
 """Figures of the calibration comparison: the paper's Fig. 3 error maps and the studies.
 
-Each function returns a matplotlib Figure (Agg backend); :func:`save_figure` writes it
-as a PNG under a temporary name and renames it. Lengths are shown in mm and errors in
+Each function returns a matplotlib Figure (Agg backend), for
+:func:`validation.report.png.save_figure`. Lengths are shown in mm and errors in
 µm, as labelled.
 """
 
-import os
-import tempfile
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 
 import matplotlib
 
@@ -17,23 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from validation.calibration_accuracy import PositionErrors
-
-
-def save_figure(figure: Figure, path: str | os.PathLike, *, dpi: int = 110) -> Path:
-    """Write a figure as PNG atomically and close it."""
-    path = Path(path)
-    handle, temporary = tempfile.mkstemp(suffix=".png", dir=path.parent, prefix=f".{path.name}.")
-    os.close(handle)
-    try:
-        figure.savefig(temporary, dpi=dpi, bbox_inches="tight")
-        os.chmod(temporary, 0o644)  # mkstemp makes it private; a figure is for sharing
-        os.replace(temporary, path)
-    finally:
-        plt.close(figure)
-        if os.path.exists(temporary):
-            os.remove(temporary)
-    return path
+from validation.truth.calibration_errors import PositionErrors
 
 
 def _site_means(errors: PositionErrors) -> tuple[np.ndarray, np.ndarray]:

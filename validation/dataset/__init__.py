@@ -1,0 +1,2 @@
+"""Dataset folders: rendering one (``synptv render``), its truth file, calibrating its
+cameras (``synptv calibrate``)."""
