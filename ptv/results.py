@@ -61,6 +61,7 @@ import numpy as np
 from ptv.pipeline import PtvResult, link_radius
 from ptv.stats.dissipation import Plateau
 from ptv.stats.links import RunParticles
+from ptv.stats.mean_displacement import MeanDisplacement
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load_runs", "save_results", "summary"]
 
@@ -176,30 +177,7 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     ⟨q⟩/Δt² per Δt (K lists of B), χ²/dof, fitted bins).
     """
     st = result.statistics
-    counts = []
-    for run in result.runs:
-        counts.append(
-            {
-                "k": run.k,
-                "dt": run.dt,
-                "snapshots_processed": len(run.processed),
-                "snapshots_kept": len(run.snapshot_ids),
-                "snapshots_skipped": [int(m) for m in run.skipped],
-                "detections": {
-                    cam: {
-                        "a": int(run.detections[:, 0, c].sum()),
-                        "b": int(run.detections[:, 1, c].sum()),
-                    }
-                    for c, cam in enumerate(result.cameras)
-                },
-                "matches": {"a": int(run.matches[:, 0].sum()), "b": int(run.matches[:, 1].sum())},
-                "links": int(run.links.sum()),
-                "outliers": int(run.outlier.sum()),
-                "links_in_analysis_volume": int(run.in_analysis.sum()),
-                "links_used": int(run.used.sum()),
-                "link_radius": link_radius(run.dt, result.settings),
-            }
-        )
+    counts = [_run_counts(run, result) for run in result.runs]
     eps_all = st.plateau.epsilon if st.plateau is not None else np.nan
     subsets = {}
     for name, sub in st.subsets.items():
@@ -207,7 +185,6 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
         if sub.plateau is not None and np.isfinite(eps_all):
             entry["epsilon_ratio_to_all"] = _num(sub.plateau.epsilon / eps_all)
         subsets[name] = entry
-    md = st.mean_displacement
     sf = st.structure
     noise = sf.noise[sf.fitted]
     up = st.u_prime
@@ -238,18 +215,7 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
             "(the paper's Fig. 6 caption, no C2): C2^(3/2) times larger",
         },
         "subsets": subsets,
-        "mean_displacement": {
-            "dt": _list(md.dt),
-            "mean": [_list(row) for row in md.mean],
-            "se": [_list(row) for row in md.se],
-            "velocity": _list(md.fit.c1),
-            "se_velocity": _list(md.fit.se_c1),
-            "offset": _list(md.fit.c2),
-            "se_offset": _list(md.fit.se_c2),
-            "se_offset_scaled": _list(md.se_offset_scaled),
-            "chi2_dof": _list(md.fit.chi2_dof),
-            "offset_test": dict(zip(("statistic", "limit"), md.offset_test(), strict=True)),
-        },
+        "mean_displacement": _mean_displacement_dict(st.mean_displacement),
         "population": None
         if st.population is None
         else {
@@ -273,6 +239,43 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
             "fitted": [bool(v) for v in sf.fitted],
             "method": sf.method,
         },
+    }
+
+
+def _run_counts(run: RunParticles, result: PtvResult) -> dict:
+    """What one Δt's run processed and found (an entry of ``summary["counts"]``)."""
+    return {
+        "k": run.k,
+        "dt": run.dt,
+        "snapshots_processed": len(run.processed),
+        "snapshots_kept": len(run.snapshot_ids),
+        "snapshots_skipped": [int(m) for m in run.skipped],
+        "detections": {
+            cam: {"a": int(run.detections[:, 0, c].sum()), "b": int(run.detections[:, 1, c].sum())}
+            for c, cam in enumerate(result.cameras)
+        },
+        "matches": {"a": int(run.matches[:, 0].sum()), "b": int(run.matches[:, 1].sum())},
+        "links": int(run.links.sum()),
+        "outliers": int(run.outlier.sum()),
+        "links_in_analysis_volume": int(run.in_analysis.sum()),
+        "links_used": int(run.used.sum()),
+        "link_radius": link_radius(run.dt, result.settings),
+    }
+
+
+def _mean_displacement_dict(md: MeanDisplacement) -> dict:
+    """The mean displacement against Δt, its linear fit and the offset test."""
+    return {
+        "dt": _list(md.dt),
+        "mean": [_list(row) for row in md.mean],
+        "se": [_list(row) for row in md.se],
+        "velocity": _list(md.fit.c1),
+        "se_velocity": _list(md.fit.se_c1),
+        "offset": _list(md.fit.c2),
+        "se_offset": _list(md.fit.se_c2),
+        "se_offset_scaled": _list(md.se_offset_scaled),
+        "chi2_dof": _list(md.fit.chi2_dof),
+        "offset_test": dict(zip(("statistic", "limit"), md.offset_test(), strict=True)),
     }
 
 

@@ -153,6 +153,34 @@ def _check_traverse_moved(planes: list[TraverseDots], paths: list[Path]) -> None
             )
 
 
+def _checked_plate_paths(folder: Path, spec: dict, planes: int) -> list[list[Path]]:
+    """The plate images of every camera (per camera, per plane), each checked: present,
+    readable, of the declared size, no two the same."""
+    paths = [[_plane_path(folder, name, j) for j in range(planes)] for name in spec["cameras"]]
+    missing = [path for row in paths for path in row if not path.is_file()]
+    if missing:
+        raise DatasetError(
+            f"{missing[0]}: plate image missing ({len(missing)} of {planes * len(paths)})"
+        )
+    for name, camera_paths in zip(spec["cameras"], paths, strict=True):
+        _check_plate_images(camera_paths, spec["cameras"][name]["image_size"])
+    return paths
+
+
+def _camera_dots(
+    paths: list[Path], z: list[float], description: PlateDescription, tick: Callable[[], None]
+) -> list[TraverseDots]:
+    """The dots found on one camera's plate images, one entry per traverse position;
+    ``tick`` is called after each image."""
+    planes = []
+    for zj, path in zip(z, paths, strict=True):
+        found = find_dots(_plate_image(path), description, source=str(path))
+        planes.append(TraverseDots(zj, found.indices, found.pixels, description.pitch))
+        tick()
+    _check_traverse_moved(planes, paths)
+    return planes
+
+
 def _design(target: dict, path: Path) -> PlateDesign:
     """The nominal plate of experiment.json's ``target`` (``path``, for errors)."""
     keys = ("pitch", "dot_diameter", "mark_diameter", "columns", "rows", "thickness")
@@ -249,14 +277,7 @@ def calibrate_dataset(
     design = _design(spec["target"], folder / "experiment.json")
     z = [float(v) for v in spec["traverse_z"]]
     cameras = list(spec["cameras"])
-    paths = [[_plane_path(folder, name, j) for j in range(len(z))] for name in cameras]
-    missing = [path for row in paths for path in row if not path.is_file()]
-    if missing:
-        raise DatasetError(
-            f"{missing[0]}: plate image missing ({len(missing)} of {len(z) * len(cameras)})"
-        )
-    for name, camera_paths in zip(cameras, paths, strict=True):
-        _check_plate_images(camera_paths, spec["cameras"][name]["image_size"])
+    paths = _checked_plate_paths(folder, spec, len(z))
     true = _true_positions(folder)  # read before the long work: a bad file fails now
     if true is not None and true.shape[0] != len(z):
         raise DatasetError(
@@ -265,17 +286,14 @@ def calibrate_dataset(
         )
     total = len(cameras) * (len(z) + len(methods))
     done = 0
-    dots = []
-    for camera_paths in paths:
-        planes = []
-        for zj, path in zip(z, camera_paths, strict=True):
-            found = find_dots(_plate_image(path), description, source=str(path))
-            planes.append(TraverseDots(zj, found.indices, found.pixels, description.pitch))
-            done += 1
-            if progress is not None:
-                progress(done, total)
-        _check_traverse_moved(planes, camera_paths)
-        dots.append(planes)
+
+    def tick() -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total)
+
+    dots = [_camera_dots(camera_paths, z, description, tick) for camera_paths in paths]
     references = {"nominal": nominal_positions(design, z), "true": true}
     table1, fitted_models, residuals, errors = {}, {}, {}, {}
     for method in methods:
@@ -289,9 +307,7 @@ def calibrate_dataset(
             calibrations[name] = calibrate(method, [d.observation() for d in fitted], sheet)
             if method == "model-free":
                 residuals[name] = max(p.residual_px.max() for p in calibrations[name].planes)
-            done += 1
-            if progress is not None:
-                progress(done, total)
+            tick()
         models = list(calibrations.values())
         errors[method] = {
             name: table1_errors(models, dots, design.indices, expected)

@@ -169,7 +169,6 @@ def _experiment_description(
     }
 
 
-
 def _header(rig: Rig, preset: FlowPreset, settings: RenderSettings):
     """Writes the flow, the cameras and the rig into a new truth.h5."""
 
@@ -261,6 +260,32 @@ class DetectionOutput:
     detector: DetectorSettings
 
 
+def _write_plates(
+    target: Path,
+    rig: Rig,
+    plate: PhysicalPlate,
+    settings: RenderSettings,
+    todo: list[tuple[int, int]],
+    truth: TruthWriter,
+    executor: Executor,
+    tick: Callable[[], None],
+) -> None:
+    """Render the plate images ``todo`` ((camera, plane) pairs) of a dataset into
+    ``target/calibration`` and their dots' truth into ``truth``; ``tick`` after each."""
+    dots = {
+        "z_nominal": plate.z_nominal,
+        "z_actual": np.array([p.z_actual for p in plate.poses]),
+        "dots_world": np.stack([plate.dot_centres(j) for j in range(len(plate.poses))]),
+        "dot_indices": settings.plate.indices,
+    }
+    job = PlateJob(rig, plate, settings.plate_brightness, settings.sensor, settings.seed)
+    for i, (image, *dot_truth) in executor.map(render_plate_image, todo, shared={"job": job}):
+        c, j = todo[i]
+        write_tiff(target / "calibration" / rig.camera_names[c] / f"plane_{j:02d}.tif", image)
+        truth.write_plate(c, j, *dot_truth, dots)
+        tick()
+
+
 def build_dataset(
     target: Path,
     rig: Rig,
@@ -341,20 +366,7 @@ def build_dataset(
         if progress is not None:
             progress(done[0], total)
 
-    dots = {
-        "z_nominal": plate.z_nominal,
-        "z_actual": np.array([p.z_actual for p in plate.poses]),
-        "dots_world": np.stack([plate.dot_centres(j) for j in range(len(plate.poses))]),
-        "dot_indices": settings.plate.indices,
-    }
-    plate_job = PlateJob(rig, plate, settings.plate_brightness, settings.sensor, settings.seed)
-    for i, (image, *dot_truth) in executor.map(
-        render_plate_image, todo_plates, shared={"job": plate_job}
-    ):
-        c, j = todo_plates[i]
-        write_tiff(target / "calibration" / names[c] / f"plane_{j:02d}.tif", image)
-        truth.write_plate(c, j, *dot_truth, dots)
-        tick()
+    _write_plates(target, rig, plate, settings, todo_plates, truth, executor, tick)
     frames = (settings.frames,) * len(job.dt)
     for i, rendered in executor.map(
         render_chunk, [chunks[i] for i in todo_chunks], shared={"job": job}

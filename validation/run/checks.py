@@ -218,10 +218,24 @@ def compare_variant(
         if dev.size
         else None,
     }
+    out["epsilon"] = _epsilon_check(summary, truth)
+    out["c2"] = _c2_check(c2[sel], noise, sel)
+    if noise is not None and sel.any():
+        out["c1"]["noise_part_max"] = float(np.max(noise.c1_noise[sel] / truth_s2[sel]))
+    raw_s2 = _raw_s2_check(summary, truth, r, fitted, truth_s2)
+    if raw_s2 is not None:
+        out["raw_s2"] = raw_s2
+    out["mean_linear"] = _mean_linear_check(summary)
+    out["subsets"] = _subset_checks(summary)
+    return out
+
+
+def _epsilon_check(summary: dict, truth: dict) -> dict:
+    """The plateau ε against the same estimator on the exact D_LL."""
     plateau = summary["epsilon"]["plateau"]
     eps = plateau["epsilon"] if plateau else None
     reference = truth["epsilon_exact_d_ll"]
-    out["epsilon"] = {
+    return {
         "value": eps,
         "se": plateau["se_epsilon"] if plateau else None,
         "estimator_on_exact_d_ll": reference,
@@ -232,7 +246,11 @@ def compare_variant(
         "tolerance": EPSILON_TOLERANCE,
         "passed": eps is not None and abs(eps / reference - 1) <= EPSILON_TOLERANCE,
     }
-    c2_sel = c2[sel]
+
+
+def _c2_check(c2_sel: np.ndarray, noise: NoisePrediction | None, sel: np.ndarray) -> dict:
+    """The noise term c2 in the check range (``sel``): positive, and against the noise
+    measured against the truth when it is known."""
     entry = {
         "bins": int(sel.sum()),
         "negative_bins": int(np.sum(c2_sel <= 0)),
@@ -246,31 +264,41 @@ def compare_variant(
         entry["prediction_m2"] = [float(v) for v in noise.c2[sel]]
         entry["consistent_range"] = [low - C2_MARGIN, 1 + C2_MARGIN]
         entry["consistent"] = bool(low - C2_MARGIN <= ratio_c2 <= 1 + C2_MARGIN)
-        out["c1"]["noise_part_max"] = float(np.max(noise.c1_noise[sel] / truth_s2[sel]))
-    out["c2"] = entry
-    raw = np.array([float_array(row) for row in sf["raw_s2"]])  # (K, B), K in statistics_dt
-    dt = np.asarray(summary["statistics_dt"])
+    return entry
+
+
+def _raw_s2_check(
+    summary: dict, truth: dict, r: np.ndarray, fitted: np.ndarray, truth_s2: np.ndarray
+) -> dict | None:
+    """The raw S2 of the smallest Δt against the truth near 10η (None: no bin there)."""
+    raw = np.array([float_array(row) for row in summary["structure_function"]["raw_s2"]])
+    dt = np.asarray(summary["statistics_dt"])  # raw: (K, B), K in statistics_dt
     smallest, largest = raw[np.argmin(dt)], raw[np.argmax(dt)]
     eta = truth["parameters"]["eta"]
     near = _in_range(r, fitted, 10 * eta / RAW_S2_OCTAVES, 10 * eta * RAW_S2_OCTAVES)
     near &= np.isfinite(smallest) & np.isfinite(truth_s2)
-    if near.any():
-        with np.errstate(invalid="ignore", divide="ignore"):
-            per_bin = smallest[near] / truth_s2[near]
-        value = float(np.median(per_bin))
-        out["raw_s2"] = {
-            "r_range_m": [float(r[near].min()), float(r[near].max())],
-            "r_over_eta_range": [float(r[near].min() / eta), float(r[near].max() / eta)],
-            "ratio_per_bin": [float(v) for v in per_bin],
-            "ratio_smallest_dt": value,
-            "ratio_largest_dt": float(np.median(largest[near] / truth_s2[near])),
-            "minimum": RAW_S2_MIN_RATIO,
-            "passed": bool(value > RAW_S2_MIN_RATIO),
-        }
+    if not near.any():
+        return None
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_bin = smallest[near] / truth_s2[near]
+    value = float(np.median(per_bin))
+    return {
+        "r_range_m": [float(r[near].min()), float(r[near].max())],
+        "r_over_eta_range": [float(r[near].min() / eta), float(r[near].max() / eta)],
+        "ratio_per_bin": [float(v) for v in per_bin],
+        "ratio_smallest_dt": value,
+        "ratio_largest_dt": float(np.median(largest[near] / truth_s2[near])),
+        "minimum": RAW_S2_MIN_RATIO,
+        "passed": bool(value > RAW_S2_MIN_RATIO),
+    }
+
+
+def _mean_linear_check(summary: dict) -> dict:
+    """The mean displacement's offset at Δt = 0 against its error."""
     md = summary["mean_displacement"]
     offset, se_offset = float_array(md["offset"]), float_array(md["se_offset_scaled"])
     test = md["offset_test"]
-    out["mean_linear"] = {
+    return {
         "offset_m": offset.tolist(),
         "se_offset_m": se_offset.tolist(),
         "velocity_m_s": md["velocity"],
@@ -278,19 +306,18 @@ def compare_variant(
         "limit": test["limit"],
         "passed": test["statistic"] < test["limit"],
     }
+
+
+def _subset_checks(summary: dict) -> dict:
+    """The plateau ε of each Δt subset against that of every Δt."""
     subsets = {}
     for name, tol in SUBSET_TOLERANCES.items():
         sub = summary["subsets"].get(name)
         if sub is None or sub.get("epsilon_ratio_to_all") is None:
             continue
         change = sub["epsilon_ratio_to_all"] - 1
-        subsets[name] = {
-            "change": change,
-            "tolerance": tol,
-            "passed": abs(change) < tol,
-        }
-    out["subsets"] = subsets
-    return out
+        subsets[name] = {"change": change, "tolerance": tol, "passed": abs(change) < tol}
+    return subsets
 
 
 def error_budget(comparisons: dict, order) -> list[dict]:

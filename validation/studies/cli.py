@@ -320,6 +320,32 @@ def _run_rendered(
     return table, study_figure(study, table, title=title), tuple(computed), tuple(reused)
 
 
+def _checked_study(
+    study: str,
+    scenario: str | Path | Scenario,
+    chain: str,
+    seeds: int,
+    values: list | None,
+    settings: StudySettings,
+) -> Scenario:
+    """The scenario of a study whose options are all checked (see :func:`run_study`)."""
+    if study not in STUDIES:
+        raise ValueError(f"unknown study {study!r}; known: {', '.join(STUDIES)}")
+    if chain not in ("rendered", "ideal"):
+        raise ValueError(f"--chain must be 'rendered' or 'ideal', got {chain!r}")
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise ValueError(f"--seeds must be an integer >= 1, got {seeds!r}")
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    if chain == "rendered":
+        study_points(study, scenario, 1, values)  # checks the values
+    elif values is not None:
+        raise ValueError("--planes and --dt-subsets choose points of the rendered chain only")
+    else:
+        STUDIES[study].sweep(scenario, settings)  # checks the options
+    return scenario
+
+
 def run_study(
     study: str,
     scenario: str | Path | Scenario,
@@ -371,21 +397,8 @@ def run_study(
         Unknown study, chain or scenario, bad options or values, an unreachable
         scheduler: before any work starts.
     """
-    if study not in STUDIES:
-        raise ValueError(f"unknown study {study!r}; known: {', '.join(STUDIES)}")
-    if chain not in ("rendered", "ideal"):
-        raise ValueError(f"--chain must be 'rendered' or 'ideal', got {chain!r}")
-    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
-        raise ValueError(f"--seeds must be an integer >= 1, got {seeds!r}")
     check_parallel_options(workers, scheduler)
-    if not isinstance(scenario, Scenario):
-        scenario = load_scenario(scenario)
-    if chain == "rendered":
-        study_points(study, scenario, 1, values)  # checks the values
-    elif values is not None:
-        raise ValueError("--planes and --dt-subsets choose points of the rendered chain only")
-    else:
-        STUDIES[study].sweep(scenario, settings)  # checks the options
+    scenario = _checked_study(study, scenario, chain, seeds, values, settings)
     folder = Path(out) / study
     if chain == "rendered":
         with executor(workers=workers, scheduler=scheduler) as ex:
