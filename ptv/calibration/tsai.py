@@ -380,6 +380,33 @@ def _levenberg_marquardt(world, pixels, pitch, p0, scale, free):
     return packing.unpack(result.x), result
 
 
+def _linear_stages(local: np.ndarray, xd_s: np.ndarray, yd: np.ndarray) -> tuple:
+    """Tsai's stages 1 and 2 in the internal frame: (R, T_x, T_y, T_z, f, s_x), with
+    Tsai's sign fix when stage 2 finds f < 0."""
+    rot, tx, ty, sx = _stage1(local, xd_s, yd)
+    xd = xd_s / sx
+    f, tz = _stage2(local, xd, yd, rot, tx, ty)
+    if f < 0:
+        # Tsai's sign fix: flip r₃, r₆, r₇, r₈ (R → D R D, D = diag(1, 1, −1)) and redo.
+        d = np.diag([1.0, 1.0, -1.0])
+        rot = d @ rot @ d
+        f, tz = _stage2(local, xd, yd, rot, tx, ty)
+    if not f > 0:
+        raise ValueError(
+            f"Tsai stage 2 gives a non-positive focal length ({f:.3g} m): the pixels do "
+            "not look like a right-handed camera image of the points (mirrored image?)"
+        )
+    log.info(
+        "Tsai stages 1-2: f = %.5g m, T = (%.4g, %.4g, %.4g) m (internal frame), s_x = %.5f",
+        f,
+        tx,
+        ty,
+        tz,
+        sx,
+    )
+    return rot, tx, ty, tz, f, sx
+
+
 def fit_tsai(
     world: np.ndarray,
     pixels: np.ndarray,
@@ -425,27 +452,7 @@ def fit_tsai(
     xd_s, yd = _pixels_to_sensor(pixels, centre, pitch, 1.0)  # X'_d = s_x X_d, Y_d
     origin = _internal_origin(world, xd_s, yd)
     local = world - origin
-    rot, tx, ty, sx = _stage1(local, xd_s, yd)
-    xd = xd_s / sx
-    f, tz = _stage2(local, xd, yd, rot, tx, ty)
-    if f < 0:
-        # Tsai's sign fix: flip r₃, r₆, r₇, r₈ (R → D R D, D = diag(1, 1, −1)) and redo.
-        d = np.diag([1.0, 1.0, -1.0])
-        rot = d @ rot @ d
-        f, tz = _stage2(local, xd, yd, rot, tx, ty)
-    if not f > 0:
-        raise ValueError(
-            f"Tsai stage 2 gives a non-positive focal length ({f:.3g} m): the pixels do "
-            "not look like a right-handed camera image of the points (mirrored image?)"
-        )
-    log.info(
-        "Tsai stages 1-2: f = %.5g m, T = (%.4g, %.4g, %.4g) m (internal frame), s_x = %.5f",
-        f,
-        tx,
-        ty,
-        tz,
-        sx,
-    )
+    rot, tx, ty, tz, f, sx = _linear_stages(local, xd_s, yd)
 
     # Levenberg–Marquardt in pixel-effect units (one unit ≈ one pixel at the image edge).
     cam = local @ rot.T + np.array([tx, ty, tz])

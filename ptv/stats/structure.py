@@ -162,6 +162,22 @@ def double_frame_sums(
     return SnapshotSums.from_double_frame(out)
 
 
+def _check_fit_options(sums, dt: np.ndarray, errors, method, min_pairs) -> None:
+    """Refuse the options of :func:`structure_function` that it cannot fit with."""
+    if not isinstance(sums, SnapshotSums):
+        raise ValueError(f"sums must be a SnapshotSums, got {type(sums).__name__}")
+    if dt.size != sums.n_columns:
+        raise ValueError(f"sums have {sums.n_columns} Δt columns but dt has {dt.size} values")
+    if errors not in ("bootstrap", "pairs"):
+        raise ValueError(f"errors must be 'bootstrap' or 'pairs', got {errors!r}")
+    if method not in ("wls", "gls"):
+        raise ValueError(f"method must be 'wls' or 'gls', got {method!r}")
+    if errors == "pairs" and method == "gls":
+        raise ValueError("method='gls' needs a covariance between Δt: use errors='bootstrap'")
+    if not isinstance(min_pairs, int | np.integer) or min_pairs < 2:
+        raise ValueError(f"min_pairs must be an integer >= 2, got {min_pairs!r}")
+
+
 def structure_function(
     sums: SnapshotSums,
     dt: np.ndarray,
@@ -207,21 +223,9 @@ def structure_function(
     -------
     StructureFunction
     """
-    if not isinstance(sums, SnapshotSums):
-        raise ValueError(f"sums must be a SnapshotSums, got {type(sums).__name__}")
     dt = np.asarray(dt, dtype=np.float64)
+    _check_fit_options(sums, dt, errors, method, min_pairs)
     idx = select_dt(use, dt)
-    if dt.size != sums.n_columns:
-        raise ValueError(f"sums have {sums.n_columns} Δt columns but dt has {dt.size} values")
-    if errors not in ("bootstrap", "pairs"):
-        raise ValueError(f"errors must be 'bootstrap' or 'pairs', got {errors!r}")
-    if method not in ("wls", "gls"):
-        raise ValueError(f"method must be 'wls' or 'gls', got {method!r}")
-    if errors == "pairs" and method == "gls":
-        raise ValueError("method='gls' needs a covariance between Δt: use errors='bootstrap'")
-    if not isinstance(min_pairs, int | np.integer) or min_pairs < 2:
-        raise ValueError(f"min_pairs must be an integer >= 2, got {min_pairs!r}")
-
     used = np.zeros(dt.size, dtype=bool)
     used[idx] = True
     n_pairs = sums.total_count

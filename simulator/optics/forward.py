@@ -86,6 +86,78 @@ def _check_center(center: np.ndarray, stack: FlatInterfaces) -> float:
     return h0
 
 
+def _solve_tangents(
+    rho: np.ndarray,
+    h0: float,
+    inner_hmu: np.ndarray,
+    inner_a: np.ndarray,
+    last_hmu: np.ndarray,
+    last_a: float,
+    h_last: np.ndarray,
+    *,
+    all_denser: bool,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Solve u (h₀ + Σ h_k μ_k / √(1 + (1 − μ_k²) u²)) = ρ for u = tan θ₀, per point.
+
+    Plain Newton from the paraxial start when every μ_k ≤ 1 (``all_denser``: every medium
+    is at least as dense as the camera's, and the start is a lower bound of the root);
+    else Newton safeguarded by bisection within the bracket where every square root is
+    real. Returns u, whether each point converged, and the iterations taken.
+    """
+
+    def value_and_slope(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        u2 = u * u
+        total = np.full_like(u, h0)
+        slope = np.full_like(u, h0)
+        for hmu, a in zip(inner_hmu, inner_a, strict=True):
+            inv = 1.0 / np.sqrt(1.0 + a * u2)
+            term = hmu * inv
+            total += term
+            slope += term * inv * inv
+        inv = 1.0 / np.sqrt(1.0 + last_a * u2)
+        term = last_hmu * inv
+        total += term
+        slope += term * inv * inv
+        return u * total - rho, slope
+
+    # Paraxial (apparent-depth) start: a lower bound of the root when all μ ≤ 1.
+    u = rho / (h0 + float(inner_hmu.sum()) + last_hmu)
+    iterations = 0
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        if all_denser:
+            for iterations in range(1, NEWTON_MAX_ITERATIONS + 1):  # noqa: B007
+                value, slope = value_and_slope(u)
+                step = value / slope
+                u = u - step
+                change = np.abs(step) / (1.0 + u * u)
+                if not np.nanmax(change, initial=0.0) > NEWTON_TOLERANCE:
+                    break
+        else:
+            fixed_limit = np.inf
+            for hmu, a in zip(inner_hmu, inner_a, strict=True):
+                if a < 0 and hmu > 0:
+                    fixed_limit = min(fixed_limit, 1.0 / np.sqrt(-a))
+            hi = np.full_like(u, fixed_limit)
+            if last_a < 0:
+                hi = np.where(h_last > 0, np.minimum(hi, 1.0 / np.sqrt(-last_a)), hi)
+            lo = np.zeros_like(u)
+            u = np.where(u < hi, u, 0.5 * hi)
+            for iterations in range(1, NEWTON_MAX_ITERATIONS + 1):  # noqa: B007
+                value, slope = value_and_slope(u)
+                lo = np.where(value < 0, u, lo)
+                hi = np.where(value > 0, u, hi)
+                new = u - value / slope
+                outside = ~((new > lo) & (new < hi)) & (value != 0)
+                bisect = np.where(np.isfinite(hi), 0.5 * (lo + hi), 2.0 * u + 1.0)
+                new = np.where(outside, bisect, new)
+                change = np.abs(new - u) / (1.0 + new * new)
+                u = new
+                if not np.nanmax(change, initial=0.0) > NEWTON_TOLERANCE:
+                    break
+        converged = change <= NEWTON_TOLERANCE
+    return u, converged, iterations
+
+
 def solve_chief_rays(center: np.ndarray, points: np.ndarray, stack: FlatInterfaces) -> ChiefRays:
     """Directions from a camera centre to points behind a stack (vectorised Newton).
 
@@ -122,56 +194,9 @@ def solve_chief_rays(center: np.ndarray, points: np.ndarray, stack: FlatInterfac
     last_hmu = h_last * mu[-1]
     last_a = 1.0 - mu[-1] ** 2
 
-    def value_and_slope(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        u2 = u * u
-        total = np.full_like(u, h0)
-        slope = np.full_like(u, h0)
-        for hmu, a in zip(inner_hmu, inner_a, strict=True):
-            inv = 1.0 / np.sqrt(1.0 + a * u2)
-            term = hmu * inv
-            total += term
-            slope += term * inv * inv
-        inv = 1.0 / np.sqrt(1.0 + last_a * u2)
-        term = last_hmu * inv
-        total += term
-        slope += term * inv * inv
-        return u * total - rho, slope
-
-    # Paraxial (apparent-depth) start: a lower bound of the root when all μ ≤ 1.
-    u = rho / (h0 + float(inner_hmu.sum()) + last_hmu)
-    iterations = 0
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        if np.all(mu <= 1.0):
-            for iterations in range(1, NEWTON_MAX_ITERATIONS + 1):  # noqa: B007
-                value, slope = value_and_slope(u)
-                step = value / slope
-                u = u - step
-                change = np.abs(step) / (1.0 + u * u)
-                if not np.nanmax(change, initial=0.0) > NEWTON_TOLERANCE:
-                    break
-        else:
-            fixed_limit = np.inf
-            for hmu, a in zip(inner_hmu, inner_a, strict=True):
-                if a < 0 and hmu > 0:
-                    fixed_limit = min(fixed_limit, 1.0 / np.sqrt(-a))
-            hi = np.full_like(u, fixed_limit)
-            if last_a < 0:
-                hi = np.where(h_last > 0, np.minimum(hi, 1.0 / np.sqrt(-last_a)), hi)
-            lo = np.zeros_like(u)
-            u = np.where(u < hi, u, 0.5 * hi)
-            for iterations in range(1, NEWTON_MAX_ITERATIONS + 1):  # noqa: B007
-                value, slope = value_and_slope(u)
-                lo = np.where(value < 0, u, lo)
-                hi = np.where(value > 0, u, hi)
-                new = u - value / slope
-                outside = ~((new > lo) & (new < hi)) & (value != 0)
-                bisect = np.where(np.isfinite(hi), 0.5 * (lo + hi), 2.0 * u + 1.0)
-                new = np.where(outside, bisect, new)
-                change = np.abs(new - u) / (1.0 + new * new)
-                u = new
-                if not np.nanmax(change, initial=0.0) > NEWTON_TOLERANCE:
-                    break
-        converged = change <= NEWTON_TOLERANCE
+    u, converged, iterations = _solve_tangents(
+        rho, h0, inner_hmu, inner_a, last_hmu, last_a, h_last, all_denser=np.all(mu <= 1.0)
+    )
     failed = valid & ~converged
     if failed.any():
         logger.warning(
