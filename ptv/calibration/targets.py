@@ -49,7 +49,6 @@ NaNs; :class:`NoTargetError` when too few dot-like blobs are seen;
 :class:`MarkersNotFoundError` when the three marks cannot be found or placed.
 """
 
-import itertools
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -59,8 +58,11 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from ptv.calibration._plate_grid import (
+    MarkersNotFoundError as MarkersNotFoundError,  # raised by find_dots: part of its API
+)
+from ptv.calibration._plate_grid import index_grid, missing_nodes
 from ptv.calibration.observations import PlaneObservation
-from ptv.calibration.polynomial import fit_polynomial2d
 
 log = logging.getLogger(__name__)
 
@@ -80,28 +82,10 @@ _AREA_NEIGHBOURS = 12
 _MIN_AREA_RATIO = 0.4
 #: Above this times the expected mark/dot area ratio → not a dot.
 _MAX_MARK_RATIO = 1.6
-#: Matching tolerance of the indexing, in local pitches.
-_MATCH_TOL = 0.3
-#: Matching tolerance when scoring a mark assignment, in pitches.
-_SCORE_TOL = 0.25
-#: Grid steps around the marks scored for a mark assignment.
-_SCORE_REACH = 3
-#: Fewest matched fraction of the predicted dots around the marks.
-_MIN_SCORE = 0.5
-#: Mark candidates tried (the largest relative areas), in triples.
-_MAX_MARK_CANDIDATES = 6
-#: Residual of the final cubic grid fit above which a dot is dropped, in pitches.
-_OUTLIER_TOL = 0.25
-#: Index support radius (Chebyshev, grid steps) of the local affine predictions.
-_SUPPORT_RADIUS = 2
 
 
 class NoTargetError(ValueError):
     """The image shows no calibration target (too few dot-like blobs)."""
-
-
-class MarkersNotFoundError(ValueError):
-    """The three marked dots of the plate could not be found or placed."""
 
 
 # -- the plate description ---------------------------------------------------------------
@@ -487,136 +471,130 @@ def _relative_area(centroid: np.ndarray, area: np.ndarray) -> np.ndarray:
     return area / np.median(area[nb[:, 1:]], axis=1)
 
 
-# -- marks ---------------------------------------------------------------------------------
-def _affine_from(grid: np.ndarray, pixels: np.ndarray) -> np.ndarray | None:
-    """Exact affine (3, 2) with [i, j, 1] @ M = pixel from three correspondences."""
-    a = np.column_stack([grid, np.ones(len(grid))])
-    if abs(np.linalg.det(a)) < 1e-9:
-        return None
-    return np.linalg.solve(a, pixels)
-
-
-def _locate_marks(
-    pts: np.ndarray,
-    tree: cKDTree,
-    candidates: np.ndarray,
-    description: PlateDescription,
-    pitch_px: float,
-    image_size: tuple[int, int],
-    source: str,
-) -> dict[str, int]:
-    """Assign the mark names to three candidate detections (indices into ``pts``)."""
-    names = list(description.marks)
-    grid = np.array([description.marks[k] for k in names], dtype=float)
-    lo = grid.min(axis=0) - _SCORE_REACH
-    hi = grid.max(axis=0) + _SCORE_REACH
-    ii, jj = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
-    nodes = np.column_stack([ii.ravel(), jj.ravel()])
-    nodes = nodes[~(nodes[:, None, :] == grid[None]).all(axis=2).any(axis=1)]
-    design = np.column_stack([nodes, np.ones(len(nodes))])
-    w, h = image_size
-    best: tuple[float, dict[str, int]] | None = None
-    for triple in itertools.combinations(candidates, 3):
-        for perm in itertools.permutations(triple):
-            m = _affine_from(grid, pts[list(perm)])
-            if m is None:
-                continue
-            steps = np.linalg.norm(m[:2], axis=1)
-            if not (0.4 * pitch_px < steps.min() and steps.max() < 2.5 * pitch_px):
-                continue
-            pred = design @ m
-            inside = (pred[:, 0] >= 0) & (pred[:, 0] <= w - 1) & (pred[:, 1] >= 0)
-            inside &= pred[:, 1] <= h - 1
-            if inside.sum() < 5:
-                continue
-            dist, hit = tree.query(pred[inside])
-            ok = dist < _SCORE_TOL * steps.min()
-            score = len(np.unique(hit[ok])) / inside.sum()
-            if best is None or score > best[0]:
-                best = (score, dict(zip(names, (int(p) for p in perm), strict=True)))
-    if best is None or best[0] < _MIN_SCORE:
-        got = "no placement" if best is None else f"at best {best[0]:.0%} of the nearby dots"
-        raise MarkersNotFoundError(
-            f"markers not found in {source}: {len(candidates)} mark-sized blob(s), but no "
-            f"assignment of the marks {description.marks} to them predicts the dot grid "
-            f"around them ({got} matched, need {_MIN_SCORE:.0%})"
-        )
-    log.debug("%s: marks placed, %.0f%% of nearby dots predicted", source, 100 * best[0])
-    return best[1]
-
-
-# -- indexing ------------------------------------------------------------------------------
-def _local_affine(nodes: np.ndarray, pix: np.ndarray, target: np.ndarray) -> np.ndarray | None:
-    """Affine (3, 2) index → pixel fitted to indexed nodes near ``target`` (2,)."""
-    d = np.abs(nodes - target).max(axis=1)
-    sel = d <= _SUPPORT_RADIUS
-    if sel.sum() < 4 or np.linalg.matrix_rank(nodes[sel] - nodes[sel].mean(axis=0)) < 2:
-        order = np.argsort(np.hypot(*(nodes - target).T), kind="stable")
-        sel = order[: max(6, int(sel.sum()))]
-        if np.linalg.matrix_rank(nodes[sel] - nodes[sel].mean(axis=0)) < 2:
-            sel = order
-            if len(sel) < 3 or np.linalg.matrix_rank(nodes - nodes.mean(axis=0)) < 2:
-                return None
-    a = np.column_stack([nodes[sel], np.ones(len(nodes[sel]))])
-    return np.linalg.lstsq(a, pix[sel], rcond=None)[0]
-
-
-_NEIGHBOURS = np.array([(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1) if (di, dj) != (0, 0)])
-
-
-def _grow(
-    pts: np.ndarray,
-    tree: cKDTree,
-    usable: np.ndarray,
-    seeds: dict[tuple[int, int], int],
-    description: PlateDescription,
-) -> dict[tuple[int, int], int]:
-    """Index detections by growing the grid outward from the marks."""
-    assigned = dict(seeds)
-    used = set(seeds.values())
-    while True:
-        nodes = np.array(list(assigned), dtype=float)
-        pix = pts[list(assigned.values())]
-        frontier = {
-            (int(a + di), int(b + dj))
-            for a, b in assigned
-            for di, dj in _NEIGHBOURS
-            if (int(a + di), int(b + dj)) not in assigned
-        }
-        frontier_arr = np.array(sorted(frontier), dtype=float).reshape(-1, 2)
-        frontier_arr = frontier_arr[description.in_extent(frontier_arr.astype(int))]
-        candidates = []
-        for node in frontier_arr:
-            m = _local_affine(nodes, pix, node)
-            if m is None:
-                continue
-            pred = np.append(node, 1.0) @ m
-            tol = _MATCH_TOL * np.linalg.norm(m[:2], axis=1).min()
-            for dist, k in zip(*tree.query(pred, k=3, distance_upper_bound=tol), strict=True):
-                if np.isfinite(dist) and usable[k] and k not in used:
-                    candidates.append((dist, (int(node[0]), int(node[1])), int(k)))
-                    break
-        added = 0
-        for _, node, k in sorted(candidates):
-            if node in assigned or k in used:
-                continue
-            assigned[node] = k
-            used.add(k)
-            added += 1
-        if added == 0:
-            return assigned
-
-
-def _predict(nodes: np.ndarray, pix: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    out = np.full((len(targets), 2), np.nan)
-    for t, node in enumerate(targets):
-        m = _local_affine(nodes, pix, node)
-        if m is not None:
-            out[t] = np.append(node, 1.0) @ m
-    return out
-
-
 # -- the detector ---------------------------------------------------------------------------
+def _check_find_options(
+    description, threshold_fraction, noise_sigmas, min_area, margin, ring, background_tile
+) -> None:
+    """Refuse options of :func:`find_dots` it cannot work with."""
+    if not isinstance(description, PlateDescription):
+        raise TypeError(f"description must be a PlateDescription, got {type(description).__name__}")
+    if not 0 < threshold_fraction < 1:
+        raise ValueError(f"threshold_fraction must be in (0, 1), got {threshold_fraction!r}")
+    if not noise_sigmas > 0:
+        raise ValueError(f"noise_sigmas must be > 0, got {noise_sigmas!r}")
+    for name, value, least in (
+        ("min_area", min_area, 1),
+        ("margin", margin, 1),
+        ("ring", ring, 1),
+        ("background_tile", background_tile, 8),
+    ):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
+            raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
+
+
+def _mask_level(
+    above: np.ndarray, noise: float, noise_sigmas: float, threshold_fraction: float, source: str
+) -> float:
+    """The dot mask's level above the background: max(k σ, f × the 99.9th percentile of
+    the signal above background), or NoTargetError when nothing stands out of the noise."""
+    peak = float(np.percentile(above, 99.9))
+    if not peak > noise_sigmas * noise:
+        raise NoTargetError(
+            f"no target in {source}: nothing stands out of the noise (99.9th percentile "
+            f"{peak:.3g} above the background, noise σ {noise:.3g})"
+        )
+    return max(noise_sigmas * noise, threshold_fraction * peak)
+
+
+def _dot_signal(
+    img: np.ndarray, dtype: np.dtype, dots: str, saturation: float | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The image with the dots bright (dark dots inverted), and its saturated pixels
+    (bright dots only: dark dots sit below the plate's level)."""
+    if saturation is None:
+        saturation = float(np.iinfo(dtype).max) if np.issubdtype(dtype, np.integer) else np.inf
+    if dots == "bright":
+        return img, img >= saturation
+    return img.max() - img, np.zeros(img.shape, dtype=bool)
+
+
+def _sizes_against_neighbours(
+    blobs: _Blobs, reason: np.ndarray, mark_area_ratio: float, source: str, mask: str
+) -> np.ndarray:
+    """Each accepted blob's area relative to its neighbours' (NaN for the others); marks
+    blobs of implausible size with reason "area" (in place). NoTargetError when too few
+    blobs are left (``mask`` describes the dot mask for the message)."""
+    ok = reason == ""
+    if ok.sum() < MIN_BLOBS:
+        raise NoTargetError(
+            f"no target in {source}: {int(ok.sum())} dot-like blob(s) found, a plate "
+            f"image needs at least {MIN_BLOBS} ({mask})"
+        )
+    rel = np.full(len(reason), np.nan)
+    rel[ok] = _relative_area(blobs.centroid[ok], blobs.area[ok])
+    implausible = ok & ((rel < _MIN_AREA_RATIO) | (rel > _MAX_MARK_RATIO * mark_area_ratio))
+    reason[implausible] = "area"
+    usable = int(np.count_nonzero(reason == ""))
+    if usable < MIN_BLOBS:
+        raise NoTargetError(f"no target in {source}: only {usable} blob(s) of a plausible dot size")
+    return rel
+
+
+def _plane_dots(
+    blobs: _Blobs,
+    reason: np.ndarray,
+    nodes: np.ndarray,
+    det: np.ndarray,
+    mark_rows: Mapping[str, int],
+    description: PlateDescription,
+    *,
+    dot_area: float,
+    margin: int,
+    image_size: tuple[int, int],
+    background: np.ndarray,
+    noise: float,
+    level: float,
+    source: str,
+) -> PlaneDots:
+    """The result of :func:`find_dots`: the indexed blobs ``det`` at grid ``nodes`` in
+    grid order, flagged, with the rejected blobs (``reason``) and the grid nodes missed."""
+    order = np.lexsort((nodes[:, 0], nodes[:, 1]))
+    nodes, det = nodes[order], det[order]
+    flags = np.zeros(len(det), dtype=np.uint8)
+    marks_out: dict[str, int] = {}
+    for name, k in mark_rows.items():
+        row = int(np.flatnonzero(det == k)[0])
+        marks_out[name] = row
+        flags[row] |= FLAG_MARK
+    flags[blobs.saturated[det]] |= FLAG_SATURATED
+    missing = missing_nodes(nodes, blobs.centroid[det], description, dot_area, margin, image_size)
+    rejected = np.flatnonzero(reason != "")
+    if len(missing) or len(rejected):
+        log.info(
+            "%s: %d dots indexed, %d expected node(s) missing, %d blob(s) rejected",
+            source,
+            len(det),
+            len(missing),
+            len(rejected),
+        )
+    return PlaneDots(
+        pixels=blobs.centroid[det].copy(),
+        indices=nodes,
+        world_xy=nodes.astype(float) * description.pitch,
+        area=blobs.area[det].copy(),
+        flags=flags,
+        marks=marks_out,
+        missing=missing,
+        rejected_pixels=blobs.centroid[rejected].copy(),
+        rejected_reasons=tuple(str(r) for r in reason[rejected]),
+        image_size=(int(image_size[0]), int(image_size[1])),
+        background=float(np.median(background)),
+        noise=float(noise),
+        threshold=float(np.median(background) + level),
+        source=source,
+    )
+
+
 def find_dots(
     image: np.ndarray,
     description: PlateDescription,
@@ -673,45 +651,18 @@ def find_dots(
     """
     raw = np.asarray(image)
     img = _check_image(raw, source)
-    if not isinstance(description, PlateDescription):
-        raise TypeError(f"description must be a PlateDescription, got {type(description).__name__}")
-    if not 0 < threshold_fraction < 1:
-        raise ValueError(f"threshold_fraction must be in (0, 1), got {threshold_fraction!r}")
-    if not noise_sigmas > 0:
-        raise ValueError(f"noise_sigmas must be > 0, got {noise_sigmas!r}")
-    for name, value, least in (
-        ("min_area", min_area, 1),
-        ("margin", margin, 1),
-        ("ring", ring, 1),
-        ("background_tile", background_tile, 8),
-    ):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
-            raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
-    if saturation is None:
-        saturation = (
-            float(np.iinfo(raw.dtype).max) if np.issubdtype(raw.dtype, np.integer) else np.inf
-        )
-    # Only bright dots can saturate; dark dots sit below the plate's level.
-    if description.dots == "bright":
-        saturated_px = img >= saturation
-    else:
-        saturated_px = np.zeros(img.shape, dtype=bool)
-    signal = img if description.dots == "bright" else img.max() - img
+    _check_find_options(
+        description, threshold_fraction, noise_sigmas, min_area, margin, ring, background_tile
+    )
+    signal, saturated_px = _dot_signal(img, raw.dtype, description.dots, saturation)
     h, w = signal.shape
 
     background = _background_map(signal, background_tile)
     noise = _noise_sigma(signal)
-    above = signal - background
-    peak = float(np.percentile(above, 99.9))
-    level = max(noise_sigmas * noise, threshold_fraction * peak)
-    if not peak > noise_sigmas * noise:
-        raise NoTargetError(
-            f"no target in {source}: nothing stands out of the noise (99.9th percentile "
-            f"{peak:.3g} above a background of {np.median(background):.3g}, noise σ {noise:.3g})"
-        )
+    level = _mask_level(signal - background, noise, noise_sigmas, threshold_fraction, source)
     blobs = _measure_blobs(
         signal,
-        above > level,
+        signal - background > level,
         background,
         min_area=min_area,
         margin=margin,
@@ -719,131 +670,31 @@ def find_dots(
         saturated_px=saturated_px,
     )
     reason = blobs.reason.copy()
-    ok = reason == ""
-    if ok.sum() < MIN_BLOBS:
-        raise NoTargetError(
-            f"no target in {source}: {int(ok.sum())} dot-like blob(s) found, a plate "
-            f"image needs at least {MIN_BLOBS} (threshold {level:.3g} above background, "
-            f"noise σ {noise:.3g})"
-        )
-    rel = np.full(len(reason), np.nan)
-    rel[ok] = _relative_area(blobs.centroid[ok], blobs.area[ok])
-    ratio = description.mark_area_ratio
-    implausible = ok & ((rel < _MIN_AREA_RATIO) | (rel > _MAX_MARK_RATIO * ratio))
-    reason[implausible] = "area"
+    mask = f"threshold {level:.3g} above background, noise σ {noise:.3g}"
+    rel = _sizes_against_neighbours(blobs, reason, description.mark_area_ratio, source, mask)
     usable = reason == ""
-    if usable.sum() < MIN_BLOBS:
-        raise NoTargetError(
-            f"no target in {source}: only {int(usable.sum())} blob(s) of a plausible dot size"
-        )
     pts = blobs.centroid
-    # Nan-safe tree over usable blobs only (others far away).
-    tree_pts = np.where(usable[:, None], pts, -1e9)
-    tree = cKDTree(tree_pts)
-    mark_like = np.flatnonzero(usable & (rel > np.sqrt(ratio)))
-    if len(mark_like) < 3:
-        raise MarkersNotFoundError(
-            f"markers not found in {source}: {len(mark_like)} blob(s) are more than "
-            f"{np.sqrt(ratio):.2f}× the area of their neighbours, need the 3 marks "
-            f"(area ratio {ratio:.2f} expected)"
-        )
-    mark_like = mark_like[np.argsort(-rel[mark_like], kind="stable")][:_MAX_MARK_CANDIDATES]
     dot_area = float(np.median(blobs.area[usable]))
-    pitch_px = 2.0 * np.sqrt(dot_area / np.pi) * description.pitch / description.dot_diameter
-    mark_rows = _locate_marks(pts, tree, mark_like, description, pitch_px, (w, h), source)
-    seeds = {description.marks[name]: k for name, k in mark_rows.items()}
-    assigned = _grow(pts, tree, usable, seeds, description)
-
-    nodes = np.array(list(assigned), dtype=np.int64)
-    det = np.array(list(assigned.values()), dtype=np.int64)
-    # Gross-outlier check against one smooth cubic of the whole grid.
-    if len(det) >= 20:
-        poly = fit_polynomial2d(nodes.astype(float), pts[det], degree=3)
-        resid = np.linalg.norm(poly(nodes.astype(float)) - pts[det], axis=1)
-        step = np.linalg.norm(poly.jacobian(nodes.astype(float)), axis=1).min(axis=1)
-        bad = resid > _OUTLIER_TOL * step
-        is_mark = np.isin(det, list(mark_rows.values()))
-        if np.any(bad & is_mark):
-            raise MarkersNotFoundError(
-                f"markers not found in {source}: a mark lies off the grid fitted to the dots"
-            )
-        if bad.any():
-            log.warning("%s: %d dot(s) off the smooth grid dropped", source, int(bad.sum()))
-            reason[det[bad]] = "outlier"
-            nodes, det = nodes[~bad], det[~bad]
-    unindexed = usable.copy()
-    unindexed[det] = False
-    reason[unindexed] = "unindexed"
-
-    order = np.lexsort((nodes[:, 0], nodes[:, 1]))
-    nodes, det = nodes[order], det[order]
-    flags = np.zeros(len(det), dtype=np.uint8)
-    marks_out: dict[str, int] = {}
-    for name, k in mark_rows.items():
-        row = int(np.flatnonzero(det == k)[0])
-        marks_out[name] = row
-        flags[row] |= FLAG_MARK
-    flags[blobs.saturated[det]] |= FLAG_SATURATED
-
-    missing = _missing_nodes(nodes, pts[det], description, dot_area, margin, (w, h))
-    rejected = np.flatnonzero(reason != "")
-    if len(missing) or len(rejected):
-        log.info(
-            "%s: %d dots indexed, %d expected node(s) missing, %d blob(s) rejected",
-            source,
-            len(det),
-            len(missing),
-            len(rejected),
-        )
-    return PlaneDots(
-        pixels=pts[det].copy(),
-        indices=nodes,
-        world_xy=nodes.astype(float) * description.pitch,
-        area=blobs.area[det].copy(),
-        flags=flags,
-        marks=marks_out,
-        missing=missing,
-        rejected_pixels=pts[rejected].copy(),
-        rejected_reasons=tuple(str(r) for r in reason[rejected]),
-        image_size=(int(w), int(h)),
-        background=float(np.median(background)),
-        noise=float(noise),
-        threshold=float(np.median(background) + level),
+    nodes, det, mark_rows, outliers = index_grid(
+        pts, usable, rel, description, dot_area, (w, h), source
+    )
+    reason[usable & ~np.isin(np.arange(len(reason)), det)] = "unindexed"
+    reason[outliers] = "outlier"
+    return _plane_dots(
+        blobs,
+        reason,
+        nodes,
+        det,
+        mark_rows,
+        description,
+        dot_area=dot_area,
+        margin=margin,
+        image_size=(w, h),
+        background=background,
+        noise=noise,
+        level=level,
         source=source,
     )
-
-
-def _missing_nodes(
-    nodes: np.ndarray,
-    pix: np.ndarray,
-    description: PlateDescription,
-    dot_area: float,
-    margin: int,
-    image_size: tuple[int, int],
-) -> np.ndarray:
-    """Grid nodes that should be on the image, whole, but were not found."""
-    found = {tuple(n) for n in nodes.tolist()}
-    if description.extent is None:
-        lo, hi = nodes.min(axis=0), nodes.max(axis=0)
-    else:
-        lo = np.maximum(nodes.min(axis=0) - 2, [description.extent[0][0], description.extent[1][0]])
-        hi = np.minimum(nodes.max(axis=0) + 2, [description.extent[0][1], description.extent[1][1]])
-    ii, jj = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
-    cand = np.column_stack([ii.ravel(), jj.ravel()])
-    cand = np.array([c for c in cand.tolist() if tuple(c) not in found], dtype=np.int64).reshape(
-        -1, 2
-    )
-    if len(cand) == 0:
-        return cand
-    cheb = np.abs(cand[:, None, :] - nodes[None]).max(axis=2).min(axis=1)
-    cand = cand[cheb <= 2]
-    pred = _predict(nodes.astype(float), pix, cand.astype(float))
-    reach = np.sqrt(dot_area / np.pi) + margin + 1
-    w, h = image_size
-    inside = np.isfinite(pred).all(axis=1)
-    inside &= (pred[:, 0] >= reach) & (pred[:, 0] <= w - 1 - reach)
-    inside &= (pred[:, 1] >= reach) & (pred[:, 1] <= h - 1 - reach)
-    return cand[inside]
 
 
 # -- several planes -----------------------------------------------------------------------

@@ -1,0 +1,259 @@
+"""Steps 4 to 6 of finding a plate's dots (:mod:`ptv.calibration.targets`): placing the
+three marks, indexing the dots on the grid from them, and the grid nodes missed."""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ptv.calibration.polynomial import fit_polynomial2d
+
+if TYPE_CHECKING:  # the plate description lives with the detector, which imports this
+    from ptv.calibration.targets import PlateDescription
+
+log = logging.getLogger("ptv.calibration.targets")
+
+#: Matching tolerance of the indexing, in local pitches.
+_MATCH_TOL = 0.3
+#: Matching tolerance when scoring a mark assignment, in pitches.
+_SCORE_TOL = 0.25
+#: Grid steps around the marks scored for a mark assignment.
+_SCORE_REACH = 3
+#: Fewest matched fraction of the predicted dots around the marks.
+_MIN_SCORE = 0.5
+#: Mark candidates tried (the largest relative areas), in triples.
+_MAX_MARK_CANDIDATES = 6
+#: Residual of the final cubic grid fit above which a dot is dropped, in pitches.
+_OUTLIER_TOL = 0.25
+#: Index support radius (Chebyshev, grid steps) of the local affine predictions.
+_SUPPORT_RADIUS = 2
+
+
+class MarkersNotFoundError(ValueError):
+    """The three marked dots of the plate could not be found or placed."""
+
+
+# -- marks ---------------------------------------------------------------------------------
+def _affine_from(grid: np.ndarray, pixels: np.ndarray) -> np.ndarray | None:
+    """Exact affine (3, 2) with [i, j, 1] @ M = pixel from three correspondences."""
+    a = np.column_stack([grid, np.ones(len(grid))])
+    if abs(np.linalg.det(a)) < 1e-9:
+        return None
+    return np.linalg.solve(a, pixels)
+
+
+def _locate_marks(
+    pts: np.ndarray,
+    tree: cKDTree,
+    candidates: np.ndarray,
+    description: PlateDescription,
+    pitch_px: float,
+    image_size: tuple[int, int],
+    source: str,
+) -> dict[str, int]:
+    """Assign the mark names to three candidate detections (indices into ``pts``)."""
+    names = list(description.marks)
+    grid = np.array([description.marks[k] for k in names], dtype=float)
+    lo = grid.min(axis=0) - _SCORE_REACH
+    hi = grid.max(axis=0) + _SCORE_REACH
+    ii, jj = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
+    nodes = np.column_stack([ii.ravel(), jj.ravel()])
+    nodes = nodes[~(nodes[:, None, :] == grid[None]).all(axis=2).any(axis=1)]
+    design = np.column_stack([nodes, np.ones(len(nodes))])
+    w, h = image_size
+    best: tuple[float, dict[str, int]] | None = None
+    for triple in itertools.combinations(candidates, 3):
+        for perm in itertools.permutations(triple):
+            m = _affine_from(grid, pts[list(perm)])
+            if m is None:
+                continue
+            steps = np.linalg.norm(m[:2], axis=1)
+            if not (0.4 * pitch_px < steps.min() and steps.max() < 2.5 * pitch_px):
+                continue
+            pred = design @ m
+            inside = (pred[:, 0] >= 0) & (pred[:, 0] <= w - 1) & (pred[:, 1] >= 0)
+            inside &= pred[:, 1] <= h - 1
+            if inside.sum() < 5:
+                continue
+            dist, hit = tree.query(pred[inside])
+            ok = dist < _SCORE_TOL * steps.min()
+            score = len(np.unique(hit[ok])) / inside.sum()
+            if best is None or score > best[0]:
+                best = (score, dict(zip(names, (int(p) for p in perm), strict=True)))
+    if best is None or best[0] < _MIN_SCORE:
+        got = "no placement" if best is None else f"at best {best[0]:.0%} of the nearby dots"
+        raise MarkersNotFoundError(
+            f"markers not found in {source}: {len(candidates)} mark-sized blob(s), but no "
+            f"assignment of the marks {description.marks} to them predicts the dot grid "
+            f"around them ({got} matched, need {_MIN_SCORE:.0%})"
+        )
+    log.debug("%s: marks placed, %.0f%% of nearby dots predicted", source, 100 * best[0])
+    return best[1]
+
+
+# -- indexing ------------------------------------------------------------------------------
+def _local_affine(nodes: np.ndarray, pix: np.ndarray, target: np.ndarray) -> np.ndarray | None:
+    """Affine (3, 2) index → pixel fitted to indexed nodes near ``target`` (2,)."""
+    d = np.abs(nodes - target).max(axis=1)
+    sel = d <= _SUPPORT_RADIUS
+    if sel.sum() < 4 or np.linalg.matrix_rank(nodes[sel] - nodes[sel].mean(axis=0)) < 2:
+        order = np.argsort(np.hypot(*(nodes - target).T), kind="stable")
+        sel = order[: max(6, int(sel.sum()))]
+        if np.linalg.matrix_rank(nodes[sel] - nodes[sel].mean(axis=0)) < 2:
+            sel = order
+            if len(sel) < 3 or np.linalg.matrix_rank(nodes - nodes.mean(axis=0)) < 2:
+                return None
+    a = np.column_stack([nodes[sel], np.ones(len(nodes[sel]))])
+    return np.linalg.lstsq(a, pix[sel], rcond=None)[0]
+
+
+_NEIGHBOURS = np.array([(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1) if (di, dj) != (0, 0)])
+
+
+def _grow(
+    pts: np.ndarray,
+    tree: cKDTree,
+    usable: np.ndarray,
+    seeds: dict[tuple[int, int], int],
+    description: PlateDescription,
+) -> dict[tuple[int, int], int]:
+    """Index detections by growing the grid outward from the marks."""
+    assigned = dict(seeds)
+    used = set(seeds.values())
+    while True:
+        nodes = np.array(list(assigned), dtype=float)
+        pix = pts[list(assigned.values())]
+        frontier = {
+            (int(a + di), int(b + dj))
+            for a, b in assigned
+            for di, dj in _NEIGHBOURS
+            if (int(a + di), int(b + dj)) not in assigned
+        }
+        frontier_arr = np.array(sorted(frontier), dtype=float).reshape(-1, 2)
+        frontier_arr = frontier_arr[description.in_extent(frontier_arr.astype(int))]
+        candidates = []
+        for node in frontier_arr:
+            m = _local_affine(nodes, pix, node)
+            if m is None:
+                continue
+            pred = np.append(node, 1.0) @ m
+            tol = _MATCH_TOL * np.linalg.norm(m[:2], axis=1).min()
+            for dist, k in zip(*tree.query(pred, k=3, distance_upper_bound=tol), strict=True):
+                if np.isfinite(dist) and usable[k] and k not in used:
+                    candidates.append((dist, (int(node[0]), int(node[1])), int(k)))
+                    break
+        added = 0
+        for _, node, k in sorted(candidates):
+            if node in assigned or k in used:
+                continue
+            assigned[node] = k
+            used.add(k)
+            added += 1
+        if added == 0:
+            return assigned
+
+
+def _predict(nodes: np.ndarray, pix: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    out = np.full((len(targets), 2), np.nan)
+    for t, node in enumerate(targets):
+        m = _local_affine(nodes, pix, node)
+        if m is not None:
+            out[t] = np.append(node, 1.0) @ m
+    return out
+
+
+def index_grid(
+    pts: np.ndarray,
+    usable: np.ndarray,
+    relative_area: np.ndarray,
+    description: PlateDescription,
+    dot_area: float,
+    image_size: tuple[int, int],
+    source: str,
+) -> tuple[np.ndarray, np.ndarray, dict[str, int], np.ndarray]:
+    """Place the marks among the ``usable`` blobs larger than their neighbours (by
+    ``relative_area``, largest first), grow the grid from them over the usable blobs and
+    drop the gross outliers of a cubic grid fit. ``dot_area`` is a dot's area, px.
+
+    Returns
+    -------
+    nodes : ndarray, shape (N, 2), int64
+        Grid index (i, j) of each indexed blob.
+    det : ndarray, shape (N,), int64
+        Its row in ``pts``.
+    mark_rows : dict of str to int
+        Row in ``pts`` of each mark.
+    outliers : ndarray of int64
+        Rows in ``pts`` dropped as off the smooth grid.
+    """
+    ratio = description.mark_area_ratio
+    mark_like = np.flatnonzero(usable & (relative_area > np.sqrt(ratio)))
+    if len(mark_like) < 3:
+        raise MarkersNotFoundError(
+            f"markers not found in {source}: {len(mark_like)} blob(s) are more than "
+            f"{np.sqrt(ratio):.2f}× the area of their neighbours, need the 3 marks "
+            f"(area ratio {ratio:.2f} expected)"
+        )
+    mark_like = mark_like[np.argsort(-relative_area[mark_like], kind="stable")]
+    mark_like = mark_like[:_MAX_MARK_CANDIDATES]
+    tree = cKDTree(np.where(usable[:, None], pts, -1e9))  # usable blobs only (others far)
+    pitch_px = 2.0 * np.sqrt(dot_area / np.pi) * description.pitch / description.dot_diameter
+    mark_rows = _locate_marks(pts, tree, mark_like, description, pitch_px, image_size, source)
+    seeds = {description.marks[name]: k for name, k in mark_rows.items()}
+    assigned = _grow(pts, tree, usable, seeds, description)
+    nodes = np.array(list(assigned), dtype=np.int64)
+    det = np.array(list(assigned.values()), dtype=np.int64)
+    outliers = np.empty(0, dtype=np.int64)
+    # Gross-outlier check against one smooth cubic of the whole grid.
+    if len(det) >= 20:
+        poly = fit_polynomial2d(nodes.astype(float), pts[det], degree=3)
+        resid = np.linalg.norm(poly(nodes.astype(float)) - pts[det], axis=1)
+        step = np.linalg.norm(poly.jacobian(nodes.astype(float)), axis=1).min(axis=1)
+        bad = resid > _OUTLIER_TOL * step
+        is_mark = np.isin(det, list(mark_rows.values()))
+        if np.any(bad & is_mark):
+            raise MarkersNotFoundError(
+                f"markers not found in {source}: a mark lies off the grid fitted to the dots"
+            )
+        if bad.any():
+            log.warning("%s: %d dot(s) off the smooth grid dropped", source, int(bad.sum()))
+            outliers = det[bad]
+            nodes, det = nodes[~bad], det[~bad]
+    return nodes, det, mark_rows, outliers
+
+
+def missing_nodes(
+    nodes: np.ndarray,
+    pix: np.ndarray,
+    description: PlateDescription,
+    dot_area: float,
+    margin: int,
+    image_size: tuple[int, int],
+) -> np.ndarray:
+    """Grid nodes that should be on the image, whole, but were not found."""
+    found = {tuple(n) for n in nodes.tolist()}
+    if description.extent is None:
+        lo, hi = nodes.min(axis=0), nodes.max(axis=0)
+    else:
+        lo = np.maximum(nodes.min(axis=0) - 2, [description.extent[0][0], description.extent[1][0]])
+        hi = np.minimum(nodes.max(axis=0) + 2, [description.extent[0][1], description.extent[1][1]])
+    ii, jj = np.meshgrid(np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1))
+    cand = np.column_stack([ii.ravel(), jj.ravel()])
+    cand = np.array([c for c in cand.tolist() if tuple(c) not in found], dtype=np.int64).reshape(
+        -1, 2
+    )
+    if len(cand) == 0:
+        return cand
+    cheb = np.abs(cand[:, None, :] - nodes[None]).max(axis=2).min(axis=1)
+    cand = cand[cheb <= 2]
+    pred = _predict(nodes.astype(float), pix, cand.astype(float))
+    reach = np.sqrt(dot_area / np.pi) + margin + 1
+    w, h = image_size
+    inside = np.isfinite(pred).all(axis=1)
+    inside &= (pred[:, 0] >= reach) & (pred[:, 0] <= w - 1 - reach)
+    inside &= (pred[:, 1] >= reach) & (pred[:, 1] <= h - 1 - reach)
+    return cand[inside]
