@@ -226,8 +226,7 @@ def structure_function(
     dt = np.asarray(dt, dtype=np.float64)
     _check_fit_options(sums, dt, errors, method, min_pairs)
     idx = select_dt(use, dt)
-    used = np.zeros(dt.size, dtype=bool)
-    used[idx] = True
+    used = np.isin(np.arange(dt.size), idx)
     n_pairs = sums.total_count
     b = n_pairs.shape[0]
     y = sums.mean

@@ -573,62 +573,27 @@ def render_plate(
         inside their own grid cells, or a camera that sees no dot of the plate.
     """
     _check_inputs(plate, camera, plane, supersampling, edge_width, bow_iterations)
-    for name, flag in (("defocus", defocus), ("antialias", antialias), ("adaptive", adaptive)):
-        if not isinstance(flag, bool):
-            raise ValueError(f"{name} must be True or False; got {flag!r}")
+    _check_switches(defocus=defocus, antialias=antialias, adaptive=adaptive)
     full_brightness = positive_float("full_brightness", full_brightness)
-    edge_width = float(edge_width)
-    plane = int(plane)
-    s_count = int(supersampling)
-    start = time.perf_counter()
-    dots = _dots(plate, edge_width)
-    h0, q = _bow_model(plate)
-    pose = plate.poses[plane]
-
-    def hits(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-        return cast_to_plate(
-            camera, xs, ys, rotation=pose.rotation, z=pose.z_actual, h0=h0, q=q,
-            iterations=bow_iterations,
-        )
-
+    plane, s_count, start = int(plane), int(supersampling), time.perf_counter()
+    dots = _dots(plate, float(edge_width))
     width, height = camera.lens.sensor_size
-    acc = _Light.empty(len(dots.xy), width * height)
-    if adaptive:
-        factor = MARGIN_SAFETY * (1.0 if antialias else (s_count - 1) / s_count)
-        todo = _centre_pass(hits, plate, dots, acc, width, height, factor)
-    else:
-        todo = np.arange(width * height)
-    _subsample_pass(
-        hits, plate, dots, acc, todo, width, s_count, antialias and edge_width == 0.0
+    acc, todo = _sample_light(
+        camera, plate, plane, dots, s_count, bow_iterations, adaptive=adaptive,
+        antialias=antialias and float(edge_width) == 0.0, point_antialias=antialias,
     )
     light = acc.light
-
     world = plate.dot_centres(plane)
     if not np.any(light > 0):
-        raise ValueError(
-            f"the camera at {camera.center.tolist()} (m) looking along "
-            f"{camera.axis.round(4).tolist()} sees no dot of the plate at plane {plane} "
-            f"(Z = {plate.poses[plane].z_nominal!r} m, dots from "
-            f"{world.min(axis=0).round(4).tolist()} to {world.max(axis=0).round(4).tolist()} m)"
-        )
+        raise ValueError(_sees_no_dot(camera, plate, plane, world))
     with np.errstate(invalid="ignore", divide="ignore"):
         centroid = np.column_stack([acc.moment_x / light, acc.moment_y / light])
     centroid[~(light > 0)] = np.nan
     image = (acc.value * full_brightness).reshape(height, width)
-    label = acc.label.reshape(height, width)
-
     sigma = np.zeros(len(light))
     if defocus:
-        blur = defocus_blur(camera, world) / 4.0
-        missing = ~np.isfinite(blur) & (light > 0)
-        if missing.any():
-            logger.warning(
-                "plate image: no defocus blur defined for %d visible dot(s); left sharp",
-                int(missing.sum()),
-            )
-        sigma = np.where(np.isfinite(blur), blur, 0.0)
-        image = _blur_dots(image, label, sigma)
-
+        label = acc.label.reshape(height, width)
+        image, sigma = _defocused(image, label, camera, world, light > 0)
     on_sensor = _on_sensor(camera, plate, plane, dots, sigma)
     projected = camera.project(world)
     logger.debug(
@@ -643,10 +608,7 @@ def render_plate(
         full_brightness=full_brightness,
         indices=plate.design.indices.copy(),
         diameters=plate.design.diameters.copy(),
-        marks={
-            name: int(np.flatnonzero(np.all(plate.design.indices == ij, axis=1))[0])
-            for name, ij in plate.design.marks.items()
-        },
+        marks=_mark_rows(plate),
         world=world,
         projected=projected,
         on_sensor=on_sensor,
@@ -655,6 +617,81 @@ def render_plate(
         blur_sigma=sigma,
         supersampled_pixels=int(todo.size),
     )
+
+
+def _sample_light(
+    camera: Camera,
+    plate: PhysicalPlate,
+    plane: int,
+    dots: _Dots,
+    s_count: int,
+    bow_iterations: int,
+    *,
+    adaptive: bool,
+    antialias: bool,
+    point_antialias: bool,
+) -> tuple[_Light, np.ndarray]:
+    """The light of every pixel and dot (``render_plate``'s options), and the pixels that
+    were supersampled. ``antialias``: exact coverage of each sub-sample (hard edges);
+    ``point_antialias``: the option as given, which sets the adaptive pass's margin."""
+    h0, q = _bow_model(plate)
+    pose = plate.poses[plane]
+
+    def hits(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        return cast_to_plate(
+            camera, xs, ys, rotation=pose.rotation, z=pose.z_actual, h0=h0, q=q,
+            iterations=bow_iterations,
+        )
+
+    width, height = camera.lens.sensor_size
+    acc = _Light.empty(len(dots.xy), width * height)
+    if adaptive:
+        factor = MARGIN_SAFETY * (1.0 if point_antialias else (s_count - 1) / s_count)
+        todo = _centre_pass(hits, plate, dots, acc, width, height, factor)
+    else:
+        todo = np.arange(width * height)
+    _subsample_pass(hits, plate, dots, acc, todo, width, s_count, antialias)
+    return acc, todo
+
+
+def _check_switches(**switches: object) -> None:
+    """Refuse options that must be True or False but are not."""
+    for name, flag in switches.items():
+        if not isinstance(flag, bool):
+            raise ValueError(f"{name} must be True or False; got {flag!r}")
+
+
+def _defocused(
+    image: np.ndarray, label: np.ndarray, camera: Camera, world: np.ndarray, lit: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The image with each dot blurred by σ = d_blur/4 at its centre, and those σ (px)."""
+    blur = defocus_blur(camera, world) / 4.0
+    missing = ~np.isfinite(blur) & lit
+    if missing.any():
+        logger.warning(
+            "plate image: no defocus blur defined for %d visible dot(s); left sharp",
+            int(missing.sum()),
+        )
+    sigma = np.where(np.isfinite(blur), blur, 0.0)
+    return _blur_dots(image, label, sigma), sigma
+
+
+def _sees_no_dot(camera: Camera, plate: PhysicalPlate, plane: int, world: np.ndarray) -> str:
+    """Why a camera recorded no light of the plate at ``plane``."""
+    return (
+        f"the camera at {camera.center.tolist()} (m) looking along "
+        f"{camera.axis.round(4).tolist()} sees no dot of the plate at plane {plane} "
+        f"(Z = {plate.poses[plane].z_nominal!r} m, dots from "
+        f"{world.min(axis=0).round(4).tolist()} to {world.max(axis=0).round(4).tolist()} m)"
+    )
+
+
+def _mark_rows(plate: PhysicalPlate) -> dict[str, int]:
+    """Row of each mark in the plate's dot list."""
+    return {
+        name: int(np.flatnonzero(np.all(plate.design.indices == ij, axis=1))[0])
+        for name, ij in plate.design.marks.items()
+    }
 
 
 def _blur_dots(image: np.ndarray, label: np.ndarray, sigma: np.ndarray) -> np.ndarray:
