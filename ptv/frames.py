@@ -76,21 +76,21 @@ class DetectorSettings:
 
     Attributes
     ----------
-    threshold : float
+    threshold_sigmas : float
         Detection threshold in noise units above background (default 6), > 0.
     saturation : float or None
         Saturation level of the images, DN (None: the dtype's maximum).
     """
 
-    threshold: float = 6.0
+    threshold_sigmas: float = 6.0
     saturation: float | None = None
 
     def __post_init__(self) -> None:
-        positive("threshold", self.threshold)
+        positive("threshold_sigmas", self.threshold_sigmas)
 
     def as_dict(self) -> dict:
         """JSON-able form (what detections depend on besides the images)."""
-        return {"threshold": float(self.threshold), "saturation": self.saturation}
+        return {"threshold_sigmas": float(self.threshold_sigmas), "saturation": self.saturation}
 
 
 def exposures(
@@ -230,7 +230,7 @@ class ImageDetector:
         saturation = settings.saturation
         if saturation is None:
             saturation = dataset.saturation
-        self.settings = DetectorSettings(settings.threshold, saturation)
+        self.settings = DetectorSettings(settings.threshold_sigmas, saturation)
         self.detector = self.settings.as_dict()
         self._frame_a: tuple[int, tuple[bytes, ...], list[Detections]] | None = None
 
@@ -282,5 +282,7 @@ class ImageDetector:
 
     def _detect(self, image: np.ndarray) -> Detections:
         return detect_particles(
-            image, k=self.settings.threshold, saturation=self.settings.saturation
+            image,
+            threshold_sigmas=self.settings.threshold_sigmas,
+            saturation=self.settings.saturation,
         )

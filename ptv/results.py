@@ -114,7 +114,7 @@ def _settings_dict(result: PtvResult) -> dict:
         "n_boot": st.n_boot,
         "eulerian_cells": list(st.eulerian_cells),
         "min_cell_count": st.min_cell_count,
-        "threshold": result.source.detector["threshold"],
+        "threshold_sigmas": result.source.detector["threshold_sigmas"],
         "outlier_threshold": s.outlier_threshold,
         "outlier_neighbours": s.outlier_neighbours,
         "trajectory_threshold": st.trajectory_threshold,

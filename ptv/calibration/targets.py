@@ -12,7 +12,7 @@ Steps
    varying background is followed. The noise σ is 1.4826·MAD of horizontal pixel
    differences / √2 (a smooth background cancels; the dots' edges are too few to
    matter). The signal is the 99.9th percentile above the background. Pixels brighter
-   than background + max(k·σ, f·signal) (k = ``noise_sigmas``, f = ``threshold_fraction``)
+   than background + max(k·σ, f·signal) (k = ``threshold_sigmas``, f = ``threshold_fraction``)
    form the dot mask: a low fraction of the signal keeps dimly back-lit dots (uneven
    lighting) whole. Dark dots on a bright plate are handled by inverting the image.
 2. **Blobs.** 8-connected components (OpenCV). Specks smaller than ``min_area`` px are
@@ -473,15 +473,15 @@ def _relative_area(centroid: np.ndarray, area: np.ndarray) -> np.ndarray:
 
 # -- the detector ---------------------------------------------------------------------------
 def _check_find_options(
-    description, threshold_fraction, noise_sigmas, min_area, margin, ring, background_tile
+    description, threshold_fraction, threshold_sigmas, min_area, margin, ring, background_tile
 ) -> None:
     """Refuse options of :func:`find_dots` it cannot work with."""
     if not isinstance(description, PlateDescription):
         raise TypeError(f"description must be a PlateDescription, got {type(description).__name__}")
     if not 0 < threshold_fraction < 1:
         raise ValueError(f"threshold_fraction must be in (0, 1), got {threshold_fraction!r}")
-    if not noise_sigmas > 0:
-        raise ValueError(f"noise_sigmas must be > 0, got {noise_sigmas!r}")
+    if not threshold_sigmas > 0:
+        raise ValueError(f"threshold_sigmas must be > 0, got {threshold_sigmas!r}")
     for name, value, least in (
         ("min_area", min_area, 1),
         ("margin", margin, 1),
@@ -493,17 +493,17 @@ def _check_find_options(
 
 
 def _mask_level(
-    above: np.ndarray, noise: float, noise_sigmas: float, threshold_fraction: float, source: str
+    above: np.ndarray, noise: float, threshold_sigmas: float, threshold_fraction: float, source: str
 ) -> float:
     """The dot mask's level above the background: max(k σ, f × the 99.9th percentile of
     the signal above background), or NoTargetError when nothing stands out of the noise."""
     peak = float(np.percentile(above, 99.9))
-    if not peak > noise_sigmas * noise:
+    if not peak > threshold_sigmas * noise:
         raise NoTargetError(
             f"no target in {source}: nothing stands out of the noise (99.9th percentile "
             f"{peak:.3g} above the background, noise σ {noise:.3g})"
         )
-    return max(noise_sigmas * noise, threshold_fraction * peak)
+    return max(threshold_sigmas * noise, threshold_fraction * peak)
 
 
 def _dot_signal(
@@ -601,7 +601,7 @@ def find_dots(
     *,
     source: str = "image",
     threshold_fraction: float = 0.2,
-    noise_sigmas: float = 6.0,
+    threshold_sigmas: float = 6.0,
     min_area: int = 9,
     margin: int = 3,
     ring: int = 3,
@@ -621,7 +621,7 @@ def find_dots(
     threshold_fraction : float
         f: the dot mask threshold is at least f × the image's signal above background
         (0 < f < 1).
-    noise_sigmas : float
+    threshold_sigmas : float
         k: and at least k noise σ above background.
     min_area : int
         Blobs smaller than this are specks, dropped, px.
@@ -652,14 +652,14 @@ def find_dots(
     raw = np.asarray(image)
     img = _check_image(raw, source)
     _check_find_options(
-        description, threshold_fraction, noise_sigmas, min_area, margin, ring, background_tile
+        description, threshold_fraction, threshold_sigmas, min_area, margin, ring, background_tile
     )
     signal, saturated_px = _dot_signal(img, raw.dtype, description.dots, saturation)
     h, w = signal.shape
 
     background = _background_map(signal, background_tile)
     noise = _noise_sigma(signal)
-    level = _mask_level(signal - background, noise, noise_sigmas, threshold_fraction, source)
+    level = _mask_level(signal - background, noise, threshold_sigmas, threshold_fraction, source)
     blobs = _measure_blobs(
         signal,
         signal - background > level,

@@ -88,9 +88,10 @@ class BackgroundEstimate:
         """(gy, gx): tiles along rows and along columns."""
         return self.level.shape  # type: ignore[return-value]
 
-    def threshold(self, k: float) -> np.ndarray:
-        """Detection threshold ``level + k · noise`` per tile, shape (gy, gx), DN."""
-        return self.level + k * self.noise
+    def threshold(self, threshold_sigmas: float) -> np.ndarray:
+        """Detection threshold ``level + threshold_sigmas · noise`` per tile, shape (gy, gx),
+        DN."""
+        return self.level + threshold_sigmas * self.noise
 
     def at(self, xy: object) -> tuple[np.ndarray, np.ndarray]:
         """Level and noise at pixel positions, bilinear between tile centres.

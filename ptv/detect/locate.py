@@ -3,7 +3,7 @@
 Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
 
 1. Background level B and noise σ_n (:func:`ptv.detect.estimate_background`, median and
-   MAD, globally or per tile); threshold T = B + k·σ_n.
+   MAD, globally or per tile); threshold T = B + k·σ_n (k: ``threshold_sigmas``).
 2. Local maxima above T (8-neighbourhood). Each seeds an 8-connected region of the
    pixels above T.
 3. A region holding several maxima is split between those that are *resolved*: a
@@ -194,19 +194,19 @@ def _no_detections(shape: tuple[int, int]) -> Detections:
 
 
 def _measure_regions(
-    img: np.ndarray, background: BackgroundEstimate, k: float, options: tuple
+    img: np.ndarray, background: BackgroundEstimate, threshold_sigmas: float, options: tuple
 ) -> tuple[np.ndarray, ...]:
     """Local maxima above B + k·σ_n, their connected regions, and every particle measured
     in them (split at dips, flagged): the columns x, y, intensity, peak, size, flags.
     ``options``: estimator code, radius, min_dip, dip_sigmas, max_elongation, saturation.
     """
-    thr_grid = background.threshold(k)
+    thr_grid = background.threshold(threshold_sigmas)
     max_r, max_c = _kernels.local_maxima(img, thr_grid, float(thr_grid.min()))
     if max_r.size == 0:
         empty = _no_detections(img.shape)
         return (*empty.xy.T, empty.intensity, empty.peak, empty.size, empty.flags)
     max_thr = background.at(np.column_stack((max_c, max_r)).astype(np.float64))
-    max_thr = max_thr[0] + k * max_thr[1]
+    max_thr = max_thr[0] + threshold_sigmas * max_thr[1]
     labels = np.zeros(img.shape, dtype=np.int32)
     comp, pix_r, pix_c, starts = _kernels.regions(img, max_r, max_c, max_thr, labels)
     order = np.lexsort((-img[max_r, max_c].astype(np.float64), comp))
@@ -237,7 +237,7 @@ def _measure_regions(
 def detect_particles(
     image: object,
     *,
-    k: float = 6.0,
+    threshold_sigmas: float = 6.0,
     estimator: Estimator = "gauss",
     radius: int = 3,
     min_dip: float = 0.1,
@@ -254,8 +254,8 @@ def detect_particles(
     ----------
     image : array_like, shape (H, W)
         Camera image, integers (DN) or floats; see :func:`ptv.detect.check_image`.
-    k : float
-        Threshold in noise units above the background, T = B + k·σ_n, > 0. The default
+    threshold_sigmas : float
+        k: the threshold in noise units above the background, T = B + k·σ_n, > 0. The default
         6 gives a false-alarm rate of ~1e-9 per pixel for Gaussian noise (~0.002 false
         maxima per 2048 × 1088 frame).
     estimator : {"gauss", "gauss3", "centroid"}
@@ -297,7 +297,7 @@ def detect_particles(
     """
     t0 = time.perf_counter()
     img = check_image(image)
-    k = _number("k", k, low=0.0, strict=True)
+    threshold_sigmas = _number("threshold_sigmas", threshold_sigmas, low=0.0, strict=True)
     if estimator not in _ESTIMATORS:
         raise ValueError(f"estimator must be one of {sorted(_ESTIMATORS)}, got {estimator!r}")
     radius = _integer("radius", radius, low=1)
@@ -308,7 +308,7 @@ def detect_particles(
     sat = _saturation_level(saturation, np.asarray(image).dtype)
     background = _image_background(background, img, tiles)
     options = (_ESTIMATORS[estimator], radius, min_dip, dip_sigmas, max_elongation, sat)
-    x, y, inten, peak, size, flags = _measure_regions(img, background, k, options)
+    x, y, inten, peak, size, flags = _measure_regions(img, background, threshold_sigmas, options)
     keep = size >= min_size
     if not keep.all():
         x, y, inten, peak, size, flags = (a[keep] for a in (x, y, inten, peak, size, flags))

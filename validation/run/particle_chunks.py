@@ -208,7 +208,9 @@ def render_chunk(snapshots: tuple[int, int], *, job: ParticleJob) -> RenderedChu
                 _write_exposure(job.images, len(runs), k, name, m, frame, recorded.image)
             if job.detector is not None:
                 detected = detect_particles(
-                    recorded.image, k=job.detector.threshold, saturation=job.detector.saturation
+                    recorded.image,
+                    threshold_sigmas=job.detector.threshold_sigmas,
+                    saturation=job.detector.saturation,
                 )
                 found.setdefault((k, m, frame), []).append(DetectedCentres.of(detected))
     truth = [

@@ -54,9 +54,9 @@ def test_check_image_dtypes():
 @pytest.mark.parametrize(
     ("option", "match"),
     [
-        ({"k": 0}, "k must be"),
-        ({"k": -2.0}, "k must be"),
-        ({"k": float("nan")}, "k must be"),
+        ({"threshold_sigmas": 0}, "threshold_sigmas must be"),
+        ({"threshold_sigmas": -2.0}, "threshold_sigmas must be"),
+        ({"threshold_sigmas": float("nan")}, "threshold_sigmas must be"),
         ({"estimator": "fit"}, "estimator must be one of"),
         ({"radius": 0}, "radius must be"),
         ({"radius": 1.5}, "radius must be"),
@@ -174,7 +174,7 @@ def test_threshold_inside_the_noise_stays_fast_and_flags_the_blobs():
     """k ≈ 0 joins half the pixels into huge regions with thousands of maxima each."""
     rng = np.random.default_rng(8)
     image = rng.normal(100.0, 5.0, (256, 384))
-    det = detect_particles(image, k=1e-6)
+    det = detect_particles(image, threshold_sigmas=1e-6)
     assert len(det) > 0
     big = det.size > 1000
     assert big.any() and det.has(DetectionFlag.ELONGATED)[big].all()

@@ -37,7 +37,7 @@ def _chunk(rng, frames, snapshots, shared):
                 Found(rng.uniform(-0.5, 2047.5, (n, 2)), rng.integers(0, 32, n).astype(np.uint8))
             )
     dt = np.array([1e-4, 2e-4, 3e-4])[: len(frames)]
-    detector = {"threshold": 6.0}
+    detector = {"threshold_sigmas": 6.0}
     return ChunkDetections(None, CAMERAS, dt, tuple(frames), shared, detector, snapshots, found)
 
 
@@ -51,7 +51,7 @@ def _write_store(folder, chunks, frames, shared):
         dt=chunks[0].dt,
         frames=frames,
         shared_first_frame=shared,
-        detector={"threshold": 6.0, "saturation": 4095.0},
+        detector={"threshold_sigmas": 6.0, "saturation": 4095.0},
         chunks=[c.snapshots for c in chunks],
         source="here",
     )
