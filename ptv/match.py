@@ -48,6 +48,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ptv._assign import assign
+from ptv.box import check_box
 from ptv.camera_model import CameraModel, RayBundle
 from ptv.rays import Rays
 from ptv.triangulate import closest_points
@@ -85,22 +86,6 @@ class Matches:
 
     def __len__(self) -> int:
         return len(self.indices)
-
-
-def _box(volume) -> tuple[np.ndarray, np.ndarray]:
-    try:
-        lower, upper = (np.asarray(v, dtype=float) for v in volume)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"volume must be (lower, upper) corners of shape (3,), got {volume!r}"
-        ) from None
-    if lower.shape != (3,) or upper.shape != (3,):
-        raise ValueError(
-            f"volume corners must have shape (3,), got {lower.shape} and {upper.shape}"
-        )
-    if not (np.isfinite(lower).all() and np.isfinite(upper).all() and np.all(lower < upper)):
-        raise ValueError(f"volume needs finite corners with lower < upper, got {lower} and {upper}")
-    return lower, upper
 
 
 def _check_rays(rays: Sequence[RayBundle]) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -238,7 +223,7 @@ def match_rays(
     Matches
     """
     cams = _check_rays(rays)
-    lower, upper = _box(volume)
+    lower, upper = (np.asarray(corner) for corner in check_box("volume", volume))
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"tolerance must be > 0 (m), got {tolerance!r}")
     n_cam = len(cams)

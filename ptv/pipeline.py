@@ -46,11 +46,12 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ptv._checks import positive
+from ptv.box import Box, check_box, inside_box
 from ptv.camera_model import CameraModel
 from ptv.dataset import cameras_in_order
 from ptv.frames import FrameDetections
 from ptv.match import match
-from ptv.stats.links import Box, RunParticles, check_box, inside_box
+from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import PtvStatistics, StatisticsSettings, compute_statistics
 from ptv.track import link, search_radius
 

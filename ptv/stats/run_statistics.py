@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ptv._checks import positive
+from ptv.box import Box, check_box
 from ptv.stats.dissipation import (
     DEFAULT_C2,
     DissipationProfile,
@@ -38,7 +39,7 @@ from ptv.stats.dissipation import (
     plateau_epsilon,
 )
 from ptv.stats.eulerian import EulerianFit, Grid, UPrime, eulerian_fit, eulerian_moments, u_prime
-from ptv.stats.links import Box, RunParticles, check_box, shared_snapshots
+from ptv.stats.links import RunParticles, shared_snapshots
 from ptv.stats.mean_displacement import (
     MeanDisplacement,
     mean_displacement,

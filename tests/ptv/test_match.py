@@ -202,7 +202,7 @@ def test_bad_input_is_a_clear_error(calibrations):
         match(calibrations, [px, np.ones((3, 3))], VOLUME)
     with pytest.raises(ValueError, match="lower < upper"):
         match(calibrations, [px, px], (VOLUME[1], VOLUME[0]))
-    with pytest.raises(ValueError, match="shape"):
+    with pytest.raises(ValueError, match="volume corners must have 3 entries"):
         match(calibrations, [px, px], (np.zeros(2), np.ones(2)))
     with pytest.raises(ValueError, match="tolerance"):
         match(calibrations, [px, px], VOLUME, tolerance=0.0)

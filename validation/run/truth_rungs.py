@@ -21,11 +21,12 @@ from functools import reduce
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ptv.box import inside_box
 from ptv.camera_model import CameraModel
 from ptv.detect import FractionSums
 from ptv.frames import FrameDetections
 from ptv.pipeline import PipelineSettings
-from ptv.stats.links import RunParticles, inside_box
+from ptv.stats.links import RunParticles
 from ptv.triangulate import triangulate
 from validation.dataset.truth_file import TruthFile, TruthRun
 

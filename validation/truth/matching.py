@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ptv.box import inside_box
 from ptv.pipeline import PipelineSettings
-from ptv.stats.links import inside_box
 from validation.dataset.truth_file import TruthRun
 
 #: Nearest-neighbour distance within which pairs enter the rigid fit, m.
