@@ -67,9 +67,17 @@ def plain_log_axis(axis, limits) -> None:
     axis.set_minor_formatter(NullFormatter())
 
 
-def _loglog(ax) -> None:
-    """Log axes; where nothing positive was plotted (a run too thin to measure), a note
-    in the panel instead of matplotlib's error."""
+#: Axis limits of a log-log panel, ((x0, x1), (y0, y1)), the same for every measurement of
+#: a run so that they compare; None: fitted to the data.
+Limits = tuple[tuple[float, float], tuple[float, float]] | None
+
+
+def _loglog(ax, limits: Limits = None) -> None:
+    """Log axes, with ``limits`` if given; where nothing positive was plotted (a run too
+    thin to measure), a note in the panel instead of matplotlib's error."""
+    if limits is not None:
+        ax.set_xlim(*limits[0])
+        ax.set_ylim(*limits[1])
     lim = ax.dataLim
     if not (np.isfinite([lim.x1, lim.y1]).all() and lim.x1 > 0 and lim.y1 > 0):
         ax.text(
@@ -85,6 +93,20 @@ def _loglog(ax) -> None:
     ax.set_yscale("log")
     plain_log_axis(ax.xaxis, ax.get_xlim())
     plain_log_axis(ax.yaxis, ax.get_ylim())
+
+
+def _mark_off_axis(ax, x: np.ndarray, y: np.ndarray, limits: Limits, colour: str) -> None:
+    """Arrowheads on the edge of a fixed y axis for the points beyond it."""
+    if limits is None:
+        return
+    (x0, x1), (y0, y1) = limits
+    inside_x = (x >= x0) & (x <= x1)
+    for beyond, edge, marker in ((y > y1, y1, "^"), (y < y0, y0, "v")):
+        beyond &= inside_x
+        if beyond.any():
+            ax.plot(
+                x[beyond], np.full(beyond.sum(), edge), marker, ms=7, color=colour, clip_on=False
+            )
 
 
 def _fitted(result: PtvResult) -> np.ndarray:
@@ -201,10 +223,13 @@ def q_versus_dt2_figure(result: PtvResult, *, n_separations: int = 6) -> Figure:
     return figure
 
 
-def structure_figure(result: PtvResult, *, reference: Reference | None = None) -> Figure:
+def structure_figure(
+    result: PtvResult, *, reference: Reference | None = None, limits: Limits = None
+) -> Figure:
     """Fig. 6a: the noise-free S2(r) with bootstrap errors and a r^{2/3} guide.
 
-    ``reference`` = (r in m, S2 in m²/s², label) adds a curve (e.g. a ground truth).
+    ``reference`` = (r in m, S2 in m²/s², label) adds a curve (e.g. a ground truth);
+    ``limits`` (mm, m²/s²) fixes the axes, points beyond them marked on the edge.
     """
     sf = result.statistics.structure
     r = _r_mm(result)
@@ -230,7 +255,8 @@ def structure_figure(result: PtvResult, *, reference: Reference | None = None) -
         s0 = np.exp(np.mean(np.log(sf.s2[fit])))
         guide = np.geomspace(r[fit].min(), r[fit].max(), 20)
         ax.plot(guide, 0.7 * s0 * (guide / r0) ** (2 / 3), "k--", lw=1.0, label="slope 2/3 (guide)")
-    _loglog(ax)
+    _mark_off_axis(ax, r[fit], sf.s2[fit], limits, "C0")
+    _loglog(ax, limits)
     ax.set_xlabel("r (mm)")
     ax.set_ylabel("S2 (m²/s²)")
     ax.set_title("Noise-free longitudinal structure function (Fig. 6a)", fontsize=10)
@@ -244,13 +270,14 @@ def epsilon_figure(
     *,
     reference: Reference | None = None,
     levels: Sequence[tuple[float, str]] = (),
+    limits: Limits = None,
 ) -> Figure:
     """Fig. 6b: ε(r) = (S2/C2)^{3/2}/r and the paper's S2^{3/2}/r, with the plateau.
 
     The plateau range is shaded; the band is the plateau ε ± 1 s.e. ``reference`` =
     (r in m, S2 in m²/s², label) adds the ε(r) of that S2 through the same C2 (e.g. of
     the exact D_LL); each of ``levels`` = (ε in m²/s³, label) a horizontal line (e.g.
-    the input ε).
+    the input ε); ``limits`` (mm, m²/s³) fixes the axes, points beyond them marked.
     """
     st = result.statistics
     prof = st.profile
@@ -305,7 +332,8 @@ def epsilon_figure(
         )
     for (value, label), style in zip(levels, (":", "-."), strict=False):
         ax.axhline(value, color="0.3", lw=1.1, ls=style, label=f"{label}: {value:.3g}")
-    _loglog(ax)
+    _mark_off_axis(ax, r[ok], prof.epsilon[ok], limits, "C0")
+    _loglog(ax, limits)
     ax.set_xlabel("r (mm)")
     ax.set_ylabel("ε(r) (m²/s³)")
     ax.set_title("Dissipation rate from the noise-free S2 (Fig. 6b)", fontsize=10)
@@ -321,18 +349,23 @@ def save_ptv_figures(
     reference_s2: Reference | None = None,
     epsilon_reference: Reference | None = None,
     epsilon_levels: Sequence[tuple[float, str]] = (),
+    s2_limits: Limits = None,
+    epsilon_limits: Limits = None,
 ) -> dict[str, Path]:
     """Write the four PNGs of :data:`FIGURE_FILES` into ``folder``; returns their paths.
 
-    ``reference_s2`` is drawn in Fig. 6a, ``epsilon_reference`` and ``epsilon_levels``
-    in Fig. 6b (see :func:`structure_figure` and :func:`epsilon_figure`).
+    ``reference_s2`` and ``s2_limits`` go to Fig. 6a, ``epsilon_reference``,
+    ``epsilon_levels`` and ``epsilon_limits`` to Fig. 6b (see :func:`structure_figure`
+    and :func:`epsilon_figure`).
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     figures = {
         "fig5a": raw_structure_figure(result),
         "fig5b": q_versus_dt2_figure(result),
-        "fig6a": structure_figure(result, reference=reference_s2),
-        "fig6b": epsilon_figure(result, reference=epsilon_reference, levels=epsilon_levels),
+        "fig6a": structure_figure(result, reference=reference_s2, limits=s2_limits),
+        "fig6b": epsilon_figure(
+            result, reference=epsilon_reference, levels=epsilon_levels, limits=epsilon_limits
+        ),
     }
     return {key: save_figure(fig, folder / FIGURE_FILES[key]) for key, fig in figures.items()}

@@ -143,11 +143,21 @@ def _ptv_figures(result: PtvResult, folder: Path, truth: dict) -> None:
     def column(key: str) -> np.ndarray:
         return np.array([np.nan if v is None else v for v in truth[key]])
 
-    r = column("r")
+    r, s2 = column("r"), column("s2_sample")
+    # Axes set by the truth, the same for every rung of the run: S2 over the bins from
+    # a third of its smallest to three times its largest value, ε from a fifth to five
+    # times the reference.
+    bins = result.settings.statistics
+    r_axis = (bins.r_min * 1e3, bins.r_max * 1e3)
+    positive = s2[np.isfinite(s2) & (s2 > 0)]
+    s2_axis = (positive.min() / 3, positive.max() * 3) if positive.size else None
+    eps = truth["epsilon_exact_d_ll"]
     save_ptv_figures(
         result,
         folder,
-        reference_s2=(r, column("s2_sample"), "sample truth (exact velocities)"),
+        s2_limits=None if s2_axis is None else (r_axis, s2_axis),
+        epsilon_limits=(r_axis, (eps / 5, eps * 5)),
+        reference_s2=(r, s2, "sample truth (exact velocities)"),
         epsilon_reference=(r, column("s2_exact"), "ε(r) of the exact D_LL"),
         epsilon_levels=[
             (truth["epsilon_exact_d_ll"], "plateau of the exact D_LL (the check's reference)"),
