@@ -466,7 +466,9 @@ def _add_claims_parser(sub) -> None:
         "against the simulator's truth and compare it with its tolerance.",
     )
     size = claims.add_mutually_exclusive_group()
-    size.add_argument("--quick", action="store_true", help="CI size (default, under a minute on 2 cores)")
+    size.add_argument(
+        "--quick", action="store_true", help="CI size (default, under a minute on 2 cores)"
+    )
     size.add_argument("--full", action="store_true", help="the sizes the tolerances assume")
     claims.add_argument("--json", action="store_true", help="print a JSON list of claims")
     claims.add_argument("--seed", type=SEED, default=0)

@@ -197,7 +197,7 @@ def _section(cls, table: object, source: str, key: str):
     unknown = sorted(set(table) - set(known))
     if unknown:
         raise ScenarioError(
-            f"{where}: unknown field(s) {', '.join(unknown)}; known: {', '.join(known)}"
+            f"{where}: unknown field(s) {', '.join(map(repr, unknown))}; known: {', '.join(known)}"
         )
     values = {}
     for name, value in table.items():
@@ -294,7 +294,9 @@ def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
         raise ScenarioError(f"{source}: name must be {FILE_NAME_RULE}, got {spec['name']!r}")
     unknown = sorted(set(spec) - {"name", "description", "seed", *_SECTIONS})
     if unknown:
-        raise ScenarioError(f"{source}: unknown table(s) or field(s) {', '.join(unknown)}")
+        raise ScenarioError(
+            f"{source}: unknown table(s) or field(s) {', '.join(map(repr, unknown))}"
+        )
     seed = spec.get("seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
         raise ScenarioError(f"{source}: seed must be an integer >= 0, got {seed!r}")
