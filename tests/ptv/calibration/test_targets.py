@@ -339,7 +339,7 @@ def test_observations_need_matching_sizes_and_two_planes(stereo):
 @pytest.mark.slow
 @pytest.mark.parametrize(("imperfections", "bound_um"), [(Imperfections(), 3.0), (REALISTIC, 80.0)])
 def test_table1_from_detected_dots(imperfections, bound_um):
-    from validation.truth.calibration_errors import PlaneDots, table1_errors, true_positions
+    from validation.truth.calibration_errors import TraverseDots, table1_errors, true_positions
 
     rig = load_rig("paper-stereo")
     plate = build_plate(DESIGN, Z, imperfections=imperfections, rng=0)
@@ -358,7 +358,10 @@ def test_table1_from_detected_dots(imperfections, bound_um):
             )
         )
         per_camera.append(
-            [PlaneDots(z, d.indices, d.pixels, DESIGN.pitch) for d, z in zip(found, Z, strict=True)]
+            [
+                TraverseDots(z, d.indices, d.pixels, DESIGN.pitch)
+                for d, z in zip(found, Z, strict=True)
+            ]
         )
     delta = table1_errors(calibrations, per_camera, DESIGN.indices, true_positions(plate)).delta
     d_xyz = np.mean(np.abs(delta), axis=0) * 1e6
