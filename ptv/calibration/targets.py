@@ -7,11 +7,12 @@ centre, its integer grid index (i, j) and its nominal plate coordinates (X, Y) =
 
 Steps
 -----
-1. **Background and threshold.** The background level is the median of coarse tiles
-   (median-filtered over the tile grid, bilinear between tile centres), so a slowly
-   varying background is followed. The noise σ is 1.4826·MAD of horizontal pixel
-   differences / √2 (a smooth background cancels; the dots' edges are too few to
-   matter). The signal is the 99.9th percentile above the background. Pixels brighter
+1. **Background and threshold.** Level and noise are estimated as for particle images
+   (:func:`ptv.detect.estimate_background`), on tiles of about ``background_tile`` px:
+   the median of each tile, bilinear between tile centres, so a slowly varying
+   background is followed; the noise σ is 1.4826·MAD of horizontal pixel differences /
+   √2 (a smooth background cancels; the dots' edges are too few to matter), the median
+   over the tiles. The signal is the 99.9th percentile above the background. Pixels brighter
    than background + max(k·σ, f·signal) (k = ``threshold_sigmas``, f = ``threshold_fraction``)
    form the dot mask: a low fraction of the signal keeps dimly back-lit dots (uneven
    lighting) whole. Dark dots on a bright plate are handled by inverting the image.
@@ -55,7 +56,6 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from ptv.calibration._plate_grid import (
@@ -63,6 +63,7 @@ from ptv.calibration._plate_grid import (
 )
 from ptv.calibration._plate_grid import index_grid, missing_nodes
 from ptv.calibration.observations import PlaneObservation
+from ptv.detect.background import bilinear, estimate_background
 
 log = logging.getLogger(__name__)
 
@@ -70,10 +71,6 @@ log = logging.getLogger(__name__)
 FLAG_MARK = 1
 FLAG_SATURATED = 2
 
-#: MAD → σ for Gaussian noise.
-_MAD_TO_SIGMA = 1.482602218505602
-#: Relative floor of the noise estimate (noise-free images), of the image's span.
-_NOISE_FLOOR = 1e-6
 #: Fewest dot-like blobs an image of a target must show (three marks and neighbours).
 MIN_BLOBS = 12
 #: Neighbours whose median area is a blob's reference area.
@@ -342,28 +339,15 @@ def _check_image(image: object, source: str) -> np.ndarray:
     return out
 
 
-def _background_map(image: np.ndarray, tile: int) -> np.ndarray:
-    """Median of coarse tiles, median-filtered over the grid, bilinear between centres."""
+def _background_and_noise(image: np.ndarray, tile: int) -> tuple[np.ndarray, float]:
+    """The background level at every pixel and the noise σ of a plate image, by particle
+    detection's estimator (:func:`ptv.detect.estimate_background`) on tiles of about
+    ``tile`` px: the level bilinear between tile centres, σ the median over the tiles."""
     h, w = image.shape
-    gy, gx = max(1, h // tile), max(1, w // tile)
-    ys = np.linspace(0, h, gy + 1).astype(int)
-    xs = np.linspace(0, w, gx + 1).astype(int)
-    level = np.empty((gy, gx))
-    for a in range(gy):
-        for b in range(gx):
-            level[a, b] = np.median(image[ys[a] : ys[a + 1] : 2, xs[b] : xs[b + 1] : 2])
-    if gy >= 3 and gx >= 3:
-        level = ndimage.median_filter(level, size=3, mode="nearest")
-    if gy == 1 and gx == 1:
-        return np.full(image.shape, level[0, 0])
-    return cv2.resize(level, (w, h), interpolation=cv2.INTER_LINEAR)
-
-
-def _noise_sigma(image: np.ndarray) -> float:
-    d = np.diff(image[::2], axis=1).ravel()
-    mad = np.median(np.abs(d - np.median(d)))
-    span = float(image.max() - image.min())
-    return max(_MAD_TO_SIGMA * mad / np.sqrt(2.0), _NOISE_FLOOR * span)
+    estimate = estimate_background(image, tiles=(max(1, h // tile), max(1, w // tile)))
+    rows, cols = np.divmod(np.arange(h * w), w)
+    level = bilinear(estimate.level, np.column_stack([cols, rows]), (h, w)).reshape(h, w)
+    return level, float(np.median(estimate.noise))
 
 
 # -- blobs and centroids -------------------------------------------------------------------
@@ -657,8 +641,7 @@ def find_dots(
     signal, saturated_px = _dot_signal(img, raw.dtype, description.dots, saturation)
     h, w = signal.shape
 
-    background = _background_map(signal, background_tile)
-    noise = _noise_sigma(signal)
+    background, noise = _background_and_noise(signal, background_tile)
     level = _mask_level(signal - background, noise, threshold_sigmas, threshold_fraction, source)
     blobs = _measure_blobs(
         signal,
