@@ -126,17 +126,48 @@ def _run_flow(args: argparse.Namespace) -> int:
     return 0
 
 
+#: What ``synptv render`` draws when neither these options nor ``--scenario`` say.
+_RENDER_DEFAULTS = {
+    "rig": "paper-stereo",
+    "preset": "lem-10hz",
+    "frames": 10,
+    "particles": 1000,
+    "planes": 13,
+}
+
+
 def _run_render(args: argparse.Namespace) -> int:
     from validation.dataset.render import RenderSettings, write_dataset
     from validation.workflow.parallel import check_parallel_options, executor
 
     check_parallel_options(args.workers, args.scheduler)
     out = check_output_folder(args.out)
-    rig = load_rig(args.rig)
-    preset = flow_preset(args.preset)
-    settings = RenderSettings(
-        frames=args.frames, particles=args.particles, planes=args.planes, seed=args.seed
-    )
+    given = [f"--{name}" for name in _RENDER_DEFAULTS if getattr(args, name) is not None]
+    if args.scenario is not None:
+        from validation.run.experiment import render_settings
+        from validation.run.scenario import load_scenario
+
+        if given:
+            raise UsageError(
+                f"--scenario sets the rig, the flow and the sizes: drop {', '.join(given)}"
+            )
+        scenario = load_scenario(args.scenario)
+        if args.seed is not None:
+            scenario = scenario.with_seed(args.seed)
+        rig, preset = load_rig(scenario.rig.name), flow_preset(scenario.flow.preset)
+        settings = render_settings(scenario)
+    else:
+        chosen = {
+            name: default if getattr(args, name) is None else getattr(args, name)
+            for name, default in _RENDER_DEFAULTS.items()
+        }
+        rig, preset = load_rig(chosen["rig"]), flow_preset(chosen["preset"])
+        settings = RenderSettings(
+            frames=chosen["frames"],
+            particles=chosen["particles"],
+            planes=chosen["planes"],
+            seed=0 if args.seed is None else args.seed,
+        )
     bar = ProgressBar("render", enabled=not args.quiet)
     with hold_new_folder(out, "synptv render") as took_over:
         _say_took_over("render", took_over)
@@ -416,18 +447,23 @@ def _add_render_parser(sub) -> None:
         "and write them as 16-bit TIFF with experiment.json and truth.h5 (see README).",
     )
     render.add_argument(
-        "--rig", default="paper-stereo", help=f"{', '.join(rig_presets())} or a .toml file"
+        "--scenario",
+        help="a scenario preset or .toml file: its rig, flow, sizes, plate, lighting and "
+        "sensor (instead of --rig, --preset, --frames, --particles and --planes)",
     )
-    render.add_argument("--preset", default="lem-10hz", help=f"one of {', '.join(FLOW_PRESETS)}")
+    render.add_argument(
+        "--rig", help=f"{', '.join(rig_presets())} or a .toml file (default paper-stereo)"
+    )
+    render.add_argument("--preset", help=f"one of {', '.join(FLOW_PRESETS)} (default lem-10hz)")
     render.add_argument("--out", required=True, help="new folder to write")
-    render.add_argument("--frames", type=_size("frames"), default=10, help="frame pairs per dt")
+    render.add_argument("--frames", type=_size("frames"), help="frame pairs per dt (default 10)")
     render.add_argument(
-        "--particles", type=_size("count"), default=1000, help="particles in the sheet"
+        "--particles", type=_size("count"), help="particles in the sheet (default 1000)"
     )
     render.add_argument(
-        "--planes", type=_size("planes"), default=13, help="calibration traverse positions"
+        "--planes", type=_size("planes"), help="calibration traverse positions (default 13)"
     )
-    render.add_argument("--seed", type=SEED, default=0)
+    render.add_argument("--seed", type=SEED, help="default 0, or the scenario's seed")
     _add_parallel_options(render)
     render.add_argument("--quiet", action="store_true", help="no progress bar")
     render.set_defaults(run=_run_render)

@@ -112,6 +112,30 @@ def test_existing_folder_is_refused_and_interrupted_runs_leave_nothing(tmp_path)
 def test_render_cli_reports_bad_input_in_one_line(capsys, tmp_path):
     assert main(["render", "--rig", "nope", "--out", str(tmp_path / "x"), "--quiet"]) == 2
     assert "unknown rig 'nope'" in capsys.readouterr().err
+    argv = ["render", "--scenario", "default", "--frames", "3", "--out", str(tmp_path / "x")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--scenario sets the rig, the flow and the sizes: drop --frames" in err
+    assert not (tmp_path / "x").exists()
+
+
+def test_render_cli_renders_what_a_scenario_describes(capsys, tmp_path):
+    scenario = tmp_path / "small.toml"
+    scenario.write_text(
+        'name = "small"\nseed = 4\n[flow]\npreset = "lem-8hz"\nmodes = 40\n'
+        "[calibration]\nplanes = 3\nbrightness = 3000.0\n"
+        "[particles]\ncount = 150\nframes = 2\n[sensor]\nbit_depth = 12\n"
+    )
+    out = tmp_path / "ds"
+    argv = ["render", "--scenario", str(scenario), "--out", str(out), "--seed", "7"]
+    assert main([*argv, "--workers", "1", "--quiet"]) == 0, capsys.readouterr().err
+    spec = json.loads((out / "experiment.json").read_text())
+    assert spec["frames_per_dt"] == 2 and len(spec["traverse_z"]) == 3
+    assert spec["dt"] == pytest.approx(list(flow_preset("lem-8hz").dt))
+    assert spec["bit_depth"] == 12
+    with h5py.File(out / "truth.h5") as truth:
+        assert truth["flow"].attrs["preset"] == "lem-8hz"
+        assert truth["flow"].attrs["n_modes"] == 40
 
 
 def test_calibrate_command_finds_every_dot_and_scores_against_nominal_and_truth(
