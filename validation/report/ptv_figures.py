@@ -95,18 +95,35 @@ def _loglog(ax, limits: Limits = None) -> None:
     plain_log_axis(ax.yaxis, ax.get_ylim())
 
 
-def _mark_off_axis(ax, x: np.ndarray, y: np.ndarray, limits: Limits, colour: str) -> None:
-    """Arrowheads on the edge of a fixed y axis for the points beyond it."""
-    if limits is None:
-        return
-    (x0, x1), (y0, y1) = limits
-    inside_x = (x >= x0) & (x <= x1)
-    for beyond, edge, marker in ((y > y1, y1, "^"), (y < y0, y0, "v")):
-        beyond &= inside_x
+def mark_off_axis(
+    ax,
+    x: np.ndarray,
+    y: np.ndarray,
+    y_limits: tuple[float, float],
+    colour: str,
+    x_limits: tuple[float, float] | None = None,
+) -> bool:
+    """Arrowheads on the edge of a fixed y axis for the points (x, y) beyond it (within
+    ``x_limits`` when given); whether there were any."""
+    low, high = y_limits
+    shown = np.isfinite(x) & np.isfinite(y)
+    if x_limits is not None:
+        shown &= (x >= x_limits[0]) & (x <= x_limits[1])
+    marked = False
+    for beyond, edge, marker in ((y > high, high, "^"), (y < low, low, "v")):
+        beyond &= shown
         if beyond.any():
             ax.plot(
-                x[beyond], np.full(beyond.sum(), edge), marker, ms=7, color=colour, clip_on=False
+                x[beyond],
+                np.full(beyond.sum(), edge),
+                marker,
+                ms=7,
+                color=colour,
+                clip_on=False,
+                zorder=5,
             )
+            marked = True
+    return marked
 
 
 def _fitted(result: PtvResult) -> np.ndarray:
@@ -255,7 +272,8 @@ def structure_figure(
         s0 = np.exp(np.mean(np.log(sf.s2[fit])))
         guide = np.geomspace(r[fit].min(), r[fit].max(), 20)
         ax.plot(guide, 0.7 * s0 * (guide / r0) ** (2 / 3), "k--", lw=1.0, label="slope 2/3 (guide)")
-    _mark_off_axis(ax, r[fit], sf.s2[fit], limits, "C0")
+    if limits is not None:
+        mark_off_axis(ax, r[fit], sf.s2[fit], limits[1], "C0", x_limits=limits[0])
     _loglog(ax, limits)
     ax.set_xlabel("r (mm)")
     ax.set_ylabel("S2 (m²/s²)")
@@ -332,7 +350,8 @@ def epsilon_figure(
         )
     for (value, label), style in zip(levels, (":", "-."), strict=False):
         ax.axhline(value, color="0.3", lw=1.1, ls=style, label=f"{label}: {value:.3g}")
-    _mark_off_axis(ax, r[ok], prof.epsilon[ok], limits, "C0")
+    if limits is not None:
+        mark_off_axis(ax, r[ok], prof.epsilon[ok], limits[1], "C0", x_limits=limits[0])
     _loglog(ax, limits)
     ax.set_xlabel("r (mm)")
     ax.set_ylabel("ε(r) (m²/s³)")

@@ -11,7 +11,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ptv.detect.peaklocking import PeakLocking
-from validation.report.ptv_figures import plain_log_axis
+from validation.report.ptv_figures import mark_off_axis, plain_log_axis
 from validation.run.checks import NoisePrediction
 
 
@@ -96,19 +96,7 @@ def budget_figure(
     for i, (name, ratio) in enumerate(ratios.items()):
         ok = np.isfinite(ratio) & np.isfinite(r)
         ax.plot(r[ok] * 1e3, ratio[ok], "o-", ms=3.5, lw=1.0, color=f"C{i}", label=name)
-        for beyond, edge, marker in ((ratio > high, high, "^"), (ratio < low, low, "v")):
-            beyond &= ok
-            if beyond.any():  # points off the axis: an arrowhead on its edge
-                ax.plot(
-                    r[beyond] * 1e3,
-                    np.full(beyond.sum(), edge),
-                    marker,
-                    ms=7,
-                    color=f"C{i}",
-                    clip_on=False,
-                    zorder=5,
-                )
-                clipped = True
+        clipped |= mark_off_axis(ax, r * 1e3, ratio, BUDGET_AXIS, f"C{i}")
     if clipped:
         ax.plot([], [], "^", color="0.4", ms=7, label=f"off the axis ({low:g}–{high:g})")
     ax.set_xscale("log")

@@ -353,17 +353,15 @@ def _checks_section(results: dict, scenario: Scenario) -> list[str]:
 
 def _findings_section(results: dict, scenario: Scenario) -> list[str]:
     """The finding of the run in words ("what this run shows")."""
-    parts = []
-    parts.append("<h2>What this run shows</h2>")
+    parts = ["<h2>What this run shows</h2>"]
     parts.append(f"<p>{html.escape(what_this_run_shows(results, scenario.ptv.methods))}</p>")
     return parts
 
 
 def _flow_section(results: dict, scenario: Scenario) -> list[str]:
     """The prescribed flow and its scales."""
-    parts = []
+    parts = ["<h2>Flow</h2>"]
     p = results["flow"]
-    parts.append("<h2>Flow</h2>")
     parts.append(
         _table(
             ["u' (m/s)", "ε (m²/s³)", "ν (m²/s)", "η (µm)", "τ_η (ms)", "R_λ", "L_int (cm)"],
@@ -385,8 +383,7 @@ def _flow_section(results: dict, scenario: Scenario) -> list[str]:
 
 def _calibration_section(results: dict, scenario: Scenario) -> list[str]:
     """Table 1 of every method and the Fig. 3 error maps."""
-    parts = []
-    parts.append("<h2>Calibration (Table 1, Fig. 3)</h2>")
+    parts = ["<h2>Calibration (Table 1, Fig. 3)</h2>"]
     rows = []
     for method, refs in results["calibration"]["table1"].items():
         for ref, t in refs.items():
@@ -407,9 +404,8 @@ def _calibration_section(results: dict, scenario: Scenario) -> list[str]:
 
 def _detection_section(results: dict, scenario: Scenario) -> list[str]:
     """Detection errors, peak locking and matching quality."""
-    parts = []
+    parts = ["<h2>Detection and matching</h2>"]
     d = results["detection"]
-    parts.append("<h2>Detection and matching</h2>")
     rows = [
         (
             cam,
@@ -454,8 +450,7 @@ def _detection_section(results: dict, scenario: Scenario) -> list[str]:
 def _statistics_section(results: dict, scenario: Scenario) -> list[str]:
     """The particles each S2 used, and Figs. 5 and 6 of every PTV run."""
     main = scenario.ptv.methods[0]
-    parts = []
-    parts.append("<h2>Statistics (Fig. 5, Fig. 6)</h2>")
+    parts = ["<h2>Statistics (Fig. 5, Fig. 6)</h2>"]
     rows = []
     for variant, entry in results["ptv"].items():
         pop, counted = entry["summary"]["population"], entry["population"]
@@ -487,8 +482,7 @@ def _statistics_section(results: dict, scenario: Scenario) -> list[str]:
 def _table3_section(results: dict, scenario: Scenario) -> list[str]:
     """Table 3: the recovered flow against the input and the reference."""
     main = scenario.ptv.methods[0]
-    parts = []
-    parts.append("<h2>Table 3: recovered against truth</h2>")
+    parts = ["<h2>Table 3: recovered against truth</h2>"]
     rows = [
         (t["quantity"], _fmt(t["recovered"]), _fmt(t["input"]), _fmt(t["reference"]))
         for t in results["table3"]
@@ -518,8 +512,7 @@ def _table3_section(results: dict, scenario: Scenario) -> list[str]:
 
 def _budget_section(results: dict, scenario: Scenario) -> list[str]:
     """The error budget: what each source of error adds to c1 and ε."""
-    parts = []
-    parts.append("<h2>Error budget</h2>")
+    parts = ["<h2>Error budget</h2>"]
     rows = [
         (
             b["variant"],
@@ -556,8 +549,7 @@ def _budget_section(results: dict, scenario: Scenario) -> list[str]:
 def _noise_section(results: dict, scenario: Scenario) -> list[str]:
     """The noise term c2 against the noise measured against the truth."""
     main = scenario.ptv.methods[0]
-    parts = []
-    parts.append("<h2>Noise</h2>")
+    parts = ["<h2>Noise</h2>"]
     c = results["ptv"][main]["checks"]
     ratio_detection = results["ptv"]["detection"]["checks"]["c2"].get("median_over_prediction")
     ratio_main = c["c2"].get("median_over_prediction")
