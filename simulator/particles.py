@@ -14,7 +14,7 @@ min(Δt_min/2, 0.05 τ_η, 0.2/ω_N) (docs/flow.md §6).
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from itertools import pairwise
 
 import numpy as np
@@ -121,41 +121,6 @@ class DoubleFrameSample:
     dt: np.ndarray
     runs: tuple[ParticleSnapshots, ...]
     shared_first_frame: bool = False
-
-
-@dataclass(frozen=True)
-class TimeResolvedSample:
-    """Time-resolved recordings: frames every τ, Δt = mτ taken by skipping frames.
-
-    Attributes
-    ----------
-    frame_interval : float
-        τ, s.
-    snapshots : ParticleSnapshots
-        M sequences of F frames at times f τ, f = 0 … F−1.
-    """
-
-    frame_interval: float
-    snapshots: ParticleSnapshots = field(repr=False)
-
-    def pairs(self, skip: int) -> tuple[np.ndarray, np.ndarray]:
-        """Positions at t and t + mτ over all frame pairs m frames apart.
-
-        Parameters
-        ----------
-        skip : int
-            m ≥ 1.
-
-        Returns
-        -------
-        start, end : ndarray, shape (M, F − m, P, 3)
-            X(fτ) and X((f + m)τ), m.
-        """
-        n_frames = self.snapshots.positions.shape[1]
-        if not 1 <= skip < n_frames:
-            raise ValueError(f"skip must be in [1, {n_frames - 1}], got {skip}")
-        x = self.snapshots.positions
-        return x[:, :-skip], x[:, skip:]
 
 
 def max_step(field: KSField, dt_min: float) -> float:
@@ -418,46 +383,3 @@ def shared_start(
         for k, d in enumerate(dt)
     )
     return DoubleFrameSample(dt=dt, runs=runs, shared_first_frame=True)
-
-
-def time_resolved(
-    spectrum: Spectrum,
-    frame_interval: float,
-    frames: int,
-    *,
-    particles: int,
-    snapshots: int,
-    region: Box = SHEET,
-    n_modes: int = 200,
-    unsteadiness: float = DEFAULT_UNSTEADINESS,
-    rng: np.random.Generator | int | None = None,
-    progress: Progress | None = None,
-) -> TimeResolvedSample:
-    """Time-resolved sequences of ``frames`` frames every ``frame_interval``.
-
-    Parameters
-    ----------
-    frame_interval : float
-        τ, s, > 0.
-    frames : int
-        Frames per sequence F ≥ 2.
-    Other parameters as in :func:`follow_snapshots`.
-
-    Returns
-    -------
-    TimeResolvedSample
-    """
-    tau = float(_check_positive("frame_interval", frame_interval)[0])
-    _check_count("frames", frames, minimum=2)
-    sample = follow_snapshots(
-        spectrum,
-        tau * np.arange(frames),
-        particles=particles,
-        snapshots=snapshots,
-        region=region,
-        n_modes=n_modes,
-        unsteadiness=unsteadiness,
-        rng=rng,
-        progress=progress,
-    )
-    return TimeResolvedSample(frame_interval=tau, snapshots=sample)

@@ -13,7 +13,6 @@ from simulator.particles import (
     integrate,
     max_step,
     shared_start,
-    time_resolved,
 )
 from simulator.presets import flow_preset
 from simulator.spectra import PopeSpectrum
@@ -108,17 +107,6 @@ def test_double_frame_runs_are_independent_experiments_per_dt():
     )
 
 
-def test_time_resolved_skipping_frames_gives_dt_multiples():
-    tau = PRESET.dt[0]
-    sample = time_resolved(SPECTRUM, tau, 6, particles=50, snapshots=2, n_modes=50, rng=6)
-    start, end = sample.pairs(3)
-    assert start.shape == end.shape == (2, 3, sample.snapshots.positions.shape[2], 3)
-    assert np.array_equal(start[:, 0], sample.snapshots.positions[:, 0])
-    assert np.array_equal(end[:, 0], sample.snapshots.positions[:, 3])
-    with pytest.raises(ValueError, match="skip"):
-        sample.pairs(6)
-
-
 def test_same_seed_gives_identical_snapshots():
     kw = dict(particles=40, region=ANALYSIS_VOLUME, n_modes=40, snapshots=3)
     first = follow_snapshots(SPECTRUM, np.array([0.0, 1e-4]), rng=9, **kw)
@@ -138,8 +126,6 @@ def test_nonpositive_dt_is_rejected(dt):
 def test_bad_sizes_are_rejected():
     with pytest.raises(ValueError, match="particles"):
         follow_snapshots(SPECTRUM, np.array([0.0]), particles=0, snapshots=1)
-    with pytest.raises(ValueError, match="frames"):
-        time_resolved(SPECTRUM, 1e-4, 1, particles=10, snapshots=1)
     with pytest.raises(ValueError, match="box size"):
         Box((0.1, -0.1, 0.01))
 

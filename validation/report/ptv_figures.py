@@ -137,10 +137,11 @@ def _r_mm(result: PtvResult) -> np.ndarray:
     return np.where(np.isfinite(r), r, st.bins.centres) * 1e3
 
 
-def raw_structure_figure(result: PtvResult) -> Figure:
+def raw_structure_figure(result: PtvResult, *, limits: Limits = None) -> Figure:
     """Fig. 5a: raw ⟨(δΔX·e)²⟩/Δt² for every Δt against r, with the multi-Δt S2.
 
     Small separations show the noise: the raw estimate at the smallest Δt lies highest.
+    ``limits`` (mm, m²/s²) fixes the axes, points beyond them marked on the edge.
     """
     st = result.statistics
     sf = st.structure
@@ -152,6 +153,8 @@ def raw_structure_figure(result: PtvResult) -> Figure:
         ax.plot(
             r[ok], y[ok], "o-", ms=3.5, lw=1.0, color=colour, label=f"raw, Δt = {dt * 1e3:.3f} ms"
         )
+        if limits is not None:
+            mark_off_axis(ax, r[ok], y[ok], limits[1], colour, x_limits=limits[0])
     fit = _fitted(result)
     ax.errorbar(
         r[fit],
@@ -164,7 +167,9 @@ def raw_structure_figure(result: PtvResult) -> Figure:
         capsize=2,
         label="multi-Δt fit S2 = c1",
     )
-    _loglog(ax)
+    if limits is not None:
+        mark_off_axis(ax, r[fit], sf.s2[fit], limits[1], "black", x_limits=limits[0])
+    _loglog(ax, limits)
     ax.set_xlabel("r (mm)")
     ax.set_ylabel("⟨(δΔX·e)²⟩ / Δt²  (m²/s²)")
     ax.set_title("Raw S2 of the displacements per Δt (Fig. 5a)", fontsize=10)
@@ -173,22 +178,33 @@ def raw_structure_figure(result: PtvResult) -> Figure:
     return figure
 
 
-def _pick_bins(result: PtvResult, n: int = 6) -> np.ndarray:
-    fit = np.flatnonzero(_fitted(result))
-    if fit.size <= n:
-        return fit
-    r = _r_mm(result)[fit]
-    targets = np.geomspace(r.min(), r.max(), n)
-    picked = [fit[int(np.argmin(np.abs(np.log(r / t))))] for t in targets]
-    return np.unique(picked)
+def _pick_bins(result: PtvResult, n: int, candidates: np.ndarray | None) -> np.ndarray:
+    """About ``n`` bins spread evenly in log r over ``candidates`` (all bins by default),
+    keeping those the rung fitted."""
+    r = _r_mm(result)
+    pool = np.flatnonzero(np.ones(r.size, bool) if candidates is None else candidates)
+    if pool.size > n:
+        targets = np.geomspace(r[pool].min(), r[pool].max(), n)
+        pool = np.unique([pool[int(np.argmin(np.abs(np.log(r[pool] / t))))] for t in targets])
+    return pool[_fitted(result)[pool]]
 
 
-def q_versus_dt2_figure(result: PtvResult, *, n_separations: int = 6) -> Figure:
+def q_versus_dt2_figure(
+    result: PtvResult,
+    *,
+    n_separations: int = 6,
+    separations: np.ndarray | None = None,
+    q_limit: float | None = None,
+) -> Figure:
     """Fig. 5b: ⟨q⟩ against Δt² at a few separations, with the fitted lines c1Δt² + c2.
 
     Left, the paper's view: ⟨q⟩ and the lines (slope: the noise-free S2). Right, a zoom
     on the two smallest Δt, where the intercepts c2 (the noise term) can be seen even
-    when the noise is small.
+    when the noise is small; its y axis follows this rung's own intercepts.
+
+    ``separations`` (bool per bin) are the bins to choose the separations from, so that
+    every rung of a run shows the same ones; ``q_limit`` (µm²) fixes the top of the left
+    panel, points above it marked on the edge.
     """
     st = result.statistics
     sf = st.structure
@@ -199,7 +215,7 @@ def q_versus_dt2_figure(result: PtvResult, *, n_separations: int = 6) -> Figure:
     figure, (ax, ax_res) = plt.subplots(
         1, 2, figsize=(11.0, 4.6), layout="constrained", gridspec_kw={"width_ratios": [1.2, 1.0]}
     )
-    bins = _pick_bins(result, n_separations)
+    bins = _pick_bins(result, n_separations, separations)
     for b, colour in zip(bins, _colours(len(bins)), strict=True):
         q = sf.raw_s2[b] * dt2 * 1e12  # µm²
         se = sf.se_raw_s2[b] * dt2 * 1e12
@@ -216,11 +232,15 @@ def q_versus_dt2_figure(result: PtvResult, *, n_separations: int = 6) -> Figure:
         ax_res.errorbar(x_ms2, q, yerr=se, fmt="o", ms=4, color=colour, capsize=2)
         ax_res.plot(line, sf.s2[b] * line * 1e6 + c2, "-", color=colour, lw=1.2)
         ax_res.plot(0.0, c2, "D", ms=6, color=colour, clip_on=False, zorder=5)
+        if q_limit is not None:
+            mark_off_axis(ax, x_ms2, q, (-np.inf, q_limit), colour)
     for a in (ax, ax_res):
         a.axhline(0.0, color="0.5", lw=0.8)
         a.set_xlabel("Δt² (ms²)")
         a.grid(True, alpha=0.3)
     ax.set_xlim(0.0, line[-1])
+    if q_limit is not None:
+        ax.set_ylim(top=q_limit)
     ax.set_ylabel("⟨(δΔX·e)²⟩  (µm²)")
     ax.set_title("⟨q⟩ = c1 Δt² + c2 at six separations (Fig. 5b)", fontsize=10)
     ax.legend(fontsize=7.5, loc="upper left")
@@ -370,18 +390,21 @@ def save_ptv_figures(
     epsilon_levels: Sequence[tuple[float, str]] = (),
     s2_limits: Limits = None,
     epsilon_limits: Limits = None,
+    separations: np.ndarray | None = None,
+    q_limit: float | None = None,
 ) -> dict[str, Path]:
     """Write the four PNGs of :data:`FIGURE_FILES` into ``folder``; returns their paths.
 
-    ``reference_s2`` and ``s2_limits`` go to Fig. 6a, ``epsilon_reference``,
-    ``epsilon_levels`` and ``epsilon_limits`` to Fig. 6b (see :func:`structure_figure`
-    and :func:`epsilon_figure`).
+    ``s2_limits`` go to Figs. 5a and 6a, ``separations`` and ``q_limit`` to Fig. 5b,
+    ``reference_s2`` to Fig. 6a, ``epsilon_reference``, ``epsilon_levels`` and
+    ``epsilon_limits`` to Fig. 6b (see :func:`raw_structure_figure`,
+    :func:`q_versus_dt2_figure`, :func:`structure_figure` and :func:`epsilon_figure`).
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     figures = {
-        "fig5a": raw_structure_figure(result),
-        "fig5b": q_versus_dt2_figure(result),
+        "fig5a": raw_structure_figure(result, limits=s2_limits),
+        "fig5b": q_versus_dt2_figure(result, separations=separations, q_limit=q_limit),
         "fig6a": structure_figure(result, reference=reference_s2, limits=s2_limits),
         "fig6b": epsilon_figure(
             result, reference=epsilon_reference, levels=epsilon_levels, limits=epsilon_limits

@@ -144,19 +144,25 @@ def _ptv_figures(result: PtvResult, folder: Path, truth: dict) -> None:
         return np.array([np.nan if v is None else v for v in truth[key]])
 
     r, s2 = column("r"), column("s2_sample")
-    # Axes set by the truth, the same for every rung of the run: S2 over the bins from
-    # a third of its smallest to three times its largest value, ε from a fifth to five
-    # times the reference.
+    # Axes set by the truth, the same for every rung of the run: S2 (raw and noise-free)
+    # over the bins from a third of its smallest to three times its largest value, ε
+    # from a fifth to five times the reference, ⟨q⟩ up to 1.5 times the truth's largest
+    # S2 Δt², with the separations of Fig. 5b chosen among the bins the truth fills.
     bins = result.settings.statistics
     r_axis = (bins.r_min * 1e3, bins.r_max * 1e3)
-    positive = s2[np.isfinite(s2) & (s2 > 0)]
-    s2_axis = (positive.min() / 3, positive.max() * 3) if positive.size else None
+    known = np.isfinite(s2) & (s2 > 0)
+    s2_limits = q_limit = None
+    if known.any():
+        s2_limits = (r_axis, (s2[known].min() / 3, s2[known].max() * 3))
+        q_limit = 1.5 * s2[known].max() * result.statistics.dt.max() ** 2 * 1e12
     eps = truth["epsilon_exact_d_ll"]
     save_ptv_figures(
         result,
         folder,
-        s2_limits=None if s2_axis is None else (r_axis, s2_axis),
+        s2_limits=s2_limits,
         epsilon_limits=(r_axis, (eps / 5, eps * 5)),
+        separations=known,
+        q_limit=q_limit,
         reference_s2=(r, s2, "sample truth (exact velocities)"),
         epsilon_reference=(r, column("s2_exact"), "ε(r) of the exact D_LL"),
         epsilon_levels=[
