@@ -18,7 +18,6 @@ from pathlib import Path
 from benchmarks.machine import machine
 from ptv.frames import DetectorSettings
 from ptv.pipeline import PipelineSettings
-from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.dataset.render import particle_job
 from validation.run.experiment import render_settings
@@ -45,7 +44,7 @@ def run(quick: bool) -> dict:
     rig = load_rig(scenario.rig.name)
     job = particle_job(
         rig,
-        flow_preset(scenario.flow.preset),
+        scenario.flow.as_preset(),
         render_settings(scenario),
         detector=DetectorSettings(saturation=float(scenario.sensor.max_dn)),
     )

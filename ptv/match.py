@@ -201,7 +201,7 @@ def match_rays(
     volume,
     *,
     tolerance: float = DEFAULT_TOLERANCE,
-    min_cameras: int | None = None,
+    min_cameras: int = 2,
 ) -> Matches:
     """Match detections of C cameras given their rays.
 
@@ -215,8 +215,9 @@ def match_rays(
     tolerance : float
         Largest distance of a matched ray from the matched point, m. For two cameras
         it bounds the skew distance between the two rays.
-    min_cameras : int, optional
-        Fewest cameras a match must use: 2 for two cameras, 3 by default for more.
+    min_cameras : int
+        Fewest cameras a match must use, from 2 (default) to C. Candidates seen by more
+        cameras are preferred, so a particle seen by all C is matched with all C.
 
     Returns
     -------
@@ -227,8 +228,8 @@ def match_rays(
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"tolerance must be > 0 (m), got {tolerance!r}")
     n_cam = len(cams)
-    if min_cameras is None:
-        min_cameras = min(3, n_cam)
+    if isinstance(min_cameras, bool) or not isinstance(min_cameras, int | np.integer):
+        raise ValueError(f"min_cameras must be an integer, got {min_cameras!r}")
     if not 2 <= min_cameras <= n_cam:
         raise ValueError(f"min_cameras must be in [2, {n_cam}], got {min_cameras!r}")
 
@@ -372,7 +373,7 @@ def match(
     volume,
     *,
     tolerance: float = DEFAULT_TOLERANCE,
-    min_cameras: int | None = None,
+    min_cameras: int = 2,
 ) -> Matches:
     """Match the detections of C ≥ 2 calibrated cameras.
 
@@ -388,8 +389,8 @@ def match(
     tolerance : float
         Largest distance of a matched ray from the matched point, m (2–3× the
         calibration error).
-    min_cameras : int, optional
-        Fewest cameras a match must use: 2 for two cameras, 3 by default for more.
+    min_cameras : int
+        Fewest cameras a match must use, from 2 (default) to C.
 
     Returns
     -------

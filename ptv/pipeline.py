@@ -87,6 +87,8 @@ class PipelineSettings:
         Matching volume, m (default :data:`MEASUREMENT_VOLUME`).
     tolerance : float
         Stereo tolerance on the ray distances, m (default 0.15 mm).
+    min_cameras : int
+        Fewest cameras a match must use (default 2; at most the number of cameras).
     max_speed : float
         Largest particle speed expected, m/s: sets the link radius (default 1.5).
     position_noise : float
@@ -105,6 +107,7 @@ class PipelineSettings:
 
     volume: Box = MEASUREMENT_VOLUME
     tolerance: float = 1.5e-4
+    min_cameras: int = 2
     max_speed: float = 1.5
     position_noise: float = 30e-6
     outlier_threshold: float | None = 4.0
@@ -120,6 +123,12 @@ class PipelineSettings:
             object.__setattr__(
                 self, "outlier_threshold", positive("outlier_threshold", self.outlier_threshold)
             )
+        if (
+            isinstance(self.min_cameras, bool)
+            or not isinstance(self.min_cameras, int)
+            or self.min_cameras < 2
+        ):
+            raise ValueError(f"min_cameras must be an integer >= 2, got {self.min_cameras!r}")
         if not isinstance(self.outlier_neighbours, int) or self.outlier_neighbours < 2:
             raise ValueError(
                 f"outlier_neighbours must be an integer >= 2, got {self.outlier_neighbours!r}"
@@ -250,7 +259,7 @@ def match_frame(
     cameras : sequence of C CameraModel
         Their calibrations.
     settings : PipelineSettings
-        Matching volume and tolerance.
+        Matching volume, tolerance and fewest cameras per match.
 
     Returns
     -------
@@ -259,7 +268,13 @@ def match_frame(
     """
     if len(xy) != len(cameras):
         raise ValueError(f"need detections per camera, got {len(xy)} for {len(cameras)} cameras")
-    return match(cameras, list(xy), settings.volume, tolerance=settings.tolerance).points
+    return match(
+        cameras,
+        list(xy),
+        settings.volume,
+        tolerance=settings.tolerance,
+        min_cameras=settings.min_cameras,
+    ).points
 
 
 def measure_snapshot(
@@ -516,6 +531,10 @@ def run_pipeline(
     """
     settings = PipelineSettings() if settings is None else settings
     cameras = cameras_in_order(frames, calibrations)
+    if settings.min_cameras > len(cameras):
+        raise ValueError(
+            f"min_cameras is {settings.min_cameras} but the dataset has {len(cameras)} cameras"
+        )
     total = sum(settings.snapshot_count(n) for n in frames.frames) + 1
     done = [0]
 

@@ -1,17 +1,32 @@
-"""Camera rigs described by TOML files: presets ``paper-stereo`` and ``conventional``.
+"""Camera rigs described by TOML files: presets ``paper-stereo``, ``conventional``,
+``box-3cam`` and ``box-4cam``.
 
 A rig file has a ``name``, a ``description``, a ``[sheet]`` table (width, height and
 thickness of the laser sheet, m, centred on the origin with its normal along Z), a
-``[tank]`` table (``inradius``: distance from the centre to the window faces, m) and one
-``[[cameras]]`` table per camera::
+``[tank]`` table and one ``[[cameras]]`` table per camera. The tank is one of::
 
-    name, azimuth_deg, elevation_deg (default 0), distance (m, pupil to the origin),
-    focal_length (m), f_number, pixel_pitch (m), sensor_size ([width, height] px),
-    distortion ([k1, k2, k3, p1, p2], OpenCV convention; default zeros),
+    kind = "icosahedron"   inradius (m, centre to faces); the default kind
+    kind = "box"           size ([L_X, L_Y, L_Z] inner, m, centred on the origin),
+                           yaw_deg (turn about Y, from +Z toward +X; default 0),
+                           glass_thickness (m), n_glass, n_water
+    kind = "free"          no vessel: only the cameras' own windows
+
+A camera has::
+
+    name, azimuth_deg, elevation_deg (default 0), distance (m, pupil to the aim point),
+    aim ([X, Y, Z] m, default the sheet centre), roll_deg (turn about the optical axis,
+    default 0), focal_length (m), f_number, pixel_pitch (m), sensor_size ([width,
+    height] px), distortion (a table of named coefficients k1, k2, k3, p1, p2, each
+    default 0: Brown–Conrady radial k and tangential p, in OpenCV's meaning),
     scheimpflug (true: sensor tilted to focus the sheet plane; false: untilted, focused
-    on the sheet centre), and an optional [cameras.window] table: water_path (m),
-    glass_thickness (m), obliquity_deg, obliquity_direction_deg (0: in the camera's
-    horizontal plane, 45: about a diagonal), n_glass, n_water.
+    on the sheet centre),
+
+and, in an icosahedral or free tank, an optional [cameras.window] table (a flat slab
+placed relative to the line of sight): water_path (m), glass_thickness (m),
+obliquity_deg, obliquity_direction_deg (0: in the camera's horizontal plane, 45:
+about a diagonal), n_glass, n_water. In a box tank a camera looks through the wall its
+line of sight to the aim point crosses, which must also be the wall it sees the whole
+sheet through; it has no window table.
 
 Missing or unknown fields are errors that name the file and the field. Camera names
 become folder and file names: letters, digits, '.', '_' and '-', starting with a letter
@@ -28,15 +43,32 @@ from pathlib import Path
 import numpy as np
 
 from simulator.optics import Camera, Lens, WindowSpec, focus_on_plane, look_at_camera
+from simulator.optics.interfaces import N_PMMA, N_WATER
+from simulator.optics.placement import viewing_direction
 from simulator.particles import Box
+from simulator.tank import box_tank, sight_face, wall_window
 
 _TOP = {"name": True, "description": False, "sheet": True, "tank": True, "cameras": True}
 _SHEET = {"width": True, "height": True, "thickness": True}
-_TANK = {"inradius": True}
+_TANKS = {
+    "icosahedron": {"kind": False, "inradius": True},
+    "box": {
+        "kind": True,
+        "size": True,
+        "yaw_deg": False,
+        "glass_thickness": True,
+        "n_glass": False,
+        "n_water": False,
+    },
+    "free": {"kind": True},
+}
+_DISTORTION = ("k1", "k2", "k3", "p1", "p2")
 _CAMERA = {
     "name": True,
     "azimuth_deg": True,
     "elevation_deg": False,
+    "aim": False,
+    "roll_deg": False,
     "distance": True,
     "focal_length": True,
     "f_number": True,
@@ -56,6 +88,47 @@ _WINDOW = {
 }
 
 
+@dataclass(frozen=True)
+class Tank:
+    """The vessel around the sheet (module docstring).
+
+    Attributes
+    ----------
+    kind : str
+        ``"icosahedron"``, ``"box"`` or ``"free"``.
+    inradius : float or None
+        Centre to faces of the icosahedron, m.
+    size : tuple of 3 float or None
+        Inner size (L_X, L_Y, L_Z) of the box along its own axes, m.
+    yaw : float
+        Turn of the box about world Y, rad (:func:`simulator.tank.box_tank`).
+    glass_thickness : float
+        The box's wall thickness, m.
+    n_glass, n_water : float
+        Refractive indices of the box's walls and water.
+    """
+
+    kind: str = "icosahedron"
+    inradius: float | None = None
+    size: tuple[float, float, float] | None = None
+    yaw: float = 0.0
+    glass_thickness: float = 0.0
+    n_glass: float = N_PMMA
+    n_water: float = N_WATER
+
+    def reach_beyond(self, points: np.ndarray) -> float:
+        """How far the farthest of ``points`` (N, 3) lies beyond the wet surface, m
+        (≤ 0: all inside; −inf for a free tank)."""
+        if self.kind == "icosahedron":
+            return float(np.linalg.norm(points, axis=1).max() - self.inradius)
+        if self.kind == "box":
+            c, s = np.cos(self.yaw), np.sin(self.yaw)
+            x, y, z = np.asarray(points, dtype=float).T
+            own = np.column_stack([c * x - s * z, y, s * x + c * z])  # in the box's axes
+            return float((np.abs(own) - 0.5 * np.asarray(self.size)).max())
+        return -np.inf
+
+
 @dataclass(frozen=True, eq=False)
 class Rig:
     """Cameras around a laser sheet.
@@ -70,8 +143,8 @@ class Rig:
         One name per camera.
     sheet : Box
         The illuminated slab, m.
-    tank_inradius : float
-        Distance from the tank centre to its faces, m.
+    tank : Tank
+        The vessel.
     spec : dict
         The parsed rig description (to save beside a dataset).
     """
@@ -81,7 +154,7 @@ class Rig:
     cameras: tuple[Camera, ...]
     camera_names: tuple[str, ...]
     sheet: Box
-    tank_inradius: float
+    tank: Tank
     spec: dict
 
 
@@ -124,6 +197,10 @@ def _check_fields(table: object, fields: dict[str, bool], where: str) -> dict:
 #: message or describe no laboratory (a 100 m sheet, water of index 100).
 _LIMITS = {
     "width": (1e-3, 2.0, "m"),
+    "size": (1e-2, 10.0, "m"),
+    "aim": (-10.0, 10.0, "m"),
+    "roll_deg": (-360.0, 360.0, "°"),
+    "yaw_deg": (-360.0, 360.0, "°"),
     "height": (1e-3, 2.0, "m"),
     "thickness": (1e-5, 0.2, "m"),
     "inradius": (0.01, 10.0, "m"),
@@ -158,6 +235,35 @@ def _number(table: dict, key: str, where: str) -> float:
     return float(value)
 
 
+def _tank(table: object, where: str) -> Tank:
+    """The [tank] table as a Tank (module docstring)."""
+    if not isinstance(table, dict):
+        raise RigFileError(f"{where}: expected a table, got {type(table).__name__}")
+    kind = table.get("kind", "icosahedron")
+    if not isinstance(kind, str) or kind not in _TANKS:
+        raise RigFileError(f"{where}.kind: expected one of {', '.join(_TANKS)}, got {kind!r}")
+    t = _check_fields(table, _TANKS[kind], where)
+    if kind == "icosahedron":
+        return Tank(kind, inradius=_number(t, "inradius", where))
+    if kind == "box":
+        return Tank(
+            kind,
+            size=tuple(float(v) for v in _vector(t, "size", where)),
+            yaw=np.deg2rad(_number(t, "yaw_deg", where)) if "yaw_deg" in t else 0.0,
+            glass_thickness=_number(t, "glass_thickness", where),
+            **{k: _number(t, k, where) for k in ("n_glass", "n_water") if k in t},
+        )
+    return Tank(kind)
+
+
+def _vector(table: dict, key: str, where: str) -> np.ndarray:
+    """``table[key]`` as 3 numbers, each within :data:`_LIMITS`, else a RigFileError."""
+    value = table[key]
+    if not (isinstance(value, list) and len(value) == 3):
+        raise RigFileError(f"{where}.{key}: expected 3 numbers [X, Y, Z], got {value!r}")
+    return np.array([_number({key: v}, key, where) for v in value])
+
+
 def _distortion(table: dict, where: str, focal_length: float, pitch: float, size) -> tuple:
     """(k1, k2, k3, p1, p2) of ``table``, bounded, and radially monotonic over the sensor.
 
@@ -165,25 +271,24 @@ def _distortion(table: dict, where: str, focal_length: float, pitch: float, size
     (up to 1.5 × the sensor's half-diagonal in normalised coordinates) folds the image
     onto itself, which no lens does.
     """
-    coefficients = table.get("distortion", [0.0] * 5)
-    if not (
-        isinstance(coefficients, list)
-        and len(coefficients) == 5
-        and all(
-            isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
-            for v in coefficients
-        )
-    ):
+    named = table.get("distortion", {})
+    if isinstance(named, list):
         raise RigFileError(
-            f"{where}.distortion: expected 5 finite numbers [k1, k2, k3, p1, p2], "
-            f"got {coefficients!r}"
+            f"{where}.distortion: give the coefficients by name, e.g. distortion = "
+            "{ k1 = -0.08, p1 = 0.001 } (missing ones are 0): a list is refused because "
+            "its order is ambiguous (OpenCV's is k1, k2, p1, p2, k3; synptv's rig files "
+            f"used k1, k2, k3, p1, p2), got {named!r}"
         )
-    if max(abs(v) for v in coefficients) > _DISTORTION_MAX:
-        raise RigFileError(
-            f"{where}.distortion: coefficients must lie within ±{_DISTORTION_MAX:g}, "
-            f"got {coefficients!r}"
-        )
-    k1, k2, k3 = (float(v) for v in coefficients[:3])
+    _check_fields(named, dict.fromkeys(_DISTORTION, False), f"{where}.distortion")
+    for key, value in named.items():
+        if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+            raise RigFileError(f"{where}.distortion.{key}: expected a finite number, got {value!r}")
+        if abs(value) > _DISTORTION_MAX:
+            raise RigFileError(
+                f"{where}.distortion.{key}: must lie within ±{_DISTORTION_MAX:g}, got {value!r}"
+            )
+    coefficients = [float(named.get(key, 0.0)) for key in _DISTORTION]
+    k1, k2, k3 = coefficients[:3]
     r = np.linspace(0.0, 1.5 * 0.5 * np.hypot(*size) * pitch / focal_length, 512)
     slope = 1 + 3 * k1 * r**2 + 5 * k2 * r**4 + 7 * k3 * r**6
     if (slope <= 0).any():
@@ -192,10 +297,63 @@ def _distortion(table: dict, where: str, focal_length: float, pitch: float, size
             f"r = {r[np.argmax(slope <= 0)]:.3g} (normalised) within the field of view, "
             f"got {coefficients!r}"
         )
-    return tuple(float(v) for v in coefficients)
+    return tuple(coefficients)
 
 
-def _camera(table: dict, where: str, sheet: Box) -> tuple[str, Camera]:
+def _window(table: dict, where: str, tank: Tank) -> WindowSpec | None:
+    """The camera's own window slab (icosahedral and free tanks), or None."""
+    if "window" not in table:
+        return None
+    w_where = f"{where}.window"
+    if tank.kind == "box":
+        raise RigFileError(
+            f"{w_where}: a camera of a box tank looks through the tank's wall; give the glass "
+            "in [tank] (glass_thickness, n_glass) instead"
+        )
+    w = _check_fields(table["window"], _WINDOW, w_where)
+    return WindowSpec(
+        water_path=_number(w, "water_path", w_where),
+        glass_thickness=_number(w, "glass_thickness", w_where),
+        obliquity=np.deg2rad(_number(w, "obliquity_deg", w_where)) if "obliquity_deg" in w else 0.0,
+        obliquity_direction=np.deg2rad(_number(w, "obliquity_direction_deg", w_where))
+        if "obliquity_direction_deg" in w
+        else 0.0,
+        **{k: _number(w, k, w_where) for k in ("n_glass", "n_water") if k in w},
+    )
+
+
+def _sheet_corners(sheet: Box) -> np.ndarray:
+    """The 8 corners of the sheet, (8, 3), m."""
+    signs = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
+    return np.asarray(sheet.centre) + signs * 0.5 * np.asarray(sheet.size)
+
+
+def _box_wall(center: np.ndarray, aim: np.ndarray, sheet: Box, tank: Tank, where: str):
+    """The wall of a box tank a camera at ``center`` looks through toward ``aim``, as a
+    flat window; a RigFileError when part of the sheet is seen through another wall."""
+    vessel = box_tank(tank.size, tank.yaw)
+    try:
+        face = sight_face(vessel, center, aim)
+        walls = {
+            tuple(np.round(vessel.face_normals[sight_face(vessel, center, x)], 9))
+            for x in _sheet_corners(sheet)
+        }
+    except ValueError as err:
+        raise RigFileError(f"{where}: {err}") from None
+    if len(walls) > 1:
+        raise RigFileError(
+            f"{where}: the camera sees the sheet through {len(walls)} walls of the box (it "
+            "looks across an edge of the tank); turn it toward one wall"
+        )
+    window = wall_window(
+        vessel, face, tank.glass_thickness, n_glass=tank.n_glass, n_water=tank.n_water
+    )
+    if not window.camera_height(center) > 0:
+        raise RigFileError(f"{where}: the camera lies inside the glass of the tank's wall")
+    return window
+
+
+def _camera(table: dict, where: str, sheet: Box, tank: Tank) -> tuple[str, Camera]:
     _check_fields(table, _CAMERA, where)
     if not is_file_name(table["name"]):
         raise RigFileError(f"{where}.name: expected {FILE_NAME_RULE}, got {table['name']!r}")
@@ -228,34 +386,22 @@ def _camera(table: dict, where: str, sheet: Box) -> tuple[str, Camera]:
         p2=p2,
         f_number=_number(table, "f_number", where),
     )
-    window = None
-    if "window" in table:
-        w_where = f"{where}.window"
-        w = _check_fields(table["window"], _WINDOW, w_where)
-        window = WindowSpec(
-            water_path=_number(w, "water_path", w_where),
-            glass_thickness=_number(w, "glass_thickness", w_where),
-            obliquity=np.deg2rad(_number(w, "obliquity_deg", w_where))
-            if "obliquity_deg" in w
-            else 0.0,
-            obliquity_direction=np.deg2rad(_number(w, "obliquity_direction_deg", w_where))
-            if "obliquity_direction_deg" in w
-            else 0.0,
-            **{k: _number(w, k, w_where) for k in ("n_glass", "n_water") if k in w},
-        )
     distance = _number(table, "distance", where)
     azimuth = np.deg2rad(_number(table, "azimuth_deg", where))
-    elevation = (
-        np.deg2rad(_number(table, "elevation_deg", where)) if "elevation_deg" in table else 0.0
-    )
+    angles = {
+        key: np.deg2rad(_number(table, f"{key}_deg", where)) if f"{key}_deg" in table else 0.0
+        for key in ("elevation", "roll")
+    }
+    aim = _vector(table, "aim", where) if "aim" in table else np.array(sheet.centre, dtype=float)
+    if tank.reach_beyond(aim[None, :]) >= 0:
+        raise RigFileError(f"{where}.aim: the aim point {aim.tolist()} m is not inside the tank")
+    window = _window(table, where, tank)
+    if tank.kind == "box":
+        center = aim + distance * viewing_direction(azimuth, angles["elevation"])
+        window = _box_wall(center, aim, sheet, tank, where)
     try:
         camera = look_at_camera(
-            np.array(sheet.centre),
-            lens,
-            distance=distance,
-            azimuth=azimuth,
-            elevation=elevation,
-            window=window,
+            aim, lens, distance=distance, azimuth=azimuth, window=window, **angles
         )
         camera = focus_on_plane(
             camera,
@@ -268,21 +414,24 @@ def _camera(table: dict, where: str, sheet: Box) -> tuple[str, Camera]:
     return table["name"], camera
 
 
-def check_sheet_in_water(camera: Camera, sheet: Box, tank_inradius: float, where: str) -> None:
-    """Raise RigFileError unless the whole sheet lies in the water: inside the tank's
-    inscribed sphere and beyond the wet face of the camera's window."""
-    half = 0.5 * np.asarray(sheet.size)
-    signs = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
-    corners = np.asarray(sheet.centre) + signs * half
-    reach = float(np.linalg.norm(corners, axis=1).max())
-    if reach > tank_inradius:
-        raise RigFileError(
-            f"{where}: the sheet reaches {reach:.3g} m from the centre, beyond the tank's "
-            f"inradius {tank_inradius:g} m"
+def check_sheet_in_tank(sheet: Box, tank: Tank, where: str) -> None:
+    """Raise RigFileError unless the whole sheet lies inside the tank's wet surface."""
+    beyond = tank.reach_beyond(_sheet_corners(sheet))
+    if beyond >= 0:
+        bound = (
+            f"the tank's inradius {tank.inradius:g} m"
+            if tank.kind == "icosahedron"
+            else f"the box's walls (size {list(tank.size)} m)"
         )
+        raise RigFileError(f"{where}: the sheet reaches {beyond * 1e3:.3g} mm beyond {bound}")
+
+
+def check_sheet_beyond_window(camera: Camera, sheet: Box, where: str) -> None:
+    """Raise RigFileError unless the whole sheet lies beyond the wet face of the camera's
+    window (on the water side)."""
     window = camera.interfaces
     if window is not None:
-        depth = corners @ window.normal - window.offsets[-1]
+        depth = _sheet_corners(sheet) @ window.normal - window.offsets[-1]
         if depth.min() <= 0:
             raise RigFileError(
                 f"{where}.window: a corner of the sheet lies {-depth.min() * 1e3:.3g} mm on the "
@@ -305,16 +454,16 @@ def rig_from_dict(spec: dict, *, source: str = "<rig>") -> Rig:
     _check_fields(spec, _TOP, source)
     s = _check_fields(spec["sheet"], _SHEET, f"{source}: sheet")
     sheet = Box(tuple(_number(s, k, f"{source}: sheet") for k in ("width", "height", "thickness")))
-    t = _check_fields(spec["tank"], _TANK, f"{source}: tank")
-    tank_inradius = _number(t, "inradius", f"{source}: tank")
+    tank = _tank(spec["tank"], f"{source}: tank")
+    check_sheet_in_tank(sheet, tank, f"{source}: sheet")
     cameras_spec = spec["cameras"]
     if not isinstance(cameras_spec, list) or len(cameras_spec) < 1:
         raise RigFileError(f"{source}: cameras: expected at least one [[cameras]] table")
     names, cameras = [], []
     for i, table in enumerate(cameras_spec):
         where = f"{source}: cameras[{i}]"
-        name, camera = _camera(table, where, sheet)
-        check_sheet_in_water(camera, sheet, tank_inradius, where)
+        name, camera = _camera(table, where, sheet, tank)
+        check_sheet_beyond_window(camera, sheet, where)
         check_sees_sheet(name, camera, sheet, where)
         names.append(name)
         cameras.append(camera)
@@ -326,7 +475,7 @@ def rig_from_dict(spec: dict, *, source: str = "<rig>") -> Rig:
         cameras=tuple(cameras),
         camera_names=tuple(names),
         sheet=sheet,
-        tank_inradius=tank_inradius,
+        tank=tank,
         spec=spec,
     )
 

@@ -2,18 +2,19 @@
 
 The picture shows, in the world frame of the rig:
 
-- the icosahedral tank (:mod:`simulator.tank`), pale and semi-transparent, with its
-  edges drawn; the faces the cameras look through are highlighted in the camera's
-  colour;
-- each camera: a small body and lens barrel behind the entrance pupil, its viewing
-  frustum (a pyramid from the pupil along the rays of the four sensor corners,
-  ``frustum_length`` long), and the four corner rays traced through the window
-  (air → glass → water, refracted exactly) down to the sheet's mid-plane, where
-  they outline the camera's footprint;
+- the rig's tank (:mod:`simulator.tank`: the icosahedron or the box; none for a free
+  tank), pale and semi-transparent, with its edges drawn;
+- each camera: a small body and lens barrel behind the entrance pupil, labelled with
+  its name, its viewing frustum (a pyramid from the pupil along the rays of the four
+  sensor corners, ``frustum_length`` long), the part of its window it looks through
+  (the glass between the corner rays' crossings of the window's faces, in the camera's
+  colour), and the four corner rays traced through the window (air → glass → water,
+  refracted exactly) down to the sheet's mid-plane, where they outline the camera's
+  footprint;
 - the laser sheet: a translucent green slab;
 - optionally the calibration plate at one traverse position (a thin dark box with
   its dots) and particles (small spheres);
-- a small X (red), Y (green), Z (blue) axis triad.
+- a small X (red), Y (green), Z (blue) axis triad, its arrows labelled.
 
 It is a figure, not a measurement: the accuracy path is the analytic renderer.
 """
@@ -31,7 +32,7 @@ import trimesh
 from simulator.optics.interfaces import trace
 from simulator.optics.placement import look_rotation, viewing_direction
 from simulator.pyrender_view import import_pyrender, opengl_pose
-from simulator.tank import camera_face, icosahedral_tank
+from simulator.tank import box_tank, icosahedral_tank
 
 logger = logging.getLogger(__name__)
 
@@ -45,6 +46,7 @@ CAMERA_COLOURS = (
 SHEET_COLOUR = (0.15, 0.85, 0.25)
 TANK_COLOUR = (0.55, 0.75, 0.95)
 EDGE_COLOUR = (0.25, 0.35, 0.50)
+AXIS_COLOURS = ((0.85, 0.1, 0.1), (0.1, 0.55, 0.1), (0.1, 0.2, 0.85))
 
 
 @dataclass(frozen=True)
@@ -114,6 +116,13 @@ class _Item:
     poses: np.ndarray | None = None  # instancing
 
 
+@dataclass(frozen=True)
+class _Label:
+    text: str
+    anchor: np.ndarray  # (3,), m
+    rgb: tuple[float, float, float]
+
+
 def _segment(a: np.ndarray, b: np.ndarray, radius: float) -> trimesh.Trimesh | None:
     if np.linalg.norm(b - a) < 1e-9:
         return None
@@ -139,6 +148,18 @@ def _corner_pixels(lens) -> np.ndarray:
     )
 
 
+def _window_item(camera, directions: np.ndarray, colour) -> _Item | None:
+    """The glass a camera looks through: the hull of its four corner rays' crossings
+    of the window's faces."""
+    if camera.interfaces is None or len(directions) != 4:
+        return None
+    path = trace(np.broadcast_to(camera.center, directions.shape), directions, camera.interfaces)
+    crossings = np.vstack(path.points[1:3])
+    if not np.isfinite(crossings).all():
+        return None
+    return _Item(trimesh.convex.convex_hull(crossings), (*colour, 0.55), True)
+
+
 def _camera_items(camera, colour, sheet_z: float, options: SceneOptions) -> list[_Item]:
     items = []
     rot, c = camera.rotation, camera.center
@@ -161,6 +182,9 @@ def _camera_items(camera, colour, sheet_z: float, options: SceneOptions) -> list
         items.append(_Item(trimesh.Trimesh(vertices, faces, process=False), (*colour, 0.22), True))
         edges = [(c, p) for p in base] + [(base[i], base[(i + 1) % 4]) for i in range(4)]
         items.append(_Item(_segments(edges, 0.0012), (*colour, 1.0)))
+        window = _window_item(camera, directions, colour)
+        if window is not None:
+            items.append(window)
     else:
         logger.debug("scene: a sensor corner of a camera has no ray; frustum not drawn")
     if options.show_rays and ok.any():
@@ -198,18 +222,28 @@ def _ray_items(camera, directions, colour, sheet_z: float) -> list[_Item]:
     return items
 
 
-def _tank_items(rig, tank: trimesh.Trimesh) -> list[_Item]:
-    windows = {camera_face(tank, cam.center): i for i, cam in enumerate(rig.cameras)}
-    items = []
-    for f, face in enumerate(tank.faces):
-        # One item per face so that transparent faces are sorted back to front.
-        mesh = trimesh.Trimesh(tank.vertices[face], [[0, 1, 2]], process=False)
-        if f in windows:
-            colour = CAMERA_COLOURS[windows[f] % len(CAMERA_COLOURS)]
-            items.append(_Item(mesh, (*colour, 0.45), True))
-        else:
-            items.append(_Item(mesh, (*TANK_COLOUR, 0.10), True))
-    edges = [(tank.vertices[a], tank.vertices[b]) for a, b in tank.edges_unique]
+def vessel_mesh(tank) -> trimesh.Trimesh | None:
+    """The wet surface of a rig's tank (:class:`simulator.rigs.Tank`); None for a free tank."""
+    if tank.kind == "icosahedron":
+        return icosahedral_tank(tank.inradius)
+    if tank.kind == "box":
+        return box_tank(tank.size, tank.yaw)
+    return None
+
+
+def _tank_items(vessel: trimesh.Trimesh) -> list[_Item]:
+    # One item per face so that transparent faces are sorted back to front.
+    items = [
+        _Item(
+            trimesh.Trimesh(vessel.vertices[face], [[0, 1, 2]], process=False),
+            (*TANK_COLOUR, 0.10),
+            True,
+        )
+        for face in vessel.faces
+    ]
+    # The edges between faces that meet at an angle (not a box wall's diagonal).
+    creases = vessel.face_adjacency_edges[vessel.face_adjacency_angles > 1e-6]
+    edges = [(vessel.vertices[a], vessel.vertices[b]) for a, b in creases]
     items.append(_Item(_segments(edges, 0.0015), (*EDGE_COLOUR, 1.0)))
     return items
 
@@ -240,8 +274,7 @@ def _plate_items(plate, plane: int) -> list[_Item]:
 
 def _axes_items(origin: np.ndarray, length: float) -> list[_Item]:
     items = []
-    colours = ((0.85, 0.1, 0.1), (0.1, 0.55, 0.1), (0.1, 0.2, 0.85))
-    for k, colour in enumerate(colours):
+    for k, colour in enumerate(AXIS_COLOURS):
         tip = origin + length * np.eye(3)[k]
         shaft = _segment(origin, tip, 0.002)
         cone = trimesh.creation.cone(radius=0.006, height=0.015, sections=16)
@@ -252,16 +285,20 @@ def _axes_items(origin: np.ndarray, length: float) -> list[_Item]:
     return items
 
 
-def _scene_items(rig, plate, plate_plane, particles, options) -> list[_Item]:
+def _scene_items(rig, plate, plate_plane, particles, options) -> tuple[list[_Item], list[_Label]]:
     sheet = rig.sheet
     sheet_z = float(sheet.centre[2])
     items: list[_Item] = []
-    tank = icosahedral_tank(rig.tank_inradius)
-    if options.show_tank:
-        items += _tank_items(rig, tank)
-    for i, camera in enumerate(rig.cameras):
+    labels: list[_Label] = []
+    vessel = vessel_mesh(rig.tank)
+    if options.show_tank and vessel is not None:
+        items += _tank_items(vessel)
+    for i, (name, camera) in enumerate(zip(rig.camera_names, rig.cameras, strict=True)):
         colour = CAMERA_COLOURS[i % len(CAMERA_COLOURS)]
         items += _camera_items(camera, colour, sheet_z, options)
+        labels.append(
+            _Label(name, camera.center - 0.12 * camera.rotation[2] + [0.0, 0.06, 0.0], colour)
+        )
     if plate is not None:
         items += _plate_items(plate, plate_plane)
     if particles is not None:
@@ -278,9 +315,16 @@ def _scene_items(rig, plate, plate_plane, particles, options) -> list[_Item]:
         slab.apply_translation(sheet.centre)
         items.append(_Item(slab, (*SHEET_COLOUR, 0.40), True))
     if options.show_axes:
-        r = float(tank.vertices[:, 1].min())
-        items += _axes_items(np.array([0.0, r - 0.04, 0.0]), 0.08)
-    return items
+        # Beside the drawing, at the low front-left corner of the tank (or of the rest).
+        low = (_item_points(items) if vessel is None else vessel.vertices).min(axis=0)
+        high = (_item_points(items) if vessel is None else vessel.vertices).max(axis=0)
+        origin = np.array([low[0] - 0.06, low[1], high[2]])
+        items += _axes_items(origin, 0.08)
+        labels += [
+            _Label(axis, origin + 0.105 * np.eye(3)[k], rgb)
+            for k, (axis, rgb) in enumerate(zip("XYZ", AXIS_COLOURS, strict=True))
+        ]
+    return items, labels
 
 
 def _item_points(items: list[_Item]) -> np.ndarray:
@@ -342,7 +386,7 @@ def render_scene(
     Parameters
     ----------
     rig : Rig
-        Cameras, sheet and tank inradius (:func:`simulator.rigs.load_rig`).
+        Cameras and their names, sheet and tank (:func:`simulator.rigs.load_rig`).
     plate : PhysicalPlate or None
         Calibration plate to draw (:func:`simulator.target.build_plate`).
     plate_plane : int
@@ -358,7 +402,7 @@ def render_scene(
         The RGB picture (white background).
     """
     pyrender = import_pyrender()
-    items = _scene_items(rig, plate, plate_plane, particles, options)
+    items, labels = _scene_items(rig, plate, plate_plane, particles, options)
     scene = pyrender.Scene(bg_color=[1.0, 1.0, 1.0, 1.0], ambient_light=[0.35, 0.35, 0.35])
     for item in items:
         if item.mesh is None:
@@ -405,7 +449,41 @@ def render_scene(
     finally:
         renderer.delete()
     logger.debug("scene of rig %r rendered at %dx%d px", rig.name, width, height)
-    return np.ascontiguousarray(color[:, :, :3], dtype=np.uint8)
+    picture = np.ascontiguousarray(color[:, :, :3], dtype=np.uint8)
+    _draw_labels(picture, labels, view, options)
+    return picture
+
+
+def _draw_labels(picture: np.ndarray, labels: list[_Label], view: np.ndarray, options) -> None:
+    """Write each label at the picture position of its anchor (in place).
+
+    ``view`` is the overview camera's OpenGL pose: its columns are the camera's right,
+    up and backward axes in the world, its last column the eye.
+    """
+    import cv2
+
+    height, width = picture.shape[:2]
+    scale = 0.5 * height / np.tan(0.5 * options.fov)  # px per unit of x/depth
+    font_scale = height / 1000.0
+    for label in labels:
+        x, y, z = view[:3, :3].T @ (label.anchor - view[:3, 3])
+        if z >= 0:  # behind the viewer
+            continue
+        u, v = 0.5 * width + scale * x / -z, 0.5 * height - scale * y / -z
+        (w, h), _ = cv2.getTextSize(label.text, cv2.FONT_HERSHEY_SIMPLEX, font_scale, 2)
+        corner = (round(float(u) - 0.5 * w), round(float(v) + 0.5 * h))
+        rgb = tuple(int(255 * 0.75 * c) for c in label.rgb)  # darkened to read on white
+        for colour, thickness in (((255, 255, 255), 6), (rgb, 2)):
+            cv2.putText(
+                picture,
+                label.text,
+                corner,
+                cv2.FONT_HERSHEY_SIMPLEX,
+                font_scale,
+                colour,
+                thickness,
+                cv2.LINE_AA,
+            )
 
 
 def save_scene_png(

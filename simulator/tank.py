@@ -1,7 +1,11 @@
-"""The paper's icosahedral water tank as a trimesh mesh.
+"""Water tanks as trimesh meshes: the paper's icosahedron and a rectangular box.
+
+A tank mesh is the wet (inner) surface of the vessel; a wall's dry face lies a glass
+thickness further out. A camera looks through the wall its line of sight to the target
+crosses (:func:`sight_face`), a flat air | glass | water window (:func:`wall_window`).
 
 The vessel is a regular icosahedron centred on the origin. Its inradius r (the
-distance from the centre to every face, m) is the rig's ``tank_inradius``: the wet
+distance from the centre to every face, m) is the rig's ``tank.inradius``: the wet
 faces of the windows lie at n̂·X = r. It is oriented so that two faces have outward
 normals in the XZ plane at azimuths ±35.26° from +Z,
 
@@ -63,7 +67,7 @@ def icosahedral_tank(inradius: float) -> trimesh.Trimesh:
     ----------
     inradius : float
         Distance from the centre (origin) to every face, m (> 0); a rig's
-        ``tank_inradius``.
+        ``tank.inradius``.
 
     Returns
     -------
@@ -89,69 +93,109 @@ def icosahedral_tank(inradius: float) -> trimesh.Trimesh:
     return mesh
 
 
-def nearest_face(tank: trimesh.Trimesh, direction: object) -> int:
-    """Index of the tank face whose outward normal is closest to ``direction``.
+def box_tank(size: object, yaw: float = 0.0) -> trimesh.Trimesh:
+    """A rectangular tank of inner size (L_X, L_Y, L_Z), m, centred on the origin.
 
     Parameters
     ----------
-    tank : trimesh.Trimesh
-        A convex vessel (e.g. from :func:`icosahedral_tank`).
-    direction : array_like, shape (3,)
-        A direction from the tank centre outward, e.g. toward a camera (any length > 0).
+    size : sequence of 3 float
+        Inner lengths along the box's own axes, m.
+    yaw : float
+        Turn of the box about the world Y axis, rad, from +Z toward +X (a camera's
+        azimuth turns the same way): yaw = 45° presents a corner of the box to +Z.
 
     Returns
     -------
-    int
-        Face index into ``tank.faces``.
+    trimesh.Trimesh
+        8 vertices, 12 faces (two per wall) with outward normals, watertight, in m.
     """
-    d = np.asarray(direction, dtype=np.float64)
-    norm = np.linalg.norm(d) if d.shape == (3,) else 0.0
-    if d.shape != (3,) or not np.isfinite(d).all() or norm == 0:
-        raise ValueError(f"direction must be a finite, non-zero 3-vector; got {direction!r}")
-    return int(np.argmax(np.asarray(tank.face_normals) @ (d / norm)))
+    values = list(size) if isinstance(size, list | tuple | np.ndarray) else []
+    if len(values) != 3:
+        raise ValueError(f"box size must be 3 lengths (L_X, L_Y, L_Z) in m; got {size!r}")
+    extents = [_positive_length(f"box size[{i}]", v) for i, v in enumerate(values)]
+    if not np.isfinite(yaw):
+        raise ValueError(f"box yaw must be finite (rad); got {yaw!r}")
+    return trimesh.creation.box(
+        extents=extents, transform=trimesh.transformations.rotation_matrix(yaw, [0.0, 1.0, 0.0])
+    )
 
 
-def face_plane(tank: trimesh.Trimesh, direction: object) -> tuple[np.ndarray, float]:
-    """The plane of the tank face nearest a viewing direction.
+def _planes(tank: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+    """Outward unit normals (F, 3) and offsets d (F,), m, of the face planes n̂·X = d."""
+    normals = np.asarray(tank.face_normals, dtype=np.float64)
+    corners = np.asarray(tank.vertices, dtype=np.float64)[np.asarray(tank.faces)[:, 0]]
+    return normals, np.einsum("ij,ij->i", normals, corners)
+
+
+def sight_face(tank: trimesh.Trimesh, center: object, target: object) -> int:
+    """The face through which the straight line from a camera to a target enters a
+    convex tank.
 
     Parameters
     ----------
     tank : trimesh.Trimesh
         A convex vessel.
-    direction : array_like, shape (3,)
-        Direction from the tank centre outward (toward the camera), any length > 0.
+    center : array_like, shape (3,)
+        Camera centre, m, outside the tank.
+    target : array_like, shape (3,)
+        A point inside the tank, m.
+
+    Returns
+    -------
+    int
+        Face index into ``tank.faces``.
+
+    Raises
+    ------
+    ValueError
+        The target outside or the camera inside the tank.
+    """
+    c, t = (np.asarray(v, dtype=np.float64) for v in (center, target))
+    normals, offsets = _planes(tank)
+    if not (normals @ t < offsets).all():
+        raise ValueError(f"the point {t.tolist()} m is not inside the tank")
+    outside = normals @ c - offsets
+    if not (outside > 0).any():
+        raise ValueError(f"the camera at {c.tolist()} m is inside the tank")
+    # The line X(s) = c + s (t − c) leaves the half-space of face i at s_i; it enters the
+    # tank where it has left the last of the half-spaces the camera lies outside.
+    leaves = outside > 0
+    s = np.full(outside.shape, -np.inf)
+    s[leaves] = outside[leaves] / (outside[leaves] - (normals[leaves] @ t - offsets[leaves]))
+    return int(np.argmax(s))
+
+
+def face_plane(tank: trimesh.Trimesh, face: int) -> tuple[np.ndarray, float]:
+    """The plane of a tank face.
+
+    Parameters
+    ----------
+    tank : trimesh.Trimesh
+        A convex vessel.
+    face : int
+        Face index, e.g. from :func:`sight_face`.
 
     Returns
     -------
     normal : ndarray, shape (3,)
         Unit outward normal n̂ of the face.
     offset : float
-        d in n̂·X = d, m (the inradius for a tank centred on the origin).
+        d in n̂·X = d, m (the inradius for an icosahedron centred on the origin).
     """
-    index = nearest_face(tank, direction)
-    normal = np.array(tank.face_normals[index], dtype=np.float64)
-    offset = float(normal @ np.asarray(tank.vertices[tank.faces[index, 0]]))
-    return normal, offset
+    normals, offsets = _planes(tank)
+    return normals[face], float(offsets[face])
 
 
-def camera_face(tank: trimesh.Trimesh, center: object) -> int:
-    """Index of the face a camera at ``center`` (m) most directly looks through."""
-    c = np.asarray(center, dtype=np.float64)
-    if c.shape != (3,) or not np.isfinite(c).all():
-        raise ValueError(f"center must be a finite 3-vector in m; got {center!r}")
-    return nearest_face(tank, c - np.asarray(tank.centroid))
-
-
-def face_window(
+def wall_window(
     tank: trimesh.Trimesh,
-    direction: object,
+    face: int,
     thickness: float,
     *,
     n_air: float = N_AIR,
     n_glass: float = N_PMMA,
     n_water: float = N_WATER,
 ) -> FlatInterfaces:
-    """The flat air | glass | water window of the face nearest ``direction``.
+    """The flat air | glass | water window of a tank face.
 
     The tank mesh is the wet (inner) surface; the dry face of the wall lies
     ``thickness`` further out.
@@ -160,8 +204,8 @@ def face_window(
     ----------
     tank : trimesh.Trimesh
         A convex vessel.
-    direction : array_like, shape (3,)
-        Direction from the tank centre toward the camera.
+    face : int
+        Face index (:func:`sight_face`).
     thickness : float
         Wall (glass) thickness, m (≥ 0).
     n_air, n_glass, n_water : float
@@ -172,29 +216,28 @@ def face_window(
     FlatInterfaces
         Normal −n̂ (toward the water), planes at −(d + thickness) and −d.
     """
-    normal, offset = face_plane(tank, direction)
+    normal, offset = face_plane(tank, face)
     return flat_window(
         -normal, -(offset + thickness), thickness, n_air=n_air, n_glass=n_glass, n_water=n_water
     )
 
 
 def tank_surfaces(
-    inradius: float,
-    thickness: float,
+    inner: trimesh.Trimesh,
+    outer: trimesh.Trimesh,
     *,
     n_air: float = N_AIR,
     n_glass: float = N_PMMA,
     n_water: float = N_WATER,
 ) -> MeshInterfaces:
-    """The tank wall as two refracting meshes: outer (air → glass) and inner (glass → water).
+    """A tank wall as two refracting meshes: outer (air → glass) and inner (glass → water).
 
     Parameters
     ----------
-    inradius : float
-        Inradius of the wet (inner) surface, m.
-    thickness : float
-        Wall thickness, m (> 0): the outer icosahedron has inradius
-        ``inradius + thickness``.
+    inner, outer : trimesh.Trimesh
+        The wet surface and the dry surface a wall thickness further out (e.g.
+        ``icosahedral_tank(r)`` and ``icosahedral_tank(r + t)``, or ``box_tank(L)`` and
+        ``box_tank(L + 2t)``).
     n_air, n_glass, n_water : float
         Refractive indices.
 
@@ -204,11 +247,6 @@ def tank_surfaces(
         For :class:`simulator.optics.mesh_interfaces.MeshCamera` or
         :func:`simulator.optics.mesh_interfaces.trace_meshes`.
     """
-    inradius = _positive_length("inradius", inradius)
-    thickness = _positive_length("thickness", thickness)
     return MeshInterfaces(
-        (
-            MeshSurface(icosahedral_tank(inradius + thickness), n_air, n_glass),
-            MeshSurface(icosahedral_tank(inradius), n_glass, n_water),
-        )
+        (MeshSurface(outer, n_air, n_glass), MeshSurface(inner, n_glass, n_water))
     )

@@ -16,7 +16,7 @@ from simulator.presets import FLOW_PRESETS, flow_preset
 from simulator.rigs import load_rig, rig_presets
 from simulator.spectra import SPECTRA
 from simulator.turbulence import NU_WATER, TurbulenceParameters
-from validation.run.scenario import SIZE_LIMITS
+from validation.run.scenario import SIZE_LIMITS, FlowSection
 from validation.studies.cli import add_study_parser
 from validation.truth.flow_summary import FlowSettings, summarize_flow
 from validation.workflow.files import (
@@ -154,20 +154,22 @@ def _run_render(args: argparse.Namespace) -> int:
         scenario = load_scenario(args.scenario)
         if args.seed is not None:
             scenario = scenario.with_seed(args.seed)
-        rig, preset = load_rig(scenario.rig.name), flow_preset(scenario.flow.preset)
+        rig, flow = load_rig(scenario.rig.name), scenario.flow
         settings = render_settings(scenario)
     else:
         chosen = {
             name: default if getattr(args, name) is None else getattr(args, name)
             for name, default in _RENDER_DEFAULTS.items()
         }
-        rig, preset = load_rig(chosen["rig"]), flow_preset(chosen["preset"])
+        rig, flow = load_rig(chosen["rig"]), FlowSection(preset=chosen["preset"])
         settings = RenderSettings(
             frames=chosen["frames"],
             particles=chosen["particles"],
             planes=chosen["planes"],
             seed=0 if args.seed is None else args.seed,
         )
+    preset = flow.as_preset()
+    print(flow.describe())
     bar = ProgressBar("render", enabled=not args.quiet)
     with hold_new_folder(out, "synptv render") as took_over:
         _say_took_over("render", took_over)
@@ -230,6 +232,7 @@ def _run_experiment(args: argparse.Namespace) -> int:
     from validation.report.run_report import write_report
     from validation.run.experiment import run_stages
     from validation.run.scenario import load_scenario
+    from validation.run.verdict import summary_lines
     from validation.workflow.parallel import check_parallel_options, executor
 
     check_parallel_options(args.workers, args.scheduler)
@@ -237,6 +240,7 @@ def _run_experiment(args: argparse.Namespace) -> int:
     if args.seed is not None:
         scenario = scenario.with_seed(args.seed)
     out = check_output_folder(args.out if args.out is not None else f"synptv-{scenario.name}")
+    print(scenario.flow.describe())
 
     def bar(stage: str) -> ProgressBar:
         return ProgressBar(stage, enabled=not args.quiet)
@@ -256,10 +260,8 @@ def _run_experiment(args: argparse.Namespace) -> int:
             return 130
         html_path, json_path = write_report(scenario, stages, out)
     results = json.loads(json_path.read_text())
-    for check in results["must_hold"]:
-        mark = "PASS" if check["passed"] else "FAIL"
-        value = "" if check["value"] is None else f"{check['value']:.4g}"
-        print(f"{mark}  {check['id']:48s} {value:>10s}   {check['tolerance']}")
+    for line in summary_lines(results):
+        print(line)
     print(f"report written to {html_path}")
     print(f"every figure in {json_path}")
     return 0 if all(check["passed"] for check in results["must_hold"]) else 1
@@ -297,7 +299,13 @@ def _run_ptv(args: argparse.Namespace) -> int:
         calibrations = load_calibrations(args.calibration)
     except FileNotFoundError as err:
         raise UsageError(str(err)) from None
-    settings = PipelineSettings(max_speed=args.max_speed, snapshots=args.snapshots)
+    settings = PipelineSettings(
+        max_speed=args.max_speed, snapshots=args.snapshots, min_cameras=args.min_cameras
+    )
+    if args.min_cameras > len(dataset.cameras):
+        raise UsageError(
+            f"--min-cameras {args.min_cameras}: the dataset has {len(dataset.cameras)} cameras"
+        )
     bar = ProgressBar("ptv", enabled=not args.quiet)
     with hold_output_folder(out, "synptv ptv") as took_over:
         _say_took_over("ptv", took_over)
@@ -530,6 +538,12 @@ def _add_ptv_parser(sub) -> None:
         "--max-speed", type=float, default=1.5, help="largest particle speed, m/s (link radius)"
     )
     ptv.add_argument("--snapshots", type=COUNT, help="process the first N snapshots per dt")
+    ptv.add_argument(
+        "--min-cameras",
+        type=int,
+        default=2,
+        help="fewest cameras a match must use (default 2; matches seen by more are preferred)",
+    )
     ptv.add_argument("--quiet", action="store_true", help="no progress bar")
     ptv.set_defaults(run=_run_ptv)
 

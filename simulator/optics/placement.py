@@ -16,7 +16,13 @@ plane of the camera, e.g. the plane of two cameras in XZ; χ = π/4: about a
 diagonal). Its wet face passes through T − w·a (w = water path along the line of
 sight), its dry face lies a glass thickness closer to the camera. The optical axis
 is then aimed along the refracted chief ray to T, so T images at the principal
-point exactly, with or without obliquity.
+point exactly, with or without obliquity. A window may instead be given fixed in the
+world (a tank wall, :class:`~simulator.optics.interfaces.FlatInterfaces`).
+
+A roll ρ then turns the camera about its optical axis: the image axes become
+x' = cos ρ x + sin ρ y and y' = −sin ρ x + cos ρ y (ρ = 90°: image x along −Y for a
+camera at φ = ψ = 0). The window's obliquity direction stays measured in the unrolled
+axes.
 """
 
 from dataclasses import dataclass
@@ -124,6 +130,12 @@ def window_for(center: np.ndarray, target: np.ndarray, spec: WindowSpec) -> Flat
     )
 
 
+def roll_rotation(roll: float) -> np.ndarray:
+    """Rotation (3, 3) of camera coordinates by ``roll`` (rad) about the optical axis."""
+    c, s = np.cos(roll), np.sin(roll)
+    return np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def look_at_camera(
     target: object,
     lens: Lens,
@@ -131,7 +143,8 @@ def look_at_camera(
     distance: float,
     azimuth: float,
     elevation: float = 0.0,
-    window: WindowSpec | None = None,
+    roll: float = 0.0,
+    window: WindowSpec | FlatInterfaces | None = None,
 ) -> Camera:
     """A camera at ``distance`` from ``target``, aimed so that it images at the principal point.
 
@@ -145,8 +158,11 @@ def look_at_camera(
         Straight-line distance from the entrance pupil to the target, m.
     azimuth, elevation : float
         Direction of the camera seen from the target, rad (module docstring).
-    window : WindowSpec or None
-        Flat window between camera and target; None for no refraction.
+    roll : float
+        Turn of the camera about its optical axis, rad (module docstring).
+    window : WindowSpec, FlatInterfaces or None
+        Flat window between camera and target, relative to the line of sight
+        (WindowSpec) or fixed in the world (FlatInterfaces); None for no refraction.
 
     Returns
     -------
@@ -157,15 +173,22 @@ def look_at_camera(
         raise ValueError(f"target must be a finite 3-vector in m; got {target!r}")
     if not (np.isfinite(distance) and distance > 0):
         raise ValueError(f"distance must be finite and > 0 m; got {distance!r}")
+    if not np.isfinite(roll):
+        raise ValueError(f"roll must be finite (rad); got {roll!r}")
     center = target + distance * viewing_direction(azimuth, elevation)
     if window is None:
-        return Camera(center, look_rotation(target - center), lens)
-    stack = window_for(center, target, window)
-    if not stack.camera_height(center) > 0:
-        raise ValueError(
-            f"the window (water path {window.water_path:g} m, glass {window.glass_thickness:g} m, "
-            f"obliquity {np.rad2deg(window.obliquity):g}°) does not fit between the camera and "
-            f"the target at distance {distance:g} m"
-        )
+        return Camera(center, roll_rotation(roll) @ look_rotation(target - center), lens)
+    if isinstance(window, FlatInterfaces):
+        stack = window
+        if not stack.camera_height(center) > 0:
+            raise ValueError("the camera is not on the air side of its window")
+    else:
+        stack = window_for(center, target, window)
+        if not stack.camera_height(center) > 0:
+            raise ValueError(
+                f"the window (water path {window.water_path:g} m, glass "
+                f"{window.glass_thickness:g} m, obliquity {np.rad2deg(window.obliquity):g}°) "
+                f"does not fit between the camera and the target at distance {distance:g} m"
+            )
     forward = solve_chief_rays(center, target[None, :], stack).directions[0]
-    return Camera(center, look_rotation(forward), lens, stack)
+    return Camera(center, roll_rotation(roll) @ look_rotation(forward), lens, stack)

@@ -154,7 +154,7 @@ def test_third_camera_removes_ghosts(rig3):
     rng = np.random.default_rng(5)
     points = SHEET.sample(4000, rng)
     pixels, ids = detections(rig.cameras, points, rng, drop=0.05)
-    m3 = match(cals, pixels, VOLUME)
+    m3 = match(cals, pixels, VOLUME, min_cameras=3)
     assert np.all((m3.indices >= 0).sum(axis=1) == 3)
     yield3, ghosts3 = score(m3, ids, points, need=3)
     assert yield3 >= 0.97
@@ -162,10 +162,16 @@ def test_third_camera_removes_ghosts(rig3):
     m2 = match(cals[:2], pixels[:2], VOLUME)
     _, ghosts2 = score(m2, ids[:2], points)
     assert ghosts2 > 5 * ghosts3
-    # Accepting pairs as well recovers particles that one camera lost.
-    m23 = match(cals, pixels, VOLUME, min_cameras=2)
+    # The default accepts pairs as well, which recovers particles that one camera lost,
+    # and still matches a particle seen by all three with all three.
+    m23 = match(cals, pixels, VOLUME)
     yield23, ghosts23 = score(m23, ids, points, need=2)
     assert len(m23) > len(m3) and yield23 >= 0.97 and ghosts23 <= 0.02
+    seen_by_all = set(ids[0]) & set(ids[1]) & set(ids[2])
+    triples = m23.indices[(m23.indices >= 0).all(axis=1)]
+    particle = [ids[c][triples[:, c]] for c in range(3)]
+    true_triples = (particle[0] == particle[1]) & (particle[1] == particle[2])
+    assert np.sum(true_triples) >= 0.97 * len(seen_by_all)
     for c in range(3):
         used = m23.indices[:, c][m23.indices[:, c] >= 0]
         assert len(np.unique(used)) == len(used)

@@ -127,8 +127,18 @@ def test_binary_rig_file_is_named(tmp_path):
     ("path", "value", "message"),
     [
         (("cameras", 0, "window", "n_water"), 100.0, r"window\.n_water: must be from 1 to 2"),
-        (("cameras", 0, "distortion"), [1e6, 0, 0, 0, 0], r"distortion: coefficients .* ±10"),
-        (("cameras", 0, "distortion"), ["a", 0, 0, 0, 0], r"distortion: expected 5 finite"),
+        (("cameras", 0, "distortion"), {"k2": 1e6}, r"distortion\.k2: must lie within ±10"),
+        (("cameras", 0, "distortion"), {"p1": "a"}, r"distortion\.p1: expected a finite number"),
+        (("cameras", 0, "distortion"), {"k4": 0.1}, r"distortion: unknown field 'k4'"),
+        (
+            ("cameras", 0, "distortion"),
+            [-0.08, 0, 0, 0, 0],
+            r"distortion: give the coefficients by name.*OpenCV's is k1, k2, p1, p2, k3",
+        ),
+        (("cameras", 0, "aim"), [0.0, 0.0], r"aim: expected 3 numbers"),
+        (("cameras", 0, "aim"), [0.0, 0.0, 0.2], r"aim: the aim point .* is not inside the tank"),
+        (("cameras", 0, "roll_deg"), 400.0, r"roll_deg: must be from -360 to 360°"),
+        (("tank", "kind"), "cylinder", r"tank\.kind: expected one of icosahedron, box, free"),
         (("cameras", 1, "focal_length"), float("inf"), r"focal_length: expected a finite"),
         (("cameras", 1, "pixel_pitch"), 1e-3, r"pixel_pitch: must be from 5e-07 to 0.0001 m"),
         (("cameras", 0, "sensor_size"), [10**6, 1088], r"sensor_size: .* from 16 to 16384 px"),
@@ -146,14 +156,14 @@ def test_distortion_that_folds_the_field_of_view_over_is_refused():
     # sensor's half-diagonal, 0.191 in normalised coordinates (f = 50 mm, 2048 × 1088 px
     # of 5.5 µm); for k1 = −8 it turns back at 0.204, beyond.
     with pytest.raises(RigFileError, match="folds the image over"):
-        rig_from_dict(spec_with(("cameras", 0, "distortion"), [-9.5, 0, 0, 0, 0]), source="m")
-    rig_from_dict(spec_with(("cameras", 0, "distortion"), [-8.0, 0, 0, 0, 0]))
+        rig_from_dict(spec_with(("cameras", 0, "distortion"), {"k1": -9.5}), source="m")
+    rig_from_dict(spec_with(("cameras", 0, "distortion"), {"k1": -8.0}))
 
 
 @pytest.mark.parametrize(
     ("path", "value", "message"),
     [
-        (("tank", "inradius"), 0.05, r"the sheet reaches 0.0709 m .* inradius 0.05 m"),
+        (("tank", "inradius"), 0.05, r"the sheet reaches 20.9 mm beyond the tank's inradius 0.05"),
         (("cameras", 0, "window", "water_path"), 0.03, r"window: a corner of the sheet lies"),
         (("cameras", 0, "window", "obliquity_deg"), 70.0, r"window: a corner of the sheet lies"),
         (("cameras", 0, "distance"), 0.1, r"cameras\[0\]: the window .* does not fit"),
@@ -162,3 +172,85 @@ def test_distortion_that_folds_the_field_of_view_over_is_refused():
 def test_geometry_with_the_sheet_out_of_the_water_is_refused(path, value, message):
     with pytest.raises(RigFileError, match=message):
         rig_from_dict(spec_with(path, value), source="mine.toml")
+
+
+def test_named_distortion_coefficients_reach_the_lens_in_their_own_places():
+    spec = spec_with(("cameras", 0, "distortion"), {"k1": -0.05, "k3": 0.2, "p1": 1e-3})
+    lens = rig_from_dict(spec).cameras[0].lens
+    assert (lens.k1, lens.k2, lens.k3, lens.p1, lens.p2) == (-0.05, 0.0, 0.2, 1e-3, 0.0)
+
+
+def _offsets(camera, points):
+    """Image positions relative to the principal point, px."""
+    return camera.project(points) - camera.lens.camera_matrix()[:2, 2]
+
+
+@pytest.mark.parametrize("roll_deg", [90.0, -30.0])
+def test_roll_turns_the_image_about_the_principal_point(roll_deg):
+    # Untilted sensors, radial distortion only: the image of the rolled camera is the
+    # unrolled one turned by the roll, x' = cos ρ x + sin ρ y, y' = −sin ρ x + cos ρ y.
+    plain = rig_from_dict(preset_spec("conventional")).cameras[0]
+    rolled = rig_from_dict(spec_of("conventional", ("cameras", 0, "roll_deg"), roll_deg)).cameras[0]
+    points = 0.6 * sheet_grid(7)
+    u, v = _offsets(plain, points).T
+    rho = np.deg2rad(roll_deg)
+    expected = np.column_stack(
+        [np.cos(rho) * u + np.sin(rho) * v, -np.sin(rho) * u + np.cos(rho) * v]
+    )
+    np.testing.assert_allclose(_offsets(rolled, points), expected, atol=1e-6)
+
+
+def spec_of(name, path, value):
+    spec = preset_spec(name)
+    table = spec
+    for key in path[:-1]:
+        table = table[key]
+    table[path[-1]] = value
+    return spec
+
+
+@pytest.mark.parametrize("name", ["paper-stereo", "box-3cam"])
+def test_the_aim_point_images_at_the_principal_point(name):
+    aim = [0.01, -0.02, 0.002]
+    camera = rig_from_dict(spec_of(name, ("cameras", 0, "aim"), aim)).cameras[0]
+    np.testing.assert_allclose(_offsets(camera, np.array([aim])), 0.0, atol=1e-6)
+
+
+@pytest.mark.parametrize(("name", "count"), [("box-3cam", 3), ("box-4cam", 4)])
+def test_box_presets_see_the_whole_sheet_through_the_front_wall(name, count):
+    rig = load_rig(name)
+    assert len(rig.cameras) == count and rig.tank.kind == "box"
+    corners = np.array(
+        [[x, y, z] for x in (-0.05, 0.05) for y in (-0.05, 0.05) for z in (-5e-3, 5e-3)]
+    )
+    for camera in rig.cameras:
+        # The wet face of the front wall is Z = +150 mm, its dry face 12 mm further out.
+        np.testing.assert_allclose(camera.interfaces.normal, [0.0, 0.0, -1.0], atol=1e-15)
+        np.testing.assert_allclose(camera.interfaces.offsets, [-0.162, -0.15], rtol=1e-14)
+        assert np.isfinite(camera.project(corners)).all()
+        # About a pixel at f/8, below the diffraction spot (2.44 λN ≈ 10 µm ≈ 1.9 px).
+        assert defocus_blur(camera, sheet_grid()).max() <= 1.1
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "message"),
+    [
+        (("cameras", 0, "azimuth_deg"), -48.0, r"sees the sheet through 2 walls"),
+        (("tank", "size"), [0.3, 0.09, 0.3], r"the sheet reaches 5 mm beyond the box's walls"),
+        (("tank", "glass_thickness"), 1.0, r"glass_thickness: must be from 0 to 0.5 m"),
+        (("cameras", 0, "distance"), 0.19, r"inside the glass of the tank's wall"),
+        (("cameras", 0, "window"), {"water_path": 0.15}, r"window: a camera of a box tank"),
+    ],
+)
+def test_box_tank_errors_are_named(path, value, message):
+    with pytest.raises(RigFileError, match=message):
+        rig_from_dict(spec_of("box-3cam", path, value), source="mine.toml")
+
+
+def test_a_yawed_box_puts_its_walls_at_the_yaw():
+    # Yaw 40°: the front wall faces azimuth 40°, so a camera there looks along its normal.
+    spec = spec_of("box-3cam", ("tank", "yaw_deg"), 40.0)
+    spec["cameras"] = [spec["cameras"][0] | {"azimuth_deg": 40.0}]
+    camera = rig_from_dict(spec).cameras[0]
+    normal = -np.array([np.sin(np.deg2rad(40.0)), 0.0, np.cos(np.deg2rad(40.0))])
+    np.testing.assert_allclose(camera.interfaces.normal, normal, atol=1e-12)

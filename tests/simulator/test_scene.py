@@ -1,11 +1,14 @@
-"""The pyrender overview picture of a rig: size, content, the sheet's colour, the PNG."""
+"""The pyrender overview picture of a rig: size, content, the sheet's colour, the camera
+colours and labels, the PNG."""
+
+import dataclasses
 
 import cv2
 import numpy as np
 import pytest
 
 from simulator.rigs import load_rig
-from simulator.scene import SceneOptions, render_scene, save_scene_png
+from simulator.scene import CAMERA_COLOURS, SceneOptions, render_scene, save_scene_png
 from simulator.target import PlateDesign, build_plate
 
 RIG = load_rig("paper-stereo")
@@ -56,3 +59,25 @@ def test_bad_arguments_are_rejected(tmp_path):
         render_scene(RIG, particles=np.zeros((3, 2)), options=SMALL)
     with pytest.raises(ValueError, match="plate_plane"):
         render_scene(RIG, plate=build_plate(PlateDesign(), [0.0, 1e-3]), plate_plane=5)
+
+
+def _of_colour(rgb, colour):
+    """Saturated pixels whose hue is that of ``colour`` (RGB in [0, 1]) within 10°: the
+    hue survives shading and transparency over white, the brightness does not."""
+    hsv = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV).astype(int)  # hue in 2° steps, 0-179
+    target = cv2.cvtColor(np.uint8([[np.round(255 * np.asarray(colour))]]), cv2.COLOR_RGB2HSV)
+    step = np.abs(hsv[:, :, 0] - int(target[0, 0, 0]))
+    return (np.minimum(step, 180 - step) <= 5) & (hsv[:, :, 1] > 60)
+
+
+@pytest.mark.parametrize("name", ["box-3cam", "box-4cam"])
+def test_every_camera_of_a_box_rig_is_drawn_and_labelled(name):
+    rig = load_rig(name)
+    options = SceneOptions(size=(800, 500))
+    rgb = render_scene(rig, options=options)
+    for colour in CAMERA_COLOURS[: len(rig.cameras)]:
+        assert _of_colour(rgb, colour).sum() > 200  # body, frustum, window
+    # Without names, the pixels of the labels change back to what lies behind them.
+    nameless = dataclasses.replace(rig, camera_names=("",) * len(rig.cameras))
+    changed = np.abs(render_scene(nameless, options=options).astype(int) - rgb).sum(axis=2) > 60
+    assert changed.sum() > 40 * len(rig.cameras)

@@ -84,6 +84,10 @@ def test_ptv_command_reports_bad_input_in_one_line(dataset, tmp_path, capsys):
     argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration), "--out", out]
     assert main([*argv, "--max-speed", "-1", "--quiet"]) == 2
     assert "max_speed must be a finite number > 0" in capsys.readouterr().err
+    assert main([*argv, "--min-cameras", "3", "--quiet"]) == 2
+    assert "--min-cameras 3: the dataset has 2 cameras" in capsys.readouterr().err
+    assert main([*argv, "--min-cameras", "1", "--quiet"]) == 2
+    assert "min_cameras must be an integer >= 2" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
 
 

@@ -29,7 +29,7 @@ count = 300
 frames = 4
 
 [ptv]
-methods = ["model-free"]
+methods = ["model-free", "tsai"]
 bins = 8
 n_boot = 20
 """
@@ -46,14 +46,15 @@ STAGES = [
 
 
 class Interrupted(Exception):
-    """Stands for a KeyboardInterrupt in the last stage."""
+    """Stands for a KeyboardInterrupt in the first calibration rung."""
 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """Run A (on a local cluster of two workers) is interrupted in its last stage, then
-    resumed; run B is a fresh run of the same scenario named by another path, from
-    another folder, in this process on one thread."""
+    """Run A (on a local cluster of two workers) is interrupted in its first calibration
+    rung (model-free; the tsai rung after it never starts), then resumed; run B is a
+    fresh run of the same scenario named by another path, from another folder, in this
+    process on one thread."""
     root = tmp_path_factory.mktemp("run")
     scenario = root / "tiny.toml"
     scenario.write_text(TINY)
@@ -99,7 +100,7 @@ def test_an_interrupted_run_leaves_no_partial_output(runs):
 def test_the_resumed_run_reuses_the_stages_finished_before_the_interruption(runs):
     root, _, _, _ = runs
     reused = json.loads((root / "a" / "run_log.json").read_text())["reused"]
-    assert reused == {**dict.fromkeys(STAGES, True), "ptv model-free": False}
+    assert reused == {**dict.fromkeys(STAGES, True), "ptv model-free": False, "ptv tsai": False}
     fresh = json.loads((root / "b" / "run_log.json").read_text())["reused"]
     assert not any(fresh.values())
 
@@ -113,6 +114,25 @@ def test_the_exit_status_says_whether_every_check_passed(runs):
     root, _, status_a, status_b = runs
     checks = json.loads((root / "a" / "results.json").read_text())["must_hold"]
     assert status_a == status_b == (0 if all(c["passed"] for c in checks) else 1)
+
+
+def test_the_checks_run_on_every_calibration_rung_and_the_first_must_hold(runs):
+    root, _, status_a, _ = runs
+    results = json.loads((root / "a" / "results.json").read_text())
+    rungs = results["checks"]["rungs"]
+    assert list(rungs) == ["model-free", "tsai"]
+    assert [r["required"] for r in rungs.values()] == [True, False]
+    for rung in rungs.values():
+        ids = {c["id"] for c in rung["checks"]}
+        assert {"matching.yield", "matching.ghost_fraction", "stats.c1_matches_truth"} <= ids
+    # The baseline's checks are reported, not required: the exit status ignores them.
+    must_hold = [c["id"] for c in results["must_hold"]]
+    assert "matching.ghost_fraction (model-free)" in must_hold
+    assert not any("(tsai)" in i for i in must_hold)
+    assert results["checks"]["passed"] == (status_a == 0)
+    page = (root / "a" / "report.html").read_text()
+    assert "<th>model-free (method under test: must hold)</th>" in page
+    assert "<th>tsai (baseline: reported)</th>" in page
 
 
 def test_the_report_shows_every_figure_it_names(runs):
@@ -134,6 +154,7 @@ def test_results_hold_table1_table3_and_the_error_budget(runs):
         "detection",
         "true-cameras",
         "model-free",
+        "tsai",
     ]
     quantities = [row["quantity"] for row in results["table3"]]
     assert quantities[:2] == ["u' (m/s)", "ε (m²/s³)"]

@@ -10,7 +10,6 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.run.scenario import (
     PtvSection,
@@ -44,7 +43,7 @@ def test_every_preset_loads_with_a_usable_flow_and_rig(name):
     scenario = load_scenario(name)
     assert scenario.name == name
     assert set(scenario.ptv.methods) <= set(scenario.calibration.methods)
-    flow_preset(scenario.flow.preset)
+    scenario.flow.as_preset()
     load_rig(scenario.rig.name)
 
 
@@ -134,6 +133,9 @@ def test_an_integer_is_accepted_for_a_float_field(tmp_path):
         ("[particles]\ncount = 1_000_000_000\n", "particles.count"),
         ("[particles]\nframes = 100_000_000\n", "particles.frames"),
         ("[flow]\nmodes = 10_000_000\n", "flow.modes"),
+        ("[ptv]\nmin_cameras = 1\n", "ptv.min_cameras"),
+        ("[ptv]\nmin_cameras = 3\n", "ptv.min_cameras"),
+        ("[ptv]\nmin_cameras = 2.5\n", "min_cameras"),
     ],
 )
 def test_bad_fields_are_errors_that_name_the_file_and_the_field(tmp_path, body, field):

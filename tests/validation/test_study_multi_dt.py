@@ -4,7 +4,6 @@ import math
 
 import pytest
 
-from simulator.presets import flow_preset
 from validation.report.png import save_figure
 from validation.run.scenario import load_scenario
 from validation.studies.multi_dt import (
@@ -78,7 +77,7 @@ def test_tasks_give_rows_against_truth_and_curves(tmp_path):
     }
 
     saved = [as_json(n) for n in noise]  # as read back from the point files (NaN → None)
-    eta = flow_preset(DEFAULT.flow.preset).parameters.eta
+    eta = DEFAULT.flow.as_preset().parameters.eta
     figure = multi_dt_figure(
         "noise", [s["rows"][0] for s in saved], [s["curves"] for s in saved], eta=eta
     )

@@ -37,6 +37,7 @@ import numpy as np
 
 from ptv.detect.store import chunk_name, write_chunk
 from ptv.frames import DetectorSettings
+from simulator.flow import DEFAULT_UNSTEADINESS
 from simulator.presets import FlowPreset
 from simulator.render.camera_frames import ParticleLighting
 from simulator.render.plate import render_plate
@@ -89,6 +90,8 @@ class RenderSettings:
         ``pope`` or ``k41-band``.
     n_modes : int
         KS modes.
+    unsteadiness : float
+        λ of the KS frequencies ω_n = λ √(k_n³ E(k_n)) (:func:`simulator.flow.draw_ks_field`).
     lighting : ParticleLighting
         Tracer size and laser sheet.
     sensor : Sensor
@@ -110,6 +113,7 @@ class RenderSettings:
     particles: int = 1000
     spectrum: str = "pope"
     n_modes: int = 200
+    unsteadiness: float = DEFAULT_UNSTEADINESS
     lighting: ParticleLighting = field(default_factory=ParticleLighting)
     sensor: Sensor = field(default_factory=Sensor)
     shared_first_frame: bool = True
@@ -178,8 +182,11 @@ def _header(rig: Rig, preset: FlowPreset, settings: RenderSettings):
         for key, value in preset.parameters.as_dict().items():
             flow.attrs[key] = value
         flow.attrs["preset"] = preset.name
+        flow.attrs["dt"] = np.asarray(preset.dt, dtype=float)
+        flow.attrs["dt_over_tau_eta"] = np.asarray(preset.dt_over_tau_eta, dtype=float)
         flow.attrs["spectrum"] = settings.spectrum
         flow.attrs["n_modes"] = settings.n_modes
+        flow.attrs["unsteadiness"] = settings.unsteadiness
         for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
             group = truth.create_group(f"cameras/{name}")
             for key, value in _camera_attributes(camera).items():
@@ -235,6 +242,7 @@ def particle_job(
         frames=settings.frames,
         particles=settings.particles,
         n_modes=settings.n_modes,
+        unsteadiness=settings.unsteadiness,
         lighting=settings.lighting,
         sensor=settings.sensor,
         shared_first_frame=settings.shared_first_frame,

@@ -1,9 +1,11 @@
 """``truth.h5``: the simulator's ground truth of a rendered dataset (ptv never reads it).
 
-Layout (format version 2; lengths in m, times in s, pixels as OpenCV)::
+Layout (format version 3, whose rig has named distortion coefficients and a tank kind;
+lengths in m, times in s, pixels as OpenCV)::
 
     /                       attrs: format_version, rig (the rig's JSON)
-    /flow                   attrs: u', ε, ν and the derived scales, preset, spectrum, n_modes
+    /flow                   attrs: u', ε, ν and the derived scales, preset, dt,
+                            dt_over_tau_eta, spectrum, n_modes, unsteadiness
     /cameras/<camera>       attrs: pupil centre, rotation, lens, tilt, window
     /plate                  z_nominal (N_Z,), z_actual (N_Z,), dots_world (N_Z, D, 3),
                             dot_indices (D, 2); per camera <camera>/dots_xy (N_Z, D, 2)
@@ -40,7 +42,7 @@ import numpy as np
 
 from simulator.rigs import Rig, rig_from_dict
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 
 #: Internal record of the parts written (deleted when the file is complete).
 _PROGRESS = "progress"

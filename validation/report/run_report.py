@@ -20,6 +20,13 @@ from validation.report.run_figures import budget_figure, noise_figure
 from validation.run.checks import compare_variant, error_budget, float_array, predicted_noise
 from validation.run.experiment import REFERENCE_VARIANTS, ExperimentStages
 from validation.run.scenario import Scenario, pipeline_settings
+from validation.run.verdict import (
+    calibration_check,
+    run_checks,
+    rung_checks,
+    verdict,
+    verdict_line,
+)
 from validation.workflow.files import write_text_atomic
 
 #: What each rung of the error budget adds, and the rung it is compared with.
@@ -75,116 +82,6 @@ def _portable(scenario: Scenario) -> dict:
     rig = load_rig(scenario.rig.name)
     spec["rig"] = {"name": Path(scenario.rig.name).name, "spec": rig.spec}
     return spec
-
-
-def _calibration_check(table1: dict, rig: dict) -> tuple | None:
-    """Model-free against classic Tsai on the Table 1 metric (nominal dots), checked
-    where the paper's claim applies: both calibrated, every camera on a Scheimpflug
-    mount behind an oblique window (docs/claims.md #16: d_Tsai/d_new ≥ 3)."""
-    oblique = all(
-        c.get("scheimpflug") and c.get("window", {}).get("obliquity_deg", 0.0) > 0
-        for c in rig["cameras"]
-    )
-    if not (oblique and {"model-free", "tsai"} <= set(table1)):
-        return None
-    ratio = table1["tsai"]["nominal"]["d_um"] / table1["model-free"]["nominal"]["d_um"]
-    return (
-        "calibration.tsai_over_model_free_d",
-        ratio,
-        "≥ 3 (Table 1 d; the paper: 4.5)",
-        ratio >= 3.0,
-    )
-
-
-def _must_hold(
-    comparisons: dict, detection: dict, matching: dict, main: str, calibration: tuple | None
-) -> list[dict]:
-    """The headline checks with value, tolerance and pass/fail."""
-    c = comparisons[main]
-    rms = float(np.max(detection["rms_error_px"]))
-    # Flat histogram: the sinusoidal bias amplitude of the peak-locking test is a tenth
-    # of the 0.1 px error budget or less (density within 1 ± 2π·0.01 ≈ ±6 %).
-    amplitude = float(
-        np.max(np.abs([v["amplitude_px"] for v in detection["peak_locking"].values()]))
-    )
-    m = matching[main]
-    rows = [calibration] if calibration is not None else []
-    rows += [
-        ("detection.rms_error_px", rms, "≤ 0.1 px", rms <= 0.1),
-        (
-            "detection.peak_locking_amplitude_px",
-            amplitude,
-            "|a| ≤ 0.01 px (a tenth of the error budget)",
-            amplitude <= 0.01,
-        ),
-        (f"matching.yield ({main})", m["yield"], "≥ 0.90", m["yield"] >= 0.90),
-        (
-            f"matching.ghost_fraction ({main})",
-            m["ghost_fraction"],
-            "≤ 0.05",
-            m["ghost_fraction"] <= 0.05,
-        ),
-        (
-            f"stats.c1_matches_truth ({main})",
-            c["c1"]["max_abs_deviation"],
-            f"≤ {c['c1']['tolerance']:.0%} over {c['c1']['r_range_m'][0] * 1e3:.2g}–"
-            f"{c['c1']['r_range_m'][1] * 1e3:.3g} mm",
-            c["c1"]["passed"],
-        ),
-        (
-            f"stats.epsilon_recovered ({main})",
-            c["epsilon"]["relative_to_exact_d_ll"],
-            "within ±5 % of the estimator on the exact D_LL",
-            c["epsilon"]["passed"],
-        ),
-        (
-            f"stats.c2_positive ({main})",
-            c["c2"]["negative_bins"],
-            "0 bins with c2 ≤ 0",
-            c["c2"]["passed"],
-        ),
-    ]
-    # c2 against the position noise where that noise is known for every particle of S2:
-    # the truth-paired detections (the PTV runs add ghosts and mislinks, whose errors
-    # the truth cannot attribute; their ratio is in the report's noise section).
-    detected = comparisons["detection"]["c2"]
-    if "consistent" in detected:
-        lo, hi = detected["consistent_range"]
-        rows.append(
-            (
-                "stats.c2_matches_noise (detection)",
-                detected["median_over_prediction"],
-                f"median c2 / noise prediction in [{lo:.2f}, {hi:.2f}]",
-                detected["consistent"],
-            )
-        )
-    if "raw_s2" in c:
-        rows.append(
-            (
-                f"stats.raw_s2_biased ({main})",
-                c["raw_s2"]["ratio_smallest_dt"],
-                "median > 2 over 5η–20η",
-                c["raw_s2"]["passed"],
-            )
-        )
-    rows.append(
-        (
-            f"stats.mean_linear_in_dt ({main})",
-            c["mean_linear"]["statistic"],
-            f"β0ᵀC⁻¹β0 < {c['mean_linear']['limit']:.3g} (1 % false alarms)",
-            c["mean_linear"]["passed"],
-        )
-    )
-    for name, sub in c["subsets"].items():
-        rows.append(
-            (
-                f"stats.dt_subsets: {name} ({main})",
-                sub["change"],
-                f"|Δε| < {sub['tolerance']:.0%}",
-                sub["passed"],
-            )
-        )
-    return [{"id": i, "value": v, "tolerance": t, "passed": bool(ok)} for i, v, t, ok in rows]
 
 
 def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> dict:
@@ -248,9 +145,20 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     }
     save_figure(noise_figure(r, c2, noise[main], check_range), figures / "noise.png")
     calibration = _read(stages.calibrations.folder / "table1.json")
+    table1 = calibration["table1"]
+    checks, must_hold = verdict(
+        run_checks(
+            detection,
+            comparisons["detection"],
+            calibration_check(table1, load_rig(scenario.rig.name).spec),
+        ),
+        {m: rung_checks(comparisons[m], matching[m]) for m in scenario.ptv.methods},
+        scenario.ptv.methods,
+        table1,
+    )
     return {
         "scenario": _portable(scenario),
-        "flow": p,
+        "flow": {**p, **scenario.flow.scales()},
         "truth": truth,
         "calibration": calibration,
         "detection": detection,
@@ -261,13 +169,8 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
         },
         "table3": _table3(summaries[main], truth),
         "error_budget": error_budget(comparisons, order),
-        "must_hold": _must_hold(
-            comparisons,
-            detection,
-            matching,
-            main,
-            _calibration_check(calibration["table1"], load_rig(scenario.rig.name).spec),
-        ),
+        "checks": checks,
+        "must_hold": must_hold,
     }
 
 
@@ -340,14 +243,57 @@ def what_this_run_shows(results: dict, methods: Sequence[str]) -> str:
     return " ".join(sentences)
 
 
-def _checks_section(results: dict, scenario: Scenario) -> list[str]:
-    """Every check against truth, with its tolerance."""
-    parts = ["<h2>Checks against truth</h2>"]
-    rows = [
-        (m["id"], _fmt(m["value"]), m["tolerance"], "PASS" if m["passed"] else "FAIL")
-        for m in results["must_hold"]
+def _verdict_cell(check: dict | None) -> str:
+    """A check's table cell: PASS or FAIL and its value (– where there is no such check)."""
+    if check is None:
+        return "<td>–</td>"
+    mark, css = ("PASS", "pass") if check["passed"] else ("FAIL", "fail")
+    return f'<td class="{css}">{mark} {html.escape(_fmt(check["value"]))}</td>'
+
+
+def _rung_table(checks: dict) -> str:
+    """The checks of every calibration rung: a row per check, a column per rung."""
+    rungs = checks["rungs"]
+    by_id = {m: {c["id"]: c for c in rung["checks"]} for m, rung in rungs.items()}
+    ids = list(dict.fromkeys(i for checks_of in by_id.values() for i in checks_of))
+    head = ["check", "tolerance"] + [
+        f"{m} ({rung['role']}: {'must hold' if rung['required'] else 'reported'})"
+        for m, rung in rungs.items()
     ]
-    parts.append(_table(["check", "value", "tolerance", ""], rows))
+    rows = [
+        "<tr><td>calibration: Table 1 d, nominal dots (µm)</td><td>reported</td>"
+        + "".join(f"<td>{_fmt(rung['table1_d_um'], 3)}</td>" for rung in rungs.values())
+        + "</tr>"
+    ]
+    for i in ids:
+        tolerance = next(by_id[m][i]["tolerance"] for m in rungs if i in by_id[m])
+        rows.append(
+            f"<tr><td>{html.escape(i)}</td><td>{html.escape(tolerance)}</td>"
+            + "".join(_verdict_cell(by_id[m].get(i)) for m in rungs)
+            + "</tr>"
+        )
+    header = "".join(f"<th>{html.escape(h)}</th>" for h in head)
+    return f"<table><tr>{header}</tr>{''.join(rows)}</table>"
+
+
+def _checks_section(results: dict, scenario: Scenario) -> list[str]:
+    """The verdict; the checks of the run; those of every calibration rung, a column
+    per rung (:mod:`validation.run.verdict`)."""
+    checks = results["checks"]
+    css = "pass" if checks["passed"] else "fail"
+    parts = ["<h2>Checks against truth</h2>"]
+    parts.append(f'<p class="{css}">Verdict: {html.escape(verdict_line(checks))}.</p>')
+    parts.append(f"<p>{html.escape(checks['rule'])}</p>")
+    parts.append("<h3>The run</h3>")
+    rows = [
+        f"<tr><td>{html.escape(c['id'])}</td><td>{html.escape(c['tolerance'])}</td>"
+        f"{_verdict_cell(c)}</tr>"
+        for c in checks["run"]
+    ]
+    header = "".join(f"<th>{h}</th>" for h in ("check", "tolerance", "verdict"))
+    parts.append(f"<table><tr>{header}</tr>{''.join(rows)}</table>")
+    parts.append("<h3>Every calibration rung</h3>")
+    parts.append(_rung_table(checks))
     return parts
 
 

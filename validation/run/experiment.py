@@ -49,7 +49,6 @@ from ptv.frames import DetectorSettings, ImageDetector
 from ptv.pipeline import PtvResult
 from ptv.results import save_results
 from ptv.stats.run_statistics import compute_statistics
-from simulator.presets import flow_preset
 from simulator.render.camera_frames import ParticleLighting, local_magnification
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig, load_rig
@@ -96,6 +95,7 @@ def render_settings(scenario: Scenario) -> RenderSettings:
         particles=particles.count,
         spectrum=scenario.flow.spectrum,
         n_modes=scenario.flow.modes,
+        unsteadiness=scenario.flow.unsteadiness,
         lighting=ParticleLighting(
             particle_diameter=particles.diameter, electrons_at_reference=particles.electrons
         ),
@@ -187,7 +187,7 @@ class ExperimentRun:
         self.progress = progress
         self.images = keep_images or scenario.output.images
         self.rig = load_rig(scenario.rig.name) if rig is None else rig
-        self.preset = flow_preset(scenario.flow.preset)
+        self.preset = scenario.flow.as_preset()
         self.settings = pipeline_settings(scenario)
         self.render = render_settings(scenario)
         self.chunks = snapshot_chunks(self.render.frames)

@@ -22,7 +22,6 @@ import tifffile
 
 from ptv.detect import detect_particles
 from ptv.frames import ChunkDetections, DetectedCentres, DetectorSettings, exposures
-from simulator.flow import DEFAULT_UNSTEADINESS
 from simulator.particles import double_frame, shared_start
 from simulator.render.camera_frames import ParticleLighting, record_particles
 from simulator.render.sensor import Sensor
@@ -100,6 +99,8 @@ class ParticleJob:
         Mean number of particles in the sheet.
     n_modes : int
         KS modes.
+    unsteadiness : float
+        λ of the KS frequencies (:func:`simulator.flow.draw_ks_field`).
     lighting : ParticleLighting
         Tracers and laser sheet.
     sensor : Sensor
@@ -121,6 +122,7 @@ class ParticleJob:
     frames: int
     particles: int
     n_modes: int
+    unsteadiness: float
     lighting: ParticleLighting
     sensor: Sensor
     shared_first_frame: bool
@@ -158,7 +160,7 @@ def simulate_chunk(job: ParticleJob, m0: int, m1: int):
         snapshots=job.frames,
         region=job.rig.sheet,
         n_modes=job.n_modes,
-        unsteadiness=DEFAULT_UNSTEADINESS,
+        unsteadiness=job.unsteadiness,
         rng=job.seed,
         first=m0,
         count=m1 - m0,

@@ -1,28 +1,41 @@
 """Virtual experiments described by TOML files: presets ``default`` and ``paper-8hz/10hz/12hz``.
 
-A scenario composes a flow preset, a rig, the calibration target and traverse, the
-tracer seeding and lighting, the sensor, the sizes and the PTV analysis. Every length
-is in m, every time in s. A scenario file has ``name``, ``description``, ``seed`` and
-the tables (fields and defaults in :class:`Scenario`)::
+A scenario composes a flow (a preset or custom), a rig, the calibration target and
+traverse, the tracer seeding and lighting, the sensor, the sizes and the PTV analysis.
+Every length is in m, every time in s. A scenario file has ``name``, ``description``,
+``seed`` and the tables (fields and defaults in :class:`Scenario`)::
 
-    [flow]         preset, spectrum, modes
+    [flow]         preset, or u_rms, epsilon, nu and dt (s) or dt_tau_eta (Kolmogorov
+                   times); spectrum, modes, unsteadiness
     [rig]          name (a rig preset or a .toml path, relative to the scenario file)
     [calibration]  planes, plate ("realistic" or "ideal"), brightness, methods
     [particles]    count, frames, electrons, diameter, shared_first_frame
     [sensor]       gain, read_noise, offset, full_well, bit_depth, background
     [ptv]          methods, analysis_volume, r_range, bins, plateau, kolmogorov_c2,
-                   max_speed, tolerance, n_boot
+                   max_speed, tolerance, min_cameras, n_boot
     [checks]       c1_r_min_eta, c1_r_max_l_int
     [output]       images, links
 
 Missing tables take their defaults; unknown tables or fields are errors that name the
-file and the field.
+file and the field. A custom flow (:class:`FlowSection`), for example::
+
+    [flow]
+    u_rms = 0.12              # u', one component, m/s
+    epsilon = 0.05            # m²/s³
+    nu = 1.0e-6               # m²/s (default: water)
+    dt_tau_eta = [0.05, 0.1, 0.2]
+
+is refused when it also names a preset, lacks u_rms or epsilon, gives both or neither
+of dt and dt_tau_eta, a Δt set not strictly increasing from > 0, or numbers outside
+:data:`FLOW_LIMITS`. :meth:`FlowSection.as_preset` gives the flow, preset or custom, to
+everything that simulates it.
 """
 
 import math
 import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
 from importlib import resources
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -31,23 +44,146 @@ from ptv.calibration.methods import CALIBRATION_METHODS
 from ptv.names import FILE_NAME_RULE, is_file_name
 from ptv.pipeline import PipelineSettings
 from ptv.stats.run_statistics import StatisticsSettings
-from simulator.presets import FLOW_PRESETS
+from simulator.flow import DEFAULT_UNSTEADINESS
+from simulator.presets import FLOW_PRESETS, FlowPreset, flow_preset
 from simulator.render.sensor import Sensor
 from simulator.rigs import RigFileError, load_rig, rig_presets
 from simulator.spectra import SPECTRA
+from simulator.turbulence import NU_WATER, TurbulenceParameters
 
 
 class ScenarioError(ValueError):
     """A scenario file or name that cannot be used; the message names file and field."""
 
 
+#: The fields of a custom flow, given instead of a preset.
+CUSTOM_FLOW_FIELDS = ("u_rms", "epsilon", "nu", "dt", "dt_tau_eta")
+
+#: (fewest, most) Δt of a custom flow: the multi-Δt fit needs two, each is a run.
+DT_COUNT = (2, 20)
+
+
 @dataclass(frozen=True)
 class FlowSection:
-    """The turbulence: a preset of the paper's Table 3 (its Δt set included)."""
+    """The turbulence: a preset of the paper's Table 3 (its Δt set included) or a
+    custom flow.
 
-    preset: str = "lem-10hz"
+    A custom flow gives ``u_rms`` (u', m/s), ``epsilon`` (ε, m²/s³), ``nu`` (ν, m²/s,
+    default water's :data:`simulator.turbulence.NU_WATER`) and its Δt set, increasing,
+    either in s (``dt``) or in Kolmogorov times τ_η = (ν/ε)^{1/2} (``dt_tau_eta``);
+    ``preset`` is then None. The fields a flow does not use are None. ``spectrum`` and
+    ``modes`` are those of the KS field, ``unsteadiness`` its λ in
+    ω_n = λ √(k_n³ E(k_n)) (0 freezes the field; :func:`simulator.flow.draw_ks_field`).
+
+    Raises
+    ------
+    ValueError
+        A preset with custom fields, a custom flow without u_rms, epsilon or exactly
+        one of dt and dt_tau_eta, a Δt set not increasing or not positive; the message
+        names the field (``flow.<field>``).
+    """
+
+    preset: str | None = "lem-10hz"
     spectrum: str = "pope"
     modes: int = 200
+    unsteadiness: float = DEFAULT_UNSTEADINESS
+    u_rms: float | None = None
+    epsilon: float | None = None
+    nu: float | None = None
+    dt: tuple[float, ...] | None = None
+    dt_tau_eta: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        custom = [name for name in CUSTOM_FLOW_FIELDS if getattr(self, name) is not None]
+        if self.preset is not None:
+            if custom:
+                raise ValueError(
+                    f"flow.preset {self.preset!r} and the custom flow's {', '.join(custom)} "
+                    "exclude each other: give a preset or u_rms, epsilon, nu and a Δt set"
+                )
+            return
+        missing = [name for name in ("u_rms", "epsilon") if getattr(self, name) is None]
+        if missing:
+            raise ValueError(
+                f"flow.{missing[0]}: a custom flow needs u_rms (m/s) and epsilon (m²/s³), "
+                f"missing {', '.join(missing)} (or give a preset)"
+            )
+        if self.nu is None:
+            object.__setattr__(self, "nu", NU_WATER)
+        given = [name for name in ("dt", "dt_tau_eta") if getattr(self, name) is not None]
+        if len(given) != 1:
+            raise ValueError(
+                f"flow.dt: a custom flow needs exactly one of dt (s) and dt_tau_eta "
+                f"(Kolmogorov times), got {' and '.join(given) if given else 'neither'}"
+            )
+        name = given[0]
+        values = getattr(self, name)
+        if not DT_COUNT[0] <= len(values) <= DT_COUNT[1]:
+            raise ValueError(
+                f"flow.{name} must hold {DT_COUNT[0]} to {DT_COUNT[1]} values (the multi-Δt "
+                f"fit needs two), got {list(values)}"
+            )
+        if not (values[0] > 0 and all(a < b for a, b in pairwise(values))):
+            raise ValueError(f"flow.{name} must be > 0 and strictly increasing, got {list(values)}")
+
+    def as_preset(self) -> FlowPreset:
+        """The flow as a :class:`simulator.presets.FlowPreset`: the preset, or a custom
+        flow named ``"custom"`` whose Δt set is given in units of its τ_η.
+
+        Raises
+        ------
+        ValueError
+            An unknown preset name.
+        """
+        if self.preset is not None:
+            return flow_preset(self.preset)
+        parameters = TurbulenceParameters(u_rms=self.u_rms, epsilon=self.epsilon, nu=self.nu)
+        ratios = self.dt_tau_eta
+        if ratios is None:
+            ratios = tuple(d / parameters.tau_eta for d in self.dt)
+        return FlowPreset("custom", parameters, ratios, "scenario [flow]")
+
+    @property
+    def label(self) -> str:
+        """The preset name, or ``custom`` with u' and ε, for titles."""
+        if self.preset is not None:
+            return self.preset
+        return f"custom (u' = {self.u_rms:g} m/s, epsilon = {self.epsilon:g} m^2/s^3)"
+
+    def scales(self) -> dict:
+        """The flow and its derived scales, SI units, for logs and JSON files.
+
+        Returns
+        -------
+        dict
+            ``preset`` (``"custom"`` for a custom flow); u_rms (m/s), epsilon (m²/s³),
+            nu (m²/s) and the derived eta (m), tau_eta (s), R_lambda, L_int (m),
+            taylor_microscale (m) of
+            :meth:`simulator.turbulence.TurbulenceParameters.as_dict`; the Δt set as
+            ``dt`` (s) and ``dt_over_tau_eta``; spectrum, modes, unsteadiness.
+        """
+        flow = self.as_preset()
+        return {
+            "preset": flow.name,
+            **flow.parameters.as_dict(),
+            "dt": [float(d) for d in flow.dt],
+            "dt_over_tau_eta": [float(r) for r in flow.dt_over_tau_eta],
+            "spectrum": self.spectrum,
+            "modes": self.modes,
+            "unsteadiness": self.unsteadiness,
+        }
+
+    def describe(self) -> str:
+        """One line: the flow, its Kolmogorov and integral scales, R_λ and the Δt set."""
+        s = self.scales()
+        dt = ", ".join(f"{d * 1e3:.4g}" for d in s["dt"])
+        return (
+            f"flow {s['preset']}: u' = {s['u_rms']:.4g} m/s, epsilon = {s['epsilon']:.4g} "
+            f"m^2/s^3, nu = {s['nu']:.3g} m^2/s; "
+            f"eta = {s['eta'] * 1e6:.1f} um, tau_eta = {s['tau_eta'] * 1e3:.3f} ms, "
+            f"R_lambda = {s['R_lambda']:.1f}, L_int = u'^3/eps = {s['L_int'] * 100:.2f} cm; "
+            f"dt = {dt} ms"
+        )
 
 
 @dataclass(frozen=True)
@@ -96,7 +232,8 @@ class PtvSection:
     ``methods`` are the calibrations the PTV runs with (the true cameras always run
     too, for the error budget); ``analysis_volume`` is the size of the centred box the
     statistics use, m; ``r_range`` the outer edges of the ``bins`` log-spaced
-    separation bins, m; ``plateau`` the r range of the plateau ε, m.
+    separation bins, m; ``plateau`` the r range of the plateau ε, m; ``min_cameras``
+    the fewest cameras a match must use (2 to the rig's camera count).
     """
 
     methods: tuple[str, ...] = ("model-free", "tsai")
@@ -107,6 +244,7 @@ class PtvSection:
     kolmogorov_c2: float = 2.0
     max_speed: float = 1.5
     tolerance: float = 1.5e-4
+    min_cameras: int = 2
     n_boot: int = 200
 
 
@@ -147,8 +285,11 @@ class Scenario:
     output: OutputSection = field(default_factory=OutputSection)
 
     def as_dict(self) -> dict:
-        """JSON-able form, the inverse of :func:`scenario_from_dict`."""
-        return asdict(self)
+        """JSON-able form, the inverse of :func:`scenario_from_dict` (the fields its flow
+        does not use left out)."""
+        spec = asdict(self)
+        spec["flow"] = {k: v for k, v in spec["flow"].items() if v is not None}
+        return spec
 
     def with_seed(self, seed: int) -> "Scenario":
         """The same scenario with another seed."""
@@ -174,6 +315,17 @@ SIZE_LIMITS = {
     "count": (1, 100_000, " (10⁵ tracers are 0.045 particles per pixel on 2048 × 1088)"),
     "frames": (2, 100_000, " (10⁵ frame pairs per Δt would take days)"),
     "bins": (1, 1_000, ""),
+}
+
+#: (lowest, highest, unit) of the numbers of a flow: water, air, oils and liquid metals
+#: stirred in a lab.
+FLOW_LIMITS = {
+    "u_rms": (1e-4, 10.0, "m/s"),
+    "epsilon": (1e-8, 1e3, "m²/s³"),
+    "nu": (1e-7, 1e-2, "m²/s"),
+    "dt": (1e-7, 10.0, "s"),
+    "dt_tau_eta": (1e-3, 1e3, "Kolmogorov times"),
+    "unsteadiness": (0.0, 10.0, "(λ in ω_n = λ √(k³E))"),
 }
 
 
@@ -220,14 +372,58 @@ def _section(cls, table: object, source: str, key: str):
         raise ScenarioError(f"{where}: {err}") from None
 
 
+def _flow_section(table: object, source: str) -> FlowSection:
+    """The [flow] table of ``source``: a preset, or a custom flow (:class:`FlowSection`)."""
+    if not isinstance(table, dict):
+        raise ScenarioError(f"{source}: [flow] must be a table")
+    where = f"{source}: flow"
+    custom = {name: table[name] for name in CUSTOM_FLOW_FIELDS if name in table}
+    common = _section(
+        FlowSection, {k: v for k, v in table.items() if k not in custom}, source, "flow"
+    )
+    if not custom:
+        return common
+    values = {}
+    for name, value in custom.items():
+        if name in ("dt", "dt_tau_eta"):
+            if not isinstance(value, list | tuple):
+                raise ScenarioError(f"{where}.{name} must be a list, got {value!r}")
+            values[name] = tuple(_typed(v, float, f"{where}.{name}") for v in value)
+        else:
+            values[name] = _typed(value, float, f"{where}.{name}")
+    try:
+        return replace(common, preset=common.preset if "preset" in table else None, **values)
+    except ValueError as err:
+        raise ScenarioError(f"{source}: {err}") from None
+
+
+def _check_flow(flow: FlowSection, fail) -> None:
+    """Refuse (through ``fail``) an unknown preset or spectrum, a flow out of
+    :data:`FLOW_LIMITS`, or one the spectrum cannot be fitted to."""
+    if flow.preset is not None and flow.preset not in FLOW_PRESETS:
+        fail(f"flow.preset {flow.preset!r} unknown; known: {', '.join(FLOW_PRESETS)}")
+    if flow.spectrum not in SPECTRA:
+        fail(f"flow.spectrum {flow.spectrum!r} unknown; known: {', '.join(SPECTRA)}")
+    for name, (lowest, highest, unit) in FLOW_LIMITS.items():
+        value = getattr(flow, name)
+        if value is None:
+            continue
+        for v in value if isinstance(value, tuple) else (value,):
+            if not lowest <= v <= highest:
+                fail(f"flow.{name} must be from {lowest:g} to {highest:g} {unit}, got {v:g}")
+    if flow.preset is None:
+        try:
+            SPECTRA[flow.spectrum](flow.as_preset().parameters)
+        except ValueError as err:  # the solver's message may span lines: one line here
+            why = " ".join(str(err).split())
+            fail(f"flow: u_rms, epsilon and nu give no {flow.spectrum} spectrum: {why}")
+
+
 def _check(scenario: Scenario, source: str) -> None:
     def fail(message: str):
         raise ScenarioError(f"{source}: {message}")
 
-    if scenario.flow.preset not in FLOW_PRESETS:
-        fail(f"flow.preset {scenario.flow.preset!r} unknown; known: {', '.join(FLOW_PRESETS)}")
-    if scenario.flow.spectrum not in SPECTRA:
-        fail(f"flow.spectrum {scenario.flow.spectrum!r} unknown; known: {', '.join(SPECTRA)}")
+    _check_flow(scenario.flow, fail)
     for where, methods in (
         ("calibration.methods", scenario.calibration.methods),
         ("ptv.methods", scenario.ptv.methods),
@@ -260,6 +456,8 @@ def _check(scenario: Scenario, source: str) -> None:
     ):
         if not value > 0:
             fail(f"{where} must be > 0, got {value}")
+    if scenario.ptv.min_cameras < 2:
+        fail(f"ptv.min_cameras must be at least 2, got {scenario.ptv.min_cameras}")
     if len(scenario.ptv.analysis_volume) != 3 or min(scenario.ptv.analysis_volume) <= 0:
         fail(f"ptv.analysis_volume must be 3 sizes > 0, m, got {scenario.ptv.analysis_volume}")
     for where, value in (
@@ -301,7 +499,10 @@ def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
     if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
         raise ScenarioError(f"{source}: seed must be an integer >= 0, got {seed!r}")
     sections = {
-        key: _section(cls, spec.get(key, {}), source, key) for key, cls in _SECTIONS.items()
+        key: _flow_section(spec.get(key, {}), source)
+        if cls is FlowSection
+        else _section(cls, spec.get(key, {}), source, key)
+        for key, cls in _SECTIONS.items()
     }
     description = spec.get("description", "")
     if not isinstance(description, str):
@@ -364,9 +565,14 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
             f"({', '.join(rig_presets())}) nor a rig file"
         )
     try:
-        load_rig(scenario.rig.name)  # a bad rig file is refused now, not inside the run
+        cameras = load_rig(scenario.rig.name).cameras  # a bad rig is refused now, not in the run
     except RigFileError as err:
         raise ScenarioError(f"{source}: rig.name: {err}") from None
+    if scenario.ptv.min_cameras > len(cameras):
+        raise ScenarioError(
+            f"{source}: ptv.min_cameras is {scenario.ptv.min_cameras} but rig "
+            f"{scenario.rig.name!r} has {len(cameras)} cameras"
+        )
     return scenario
 
 
@@ -377,6 +583,7 @@ def pipeline_settings(scenario: Scenario) -> PipelineSettings:
     return PipelineSettings(
         max_speed=p.max_speed,
         tolerance=p.tolerance,
+        min_cameras=p.min_cameras,
         statistics=StatisticsSettings(
             analysis_volume=(-half, half),
             r_min=p.r_range[0],

@@ -32,10 +32,9 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from simulator.presets import flow_preset
 from validation.report.calibration_figures import obliquity_curves, plane_count_curves
 from validation.report.png import save_figure
-from validation.run.scenario import Scenario, load_scenario, scenario_presets
+from validation.run.scenario import Scenario, load_scenario, scenario_from_dict, scenario_presets
 from validation.studies.calibration_methods import relative_to_most_planes
 from validation.studies.calibration_sweeps import obliquity_sweep, planes_sweep
 from validation.studies.multi_dt import (
@@ -101,7 +100,7 @@ def _calibration_figure(
 def _multi_dt_figure(sweep: Sweep, rows: list[dict], results: list[dict]) -> Figure:
     """:func:`~validation.studies.multi_dt_figures.multi_dt_figure` of a dt, noise or
     seeding sweep."""
-    eta = flow_preset(sweep.settings["flow"]["preset"]).parameters.eta
+    eta = scenario_from_dict(sweep.settings).flow.as_preset().parameters.eta
     return multi_dt_figure(sweep.study, rows, [r["curves"] for r in results], eta=eta)
 
 
@@ -164,11 +163,11 @@ _OPTION_LABELS = {
 
 
 def _title(sweep: Sweep) -> str:
-    flow, rig = sweep.settings["flow"], sweep.settings["rig"]["name"]
+    flow, rig = scenario_from_dict(sweep.settings).flow, sweep.settings["rig"]["name"]
     shown = [_OPTION_LABELS[k].format(v) for k, v in sweep.options.items() if k in _OPTION_LABELS]
     return (
         f"study {sweep.study}: scenario {sweep.settings['name']} "
-        f"(rig {Path(rig).name}, flow {flow['preset']}, seed {sweep.settings['seed']}); "
+        f"(rig {Path(rig).name}, flow {flow.label}, seed {sweep.settings['seed']}); "
         + ", ".join(shown)
     )
 
@@ -313,7 +312,7 @@ def _run_rendered(
         table = _relative_to_most_planes(table)
     title = (
         f"study {study} on rendered images: scenario {scenario.name} "
-        f"(flow {scenario.flow.preset}, {scenario.particles.count} tracers, "
+        f"(flow {scenario.flow.label}, {scenario.particles.count} tracers, "
         f"{scenario.particles.frames} frame pairs per Δt), seeds {scenario.seed}…"
         f"{scenario.seed + seeds - 1}"
     )

@@ -29,7 +29,7 @@ import numpy as np
 
 from ptv.stats.structure import StructureFunction
 from simulator.particles import Box, DoubleFrameSample, double_frame
-from simulator.presets import FlowPreset, flow_preset
+from simulator.presets import FlowPreset
 from simulator.rigs import load_rig
 from simulator.spectra import SPECTRA, Spectrum
 from validation.run.scenario import Scenario, scenario_from_dict
@@ -77,7 +77,7 @@ def spread_indices(total: int, count: int) -> list[int]:
 def dt_sweep(scenario: Scenario, *, snapshots: int | None, noise_um: float) -> Sweep:
     """k Δt of the preset's set at a fixed budget of frame pairs (module docstring)."""
     particles, m = study_sizes(scenario, snapshots)
-    total = len(flow_preset(scenario.flow.preset).dt_over_tau_eta)
+    total = len(scenario.flow.as_preset().dt_over_tau_eta)
     counts = sorted({k for k in DT_COUNTS if k <= total} | {total})
     points = tuple(
         SweepPoint(
@@ -111,8 +111,8 @@ def seeding_sweep(scenario: Scenario, *, snapshots: int | None, noise_um: float)
 
 
 def _flow(scenario: Scenario) -> tuple[FlowPreset, Spectrum, Box]:
-    """The scenario's preset, its spectrum and the analysis box."""
-    preset = flow_preset(scenario.flow.preset)
+    """The scenario's flow, its spectrum and the analysis box."""
+    preset = scenario.flow.as_preset()
     spectrum = SPECTRA[scenario.flow.spectrum](preset.parameters)
     return preset, spectrum, Box(scenario.ptv.analysis_volume)
 
@@ -129,6 +129,7 @@ def _simulate(
         snapshots=snapshots,
         region=region,
         n_modes=scenario.flow.modes,
+        unsteadiness=scenario.flow.unsteadiness,
         rng=seed_sequence(scenario.seed, study, "flow"),
     )
 
@@ -180,7 +181,7 @@ def _measure(
     noise by the point. ``dt_indices`` keeps only those of the preset's Δt set.
     """
     scenario = scenario_from_dict(settings)
-    preset = flow_preset(scenario.flow.preset)
+    preset = scenario.flow.as_preset()
     if dt_indices is not None:
         ratios = tuple(preset.dt_over_tau_eta[i] for i in dt_indices)
         preset = replace(preset, dt_over_tau_eta=ratios)
@@ -274,7 +275,7 @@ def dt_task(settings: dict, options: dict, point: dict) -> dict:
         noise_um=options["noise_um"],
         dt_indices=point["dt_indices"],
     )
-    ratios = flow_preset(settings["flow"]["preset"]).dt_over_tau_eta
+    ratios = scenario_from_dict(settings).flow.as_preset().dt_over_tau_eta
     dt_over_tau_eta = [ratios[i] for i in point["dt_indices"]]
     out["rows"] = [{**point, "dt_over_tau_eta": dt_over_tau_eta, **options, **out["rows"][0]}]
     return out

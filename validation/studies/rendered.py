@@ -40,7 +40,6 @@ from ptv.calibration.io import load_calibrations
 from ptv.results import load_runs
 from ptv.stats.run_statistics import compute_statistics
 from ptv.triangulate import triangulate
-from simulator.presets import flow_preset
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig, load_rig, rig_from_dict
 from validation.dataset.calibrate import dot_positions
@@ -144,7 +143,7 @@ def _check_values(study: str, scenario: Scenario, values: list) -> None:
                 f"--planes must be counts from 2 to {total} (the traverse), got {values}"
             )
     elif study == "dt":
-        k = len(flow_preset(scenario.flow.preset).dt)
+        k = len(scenario.flow.as_preset().dt)
         for subset in values:
             if len(subset) < 2 or len(set(subset)) != len(subset):
                 raise ValueError(f"a Δt subset needs two or more distinct indices, got {subset}")
@@ -168,7 +167,7 @@ def _points(study: str, scenario: Scenario, values: list | None) -> list[Rendere
         ]
     if study == "dt":
         links = replace(scenario, output=OutputSection(images=False, links=True))
-        k = len(flow_preset(scenario.flow.preset).dt)
+        k = len(scenario.flow.as_preset().dt)
         if values is None:
             subsets = dt_subsets(k)
         else:

@@ -1,0 +1,289 @@
+"""The checks of ``synptv run`` on the run and on every calibration rung, and its verdict.
+
+Two kinds of checks (tolerances here, in :mod:`validation.run.checks` and in
+docs/claims.md §3):
+
+- checks of the run, one value each: Table 1 of the model-free calibration against
+  classic Tsai (where claim #16 applies), the detection error and its peak locking, c2
+  of the truth-paired detections against their measured noise;
+- checks of a calibration rung (the PTV stack with one method of ``[ptv] methods``),
+  the same on every rung: matching yield and ghosts in the analysis volume, c1, ε,
+  c2 > 0, the raw S2 at the smallest Δt, the mean displacement linear in Δt, the ε of
+  the Δt subsets.
+
+The rule of the verdict: the checks of the run and those of the method under test,
+the first of ``[ptv] methods`` (model-free in every preset), must hold; ``synptv run``
+exits with status 1 when one of them fails. Every other method is a baseline (classic
+Tsai in ``default``): its checks run the same and are reported PASS or FAIL, and a FAIL
+there is a finding about that calibration (Tsai on Scheimpflug cameras behind oblique
+windows loses particles and adds ghosts: claim #16), not a failure of the run.
+"""
+
+import numpy as np
+
+#: Matching in the analysis volume: the least yield and the most ghosts.
+YIELD_MIN = 0.90
+GHOST_MAX = 0.05
+#: Detection: the largest rms error and peak-locking amplitude, px. Flat histogram: the
+#: sinusoidal bias amplitude is a tenth of the 0.1 px error budget or less (density
+#: within 1 ± 2π·0.01 ≈ ±6 %).
+DETECTION_RMS_MAX_PX = 0.1
+PEAK_LOCKING_MAX_PX = 0.01
+#: Table 1 d of classic Tsai over the model-free calibration's, at least (claim #16).
+TSAI_OVER_MODEL_FREE_MIN = 3.0
+
+UNDER_TEST = "method under test"
+BASELINE = "baseline"
+RULE = (
+    "Must hold: the checks of the run and every check of the method under test (the "
+    "first of [ptv] methods); synptv run exits with status 1 when one fails. The other "
+    "methods are baselines: their checks run the same and are reported, and a FAIL "
+    "there is a finding about that calibration, not a failure of the run."
+)
+
+
+def _row(check_id: str, value, tolerance: str, passed) -> dict:
+    return {"id": check_id, "value": value, "tolerance": tolerance, "passed": bool(passed)}
+
+
+def calibration_check(table1: dict, rig: dict) -> dict | None:
+    """Model-free against classic Tsai on the Table 1 metric (nominal dots), checked
+    where the paper's claim applies: both calibrated, every camera on a Scheimpflug
+    mount behind an oblique window (docs/claims.md #16: d_Tsai/d_new ≥ 3).
+
+    Parameters
+    ----------
+    table1 : dict
+        ``table1.json``'s ``table1``: per method and reference, the Table 1 errors.
+    rig : dict
+        The rig's spec.
+
+    Returns
+    -------
+    dict or None
+        The check (``id``, ``value``, ``tolerance``, ``passed``); None where the claim
+        does not apply.
+    """
+    oblique = all(
+        c.get("scheimpflug") and c.get("window", {}).get("obliquity_deg", 0.0) > 0
+        for c in rig["cameras"]
+    )
+    if not (oblique and {"model-free", "tsai"} <= set(table1)):
+        return None
+    ratio = table1["tsai"]["nominal"]["d_um"] / table1["model-free"]["nominal"]["d_um"]
+    return _row(
+        "calibration.tsai_over_model_free_d",
+        ratio,
+        f"≥ {TSAI_OVER_MODEL_FREE_MIN:g} (Table 1 d; the paper: 4.5)",
+        ratio >= TSAI_OVER_MODEL_FREE_MIN,
+    )
+
+
+def run_checks(detection: dict, detected: dict, calibration: dict | None) -> list[dict]:
+    """The checks of the run, one value each (module docstring).
+
+    Parameters
+    ----------
+    detection : dict
+        ``detection.json`` of the detection rung.
+    detected : dict
+        The detection rung's comparison with the truth
+        (:func:`validation.run.checks.compare_variant`).
+    calibration : dict, optional
+        :func:`calibration_check`.
+
+    Returns
+    -------
+    list of dict
+        ``id``, ``value``, ``tolerance``, ``passed``.
+    """
+    rms = float(np.max(detection["rms_error_px"]))
+    amplitude = float(
+        np.max(np.abs([v["amplitude_px"] for v in detection["peak_locking"].values()]))
+    )
+    rows = [] if calibration is None else [calibration]
+    rows += [
+        _row(
+            "detection.rms_error_px",
+            rms,
+            f"≤ {DETECTION_RMS_MAX_PX:g} px",
+            rms <= DETECTION_RMS_MAX_PX,
+        ),
+        _row(
+            "detection.peak_locking_amplitude_px",
+            amplitude,
+            f"|a| ≤ {PEAK_LOCKING_MAX_PX:g} px (a tenth of the error budget)",
+            amplitude <= PEAK_LOCKING_MAX_PX,
+        ),
+    ]
+    # c2 against the position noise where that noise is known for every particle of S2:
+    # the truth-paired detections (the PTV runs add ghosts and mislinks, whose errors
+    # the truth cannot attribute; their ratio is in the report's noise section).
+    c2 = detected["c2"]
+    if "consistent" in c2:
+        lo, hi = c2["consistent_range"]
+        rows.append(
+            _row(
+                "stats.c2_matches_noise (detection)",
+                c2["median_over_prediction"],
+                f"median c2 / noise prediction in [{lo:.2f}, {hi:.2f}]",
+                c2["consistent"],
+            )
+        )
+    return rows
+
+
+def rung_checks(comparison: dict, matching: dict) -> list[dict]:
+    """The checks of one calibration rung (module docstring), the same on every rung.
+
+    Parameters
+    ----------
+    comparison : dict
+        The rung's comparison with the truth (:func:`validation.run.checks.compare_variant`).
+    matching : dict
+        The rung's ``matching.json``: ``yield`` and ``ghost_fraction`` in the analysis
+        volume.
+
+    Returns
+    -------
+    list of dict
+        ``id`` (without the rung's name), ``value``, ``tolerance``, ``passed``.
+    """
+    c = comparison
+    c1_range = c["c1"]["r_range_m"]
+    rows = [
+        _row(
+            "matching.yield",
+            matching["yield"],
+            f"≥ {YIELD_MIN:.2f}",
+            matching["yield"] >= YIELD_MIN,
+        ),
+        _row(
+            "matching.ghost_fraction",
+            matching["ghost_fraction"],
+            f"≤ {GHOST_MAX:.2f}",
+            matching["ghost_fraction"] <= GHOST_MAX,
+        ),
+        _row(
+            "stats.c1_matches_truth",
+            c["c1"]["max_abs_deviation"],
+            f"≤ {c['c1']['tolerance']:.0%} over {c1_range[0] * 1e3:.2g}–{c1_range[1] * 1e3:.3g} mm",
+            c["c1"]["passed"],
+        ),
+        _row(
+            "stats.epsilon_recovered",
+            c["epsilon"]["relative_to_exact_d_ll"],
+            f"within ±{100 * c['epsilon']['tolerance']:g} % of the estimator on the exact D_LL",
+            c["epsilon"]["passed"],
+        ),
+        _row(
+            "stats.c2_positive", c["c2"]["negative_bins"], "0 bins with c2 ≤ 0", c["c2"]["passed"]
+        ),
+    ]
+    if "raw_s2" in c:
+        raw = c["raw_s2"]
+        rows.append(
+            _row(
+                "stats.raw_s2_biased",
+                raw["ratio_smallest_dt"],
+                f"median > {raw['minimum']:g} over 5η–20η",
+                raw["passed"],
+            )
+        )
+    linear = c["mean_linear"]
+    rows.append(
+        _row(
+            "stats.mean_linear_in_dt",
+            linear["statistic"],
+            f"β0ᵀC⁻¹β0 < {linear['limit']:.3g} (1 % false alarms)",
+            linear["passed"],
+        )
+    )
+    for name, sub in c["subsets"].items():
+        rows.append(
+            _row(
+                f"stats.dt_subsets: {name}",
+                sub["change"],
+                f"|Δε| < {sub['tolerance']:.0%}",
+                sub["passed"],
+            )
+        )
+    return rows
+
+
+def verdict(run: list[dict], rungs: dict, methods, table1: dict) -> tuple[dict, list[dict]]:
+    """The checks of the run and of every calibration rung, and which must hold.
+
+    Parameters
+    ----------
+    run : list of dict
+        :func:`run_checks`.
+    rungs : dict
+        ``{method: rung_checks(...)}`` for every method of ``[ptv] methods``.
+    methods : sequence of str
+        ``[ptv] methods``; the first is the method under test.
+    table1 : dict
+        ``table1.json``'s ``table1`` (the rungs' calibration errors, reported).
+
+    Returns
+    -------
+    (dict, list of dict)
+        The checks (``rule``; ``run``; ``rungs``: per method its ``role``, whether its
+        checks are ``required``, its Table 1 ``table1_d_um`` against the nominal dots
+        and its ``checks``; ``passed``: whether every required check passed), and the
+        list of the required checks (``must_hold``; a rung's checks named
+        ``check (method)``).
+    """
+    per_rung = {}
+    must_hold = list(run)
+    for i, method in enumerate(methods):
+        required = i == 0
+        d = table1.get(method, {}).get("nominal", {}).get("d_um")
+        per_rung[method] = {
+            "role": UNDER_TEST if required else BASELINE,
+            "required": required,
+            "table1_d_um": d,
+            "checks": rungs[method],
+        }
+        if required:
+            must_hold += [{**c, "id": f"{c['id']} ({method})"} for c in rungs[method]]
+    checks = {
+        "rule": RULE,
+        "run": run,
+        "rungs": per_rung,
+        "passed": all(c["passed"] for c in must_hold),
+    }
+    return checks, must_hold
+
+
+def verdict_line(checks: dict) -> str:
+    """The verdict in one line: whether every required check passes, and which checks
+    each baseline fails (``checks``: the first value of :func:`verdict`)."""
+    line = "every required check passes" if checks["passed"] else "a required check fails"
+    for method, rung in checks["rungs"].items():
+        failed = [c["id"] for c in rung["checks"] if not c["passed"]]
+        if failed and not rung["required"]:
+            line += (
+                f"; the {BASELINE} {method} fails {len(failed)} of {len(rung['checks'])} "
+                f"(reported, not required): {', '.join(failed)}"
+            )
+    return line
+
+
+def summary_lines(results: dict) -> list[str]:
+    """What ``synptv run`` prints of its checks: the required ones, then each baseline's,
+    then the verdict (:func:`verdict_line`)."""
+
+    def line(check: dict, name: str) -> str:
+        mark = "PASS" if check["passed"] else "FAIL"
+        value = "" if check["value"] is None else f"{check['value']:.4g}"
+        return f"{mark}  {name:48s} {value:>10s}   {check['tolerance']}"
+
+    lines = [line(c, c["id"]) for c in results["must_hold"]]
+    checks = results["checks"]
+    for method, rung in checks["rungs"].items():
+        if not rung["required"]:
+            lines.append(f"{method} ({BASELINE}: reported, not required):")
+            lines += [line(c, f"{c['id']} ({method})") for c in rung["checks"]]
+    lines.append(f"verdict: {verdict_line(checks)}")
+    return lines
