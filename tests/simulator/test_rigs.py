@@ -1,4 +1,5 @@
-"""Rigs: presets load, see the sheet at ~0.1 mm/px, focus claims; rig-file errors."""
+"""Rigs: presets load, see the sheet at ~0.1 mm/px, focus claims; tanks, aim, roll and
+named distortion; rig-file errors, also through the command line."""
 
 import tomllib
 from importlib import resources
@@ -8,6 +9,7 @@ import pytest
 
 from simulator.optics import Camera, defocus_blur, focus_on_plane
 from simulator.rigs import RigFileError, check_sees_sheet, load_rig, rig_from_dict, rig_presets
+from validation.cli import main
 
 
 def sheet_grid(n=21, half=0.05):
@@ -254,3 +256,26 @@ def test_a_yawed_box_puts_its_walls_at_the_yaw():
     camera = rig_from_dict(spec).cameras[0]
     normal = -np.array([np.sin(np.deg2rad(40.0)), 0.0, np.cos(np.deg2rad(40.0))])
     np.testing.assert_allclose(camera.interfaces.normal, normal, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ('kind = "box"', 'kind = "cylinder"', "tank.kind"),
+        ("distortion = { k1 = -0.08 }", "distortion = [-0.08, 0, 0, 0, 0]", "by name"),
+        ('name = "cam1"', 'name = "cam1"\naim = [0.0, 0.0, 0.3]', "aim: the aim point"),
+    ],
+)
+@pytest.mark.parametrize("command", ["render", "run"])
+def test_a_bad_rig_file_exits_2_in_one_line_and_writes_nothing(
+    tmp_path, capsys, command, old, new, message
+):
+    text = (resources.files("simulator") / "rig_presets" / "box-3cam.toml").read_text()
+    (tmp_path / "rig.toml").write_text(text.replace(old, new, 1))
+    scenario = tmp_path / "s.toml"
+    scenario.write_text('name = "s"\n[rig]\nname = "rig.toml"\n')
+    out = tmp_path / "out"
+    assert main([command, "--scenario", str(scenario), "--out", str(out), "--quiet"]) == 2
+    printed = capsys.readouterr()
+    assert printed.err.count("\n") == 1 and message in printed.err and "rig.toml" in printed.err
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["rig.toml", "s.toml"]
