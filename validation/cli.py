@@ -403,7 +403,8 @@ def _add_run_parser(sub) -> None:
     run.add_argument(
         "--scenario",
         default="default",
-        help="a preset (default, paper-8hz, paper-10hz, paper-12hz) or a scenario .toml file",
+        help="a preset (default, ci, box-3cam, paper-8hz, paper-10hz, paper-12hz) or a scenario "
+        ".toml file",
     )
     run.add_argument("--out", help="output folder (default ./synptv-<scenario>)")
     run.add_argument("--seed", type=SEED, help="override the scenario's seed")

@@ -27,6 +27,11 @@ non-coplanar rig of world points (X, Y, Z_j).
   shifted well away from it; the results are reported in the user's frame.
 * Stage 2: with κ₁ = 0, f and T_z by linear least squares from
   f y_i − Y_d,i T_z = w_i Y_d,i (and the same for x), w_i = r₇:₉ · P_i.
+* Where the linear stages fail (stage 2 finds no positive f even after Tsai's sign fix:
+  the images are far from a pinhole's, e.g. through a window 35° off its normal in two
+  directions at once), the start comes instead from a direct linear transform: the
+  3 × 4 projective matrix by SVD on normalised coordinates, split into K [R | T] by an
+  RQ decomposition (f = K₂₂, s_x = K₁₁/K₂₂).
 * Levenberg–Marquardt (``scipy.optimize.least_squares``, ``method='lm'``) on all pixel
   reprojection errors: first f, T_z, κ₁ (Tsai's own nonlinear step), then every
   parameter, the rotation as a rotation vector.
@@ -41,6 +46,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import rq
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
@@ -380,9 +386,43 @@ def _levenberg_marquardt(world, pixels, pitch, p0, scale, free):
     return packing.unpack(result.x), result
 
 
+def _normalising(points: np.ndarray) -> np.ndarray:
+    """Similarity (D+1, D+1) moving ``points`` (N, D) to their centroid, mean norm √D."""
+    centroid = points.mean(axis=0)
+    scale = np.sqrt(points.shape[1]) / np.mean(np.linalg.norm(points - centroid, axis=1))
+    t = np.eye(points.shape[1] + 1)
+    t[:-1, :-1] *= scale
+    t[:-1, -1] = -scale * centroid
+    return t
+
+
+def _dlt_start(local: np.ndarray, xd_s: np.ndarray, yd: np.ndarray) -> tuple:
+    """(R, T_x, T_y, T_z, f, s_x) from a direct linear transform (module docstring)."""
+    image = np.column_stack([xd_s, yd])
+    t_world, t_image = _normalising(local), _normalising(image)
+    p = np.column_stack([local, np.ones(len(local))]) @ t_world.T
+    q = np.column_stack([image, np.ones(len(image))]) @ t_image.T
+    zeros = np.zeros_like(p)
+    rows = np.vstack(
+        [
+            np.hstack([p, zeros, -q[:, :1] * p]),
+            np.hstack([zeros, p, -q[:, 1:2] * p]),
+        ]
+    )
+    projection = np.linalg.inv(t_image) @ np.linalg.svd(rows)[2][-1].reshape(3, 4) @ t_world
+    k, rot = rq(projection[:, :3])
+    signs = np.diag(np.sign(np.diag(k)))  # K with a positive diagonal
+    k, rot = k @ signs, signs @ rot
+    translation = np.linalg.solve(k, projection[:, 3])
+    if np.linalg.det(rot) < 0:  # P is known up to sign: the one with a proper rotation
+        rot, translation = -rot, -translation
+    k = k / k[2, 2]
+    return rot, *translation, k[1, 1], k[0, 0] / k[1, 1]
+
+
 def _linear_stages(local: np.ndarray, xd_s: np.ndarray, yd: np.ndarray) -> tuple:
     """Tsai's stages 1 and 2 in the internal frame: (R, T_x, T_y, T_z, f, s_x), with
-    Tsai's sign fix when stage 2 finds f < 0."""
+    Tsai's sign fix when stage 2 finds f < 0, and a DLT start when that fails too."""
     rot, tx, ty, sx = _stage1(local, xd_s, yd)
     xd = xd_s / sx
     f, tz = _stage2(local, xd, yd, rot, tx, ty)
@@ -392,9 +432,17 @@ def _linear_stages(local: np.ndarray, xd_s: np.ndarray, yd: np.ndarray) -> tuple
         rot = d @ rot @ d
         f, tz = _stage2(local, xd, yd, rot, tx, ty)
     if not f > 0:
+        rot, tx, ty, tz, f, sx = _dlt_start(local, xd_s, yd)
+        log.warning(
+            "Tsai stage 2 found no positive focal length (the images are far from a "
+            "pinhole's): starting from a direct linear transform, f = %.4g m",
+            f,
+        )
+    if not (f > 0 and tz > 0):
         raise ValueError(
-            f"Tsai stage 2 gives a non-positive focal length ({f:.3g} m): the pixels do "
-            "not look like a right-handed camera image of the points (mirrored image?)"
+            f"Tsai: no start with the points in front of the camera (f = {f:.3g} m, "
+            f"T_z = {tz:.3g} m): the pixels do not look like a camera image of the points "
+            "(mirrored image?)"
         )
     log.info(
         "Tsai stages 1-2: f = %.5g m, T = (%.4g, %.4g, %.4g) m (internal frame), s_x = %.5f",

@@ -1,4 +1,5 @@
-"""Virtual experiments described by TOML files: presets ``default`` and ``paper-8hz/10hz/12hz``.
+"""Virtual experiments described by TOML files: presets ``default``, ``ci``, ``box-3cam``
+and ``paper-8hz/10hz/12hz``.
 
 A scenario composes a flow (a preset or custom), a rig, the calibration target and
 traverse, the tracer seeding and lighting, the sensor, the sizes and the PTV analysis.
