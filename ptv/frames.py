@@ -87,6 +87,8 @@ class DetectorSettings:
 
     def __post_init__(self) -> None:
         positive("threshold_sigmas", self.threshold_sigmas)
+        if self.saturation is not None:
+            positive("saturation", self.saturation)
 
     def as_dict(self) -> dict:
         """JSON-able form (what detections depend on besides the images)."""

@@ -18,6 +18,12 @@ dataset has a ``units`` attribute)::
         detections (S, 2, C)          per snapshot, frame (a, b) and camera
         matches (S, 2)                per snapshot and frame
         links (S,)                    per snapshot
+    /positions                the matched points of every frame measured, one row each
+                              (absent when the result has none), the layout
+                              ``synptv score`` reads:
+        dt (N,), snapshot (N,)        Δt index k and snapshot m
+        frame (N,) "a" | "b"          frame a (t) or b (t + Δt)
+        x, y, z (N,) m                the point, in the calibration's frame
     /statistics               attrs: errors, method, kolmogorov_c2, analysis_volume
         dt (K,) s, dt_index (K,)      Δt the statistics use
         r (B,) m, r_edges (B + 1,) m
@@ -58,12 +64,20 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ptv.pipeline import PtvResult, link_radius
+from ptv.pipeline import MatchedPoints, PtvResult, link_radius
 from ptv.stats.dissipation import Plateau
 from ptv.stats.links import RunParticles
 from ptv.stats.mean_displacement import MeanDisplacement
+from ptv.stats.run_statistics import PtvStatistics
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "load_runs", "save_results", "summary"]
+__all__ = [
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "load_runs",
+    "save_results",
+    "statistics_summary",
+    "summary",
+]
 
 log = logging.getLogger(__name__)
 
@@ -102,6 +116,7 @@ def _settings_dict(result: PtvResult) -> dict:
     return {
         "volume": [list(v) for v in s.volume],
         "tolerance": s.tolerance,
+        "min_cameras": s.min_cameras,
         "max_speed": s.max_speed,
         "position_noise": s.position_noise,
         "analysis_volume": [list(v) for v in st.analysis_volume],
@@ -169,15 +184,37 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     Keys: ``dataset``, ``calibration``, ``cameras``, ``settings``, ``dt``, ``counts``
     (per Δt: snapshots processed, kept and skipped, detections per camera and frame,
     matches per frame, links, links in the analysis volume, link radius), ``warnings``
-    (:func:`thin_data_warnings`), ``u_prime``,
-    ``epsilon`` (plateau of (S2/C2)^{3/2}/r and of the paper's S2^{3/2}/r), ``subsets``
-    (their plateau ε and its ratio to the all-Δt value), ``mean_displacement`` (the
-    linearity check), ``noise`` (median c2 over fitted bins, σ_b per component from the
-    Eulerian fit), ``structure_function`` (r, S2, its error, c2 and its error, the raw
-    ⟨q⟩/Δt² per Δt (K lists of B), χ²/dof, fitted bins).
+    (:func:`thin_data_warnings`), and those of :func:`statistics_summary`.
     """
-    st = result.statistics
     counts = [_run_counts(run, result) for run in result.runs]
+    statistics = statistics_summary(result.statistics)
+    return {
+        "format": FORMAT_NAME,
+        "format_version": FORMAT_VERSION,
+        "dataset": str(result.source.folder),
+        "calibration": calibration,
+        "cameras": list(result.cameras),
+        "settings": _settings_dict(result),
+        "dt": [float(v) for v in result.source.dt],
+        "statistics_dt": statistics.pop("statistics_dt"),
+        "errors": statistics.pop("errors"),
+        "counts": counts,
+        "warnings": thin_data_warnings(counts),
+        **statistics,
+    }
+
+
+def statistics_summary(st: PtvStatistics) -> dict:
+    """The statistics of a run as a JSON-ready dict (SI units, None for NaN).
+
+    Keys: ``statistics_dt`` (the Δt used, s), ``errors`` (how the errors were
+    estimated), ``u_prime``, ``epsilon`` (plateau of (S2/C2)^{3/2}/r and of the paper's
+    S2^{3/2}/r), ``subsets`` (their plateau ε and its ratio to the all-Δt value),
+    ``mean_displacement`` (the linearity check), ``population`` (the particles of S2
+    with a shared first frame), ``noise`` (median c2 over fitted bins, σ_b per
+    component from the Eulerian fit), ``structure_function`` (r, S2, its error, c2 and
+    its error, the raw ⟨q⟩/Δt² per Δt (K lists of B), χ²/dof, fitted bins).
+    """
     eps_all = st.plateau.epsilon if st.plateau is not None else np.nan
     subsets = {}
     for name, sub in st.subsets.items():
@@ -189,17 +226,8 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     noise = sf.noise[sf.fitted]
     up = st.u_prime
     return {
-        "format": FORMAT_NAME,
-        "format_version": FORMAT_VERSION,
-        "dataset": str(result.source.folder),
-        "calibration": calibration,
-        "cameras": list(result.cameras),
-        "settings": _settings_dict(result),
-        "dt": [float(v) for v in result.source.dt],
         "statistics_dt": [float(v) for v in st.dt],
         "errors": st.errors,
-        "counts": counts,
-        "warnings": thin_data_warnings(counts),
         "u_prime": None
         if up is None
         else {
@@ -299,6 +327,15 @@ def _put_plateau(group: h5py.Group, plateau: Plateau | None) -> None:
     g.attrs["units"] = "epsilon: m^2/s^3; r_min, r_max: m"
 
 
+def _put_matched(group: h5py.Group, matched: MatchedPoints) -> None:
+    """The matched points as the columns of ``/positions`` (module docstring)."""
+    _put(group, "dt", matched.k, "dt index")
+    _put(group, "snapshot", matched.snapshot, "snapshot index")
+    _put(group, "frame", np.array([b"a", b"b"], dtype="S1")[matched.frame])
+    for axis, column in zip("xyz", matched.positions.T, strict=True):
+        _put(group, axis, column, "m")
+
+
 def _write_h5(path: Path, result: PtvResult, calibration: str | None, links: bool) -> None:
     st = result.statistics
     sf = st.structure
@@ -325,6 +362,8 @@ def _write_h5(path: Path, result: PtvResult, calibration: str | None, links: boo
             _put(g, "detections", run.detections, "count (snapshot, frame a/b, camera)")
             _put(g, "matches", run.matches, "count (snapshot, frame a/b)")
             _put(g, "links", run.links, "count")
+        if result.matched is not None:
+            _put_matched(f.create_group("positions"), result.matched)
         s = f.create_group("statistics")
         s.attrs["errors"] = st.errors
         s.attrs["method"] = sf.method

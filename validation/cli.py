@@ -5,6 +5,7 @@ on stderr; results go to stdout (``--json`` prints one JSON object).
 """
 
 import argparse
+import dataclasses
 import json
 import logging
 import sys
@@ -17,6 +18,7 @@ from simulator.rigs import load_rig, rig_presets
 from simulator.spectra import SPECTRA
 from simulator.turbulence import NU_WATER, TurbulenceParameters
 from validation.run.scenario import SIZE_LIMITS, FlowSection
+from validation.score.command import add_score_parser
 from validation.studies.cli import add_study_parser
 from validation.truth.flow_summary import FlowSettings, summarize_flow
 from validation.workflow.files import (
@@ -285,32 +287,57 @@ def _run_claims(args: argparse.Namespace) -> int:
     return 0 if all(r.passed for r in results) else 1
 
 
+def _ptv_settings(args: argparse.Namespace):
+    """The settings file's options (defaults without one), with the command line's
+    --max-speed, --snapshots and --min-cameras over them."""
+    from ptv.settings import PtvSettings, load_settings
+
+    settings = PtvSettings() if args.settings is None else load_settings(args.settings)
+    given = {
+        name: getattr(args, name)
+        for name in ("max_speed", "snapshots", "min_cameras")
+        if getattr(args, name) is not None
+    }
+    return dataclasses.replace(settings, pipeline=dataclasses.replace(settings.pipeline, **given))
+
+
 def _run_ptv(args: argparse.Namespace) -> int:
     from ptv.calibration.io import load_calibrations
     from ptv.dataset import open_dataset
     from ptv.frames import ImageDetector
-    from ptv.pipeline import PipelineSettings, run_pipeline
+    from ptv.pipeline import run_pipeline
     from ptv.results import save_results, summary
+    from ptv.settings import settings_toml
     from validation.report.ptv_figures import save_ptv_figures
 
+    if args.print_settings:
+        print(settings_toml(_ptv_settings(args)), end="")
+        return 0
+    missing = [f"--{name}" for name in ("dataset", "calibration", "out") if not getattr(args, name)]
+    if missing:
+        raise UsageError(f"the following arguments are required: {', '.join(missing)}")
     out = check_output_folder(args.out)
+    settings = _ptv_settings(args)
     try:
         dataset = open_dataset(args.dataset)
         calibrations = load_calibrations(args.calibration)
     except FileNotFoundError as err:
         raise UsageError(str(err)) from None
-    settings = PipelineSettings(
-        max_speed=args.max_speed, snapshots=args.snapshots, min_cameras=args.min_cameras
-    )
-    if args.min_cameras > len(dataset.cameras):
+    if settings.pipeline.min_cameras > len(dataset.cameras):
         raise UsageError(
-            f"--min-cameras {args.min_cameras}: the dataset has {len(dataset.cameras)} cameras"
+            f"min_cameras is {settings.pipeline.min_cameras} but the dataset has "
+            f"{len(dataset.cameras)} cameras"
         )
     bar = ProgressBar("ptv", enabled=not args.quiet)
     with hold_output_folder(out, "synptv ptv") as took_over:
         _say_took_over("ptv", took_over)
         try:
-            result = run_pipeline(ImageDetector(dataset), calibrations, settings, progress=bar)
+            result = run_pipeline(
+                ImageDetector(dataset, settings.detection),
+                calibrations,
+                settings.pipeline,
+                progress=bar,
+            )
         except FileNotFoundError as err:
             raise UsageError(str(err)) from None
         with staged_output(out) as staging:  # results and figures replace the old together
@@ -532,17 +559,27 @@ def _add_ptv_parser(sub) -> None:
         "the mean-displacement linearity check and u'. Writes results.h5, summary.json and "
         "the paper's Fig. 5a, 5b, 6a and 6b as PNG.",
     )
-    ptv.add_argument("--dataset", required=True, help="folder in the synptv render layout")
-    ptv.add_argument("--calibration", required=True, help="calibration file (synptv calibrate)")
-    ptv.add_argument("--out", required=True, help="output folder (created if needed)")
+    ptv.add_argument("--dataset", help="folder in the synptv render layout (required)")
+    ptv.add_argument("--calibration", help="calibration file, synptv calibrate's (required)")
+    ptv.add_argument("--out", help="output folder, created if needed (required)")
     ptv.add_argument(
-        "--max-speed", type=float, default=1.5, help="largest particle speed, m/s (link radius)"
+        "--settings",
+        help="TOML file of every option: detection, matching, linking, statistics "
+        "(--print-settings shows them)",
+    )
+    ptv.add_argument(
+        "--print-settings",
+        action="store_true",
+        help="print the settings as a TOML file (the defaults, or --settings with the "
+        "options below over it) and exit",
+    )
+    ptv.add_argument(
+        "--max-speed", type=float, help="largest particle speed, m/s (link radius; default 1.5)"
     )
     ptv.add_argument("--snapshots", type=COUNT, help="process the first N snapshots per dt")
     ptv.add_argument(
         "--min-cameras",
         type=int,
-        default=2,
         help="fewest cameras a match must use (default 2; matches seen by more are preferred)",
     )
     ptv.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -583,6 +620,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_study_parser(sub)
     _add_claims_parser(sub)
     _add_ptv_parser(sub)
+    add_score_parser(sub)
     _add_scene_parser(sub)
     return parser
 

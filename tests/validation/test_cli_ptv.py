@@ -61,6 +61,28 @@ def test_ptv_command_processes_the_first_snapshots_only(dataset, tmp_path, capsy
     capsys.readouterr()
 
 
+def test_a_settings_file_sets_every_stage_and_the_command_line_overrides_it(
+    dataset, tmp_path, capsys
+):
+    folder, calibration = dataset
+    settings = tmp_path / "settings.toml"
+    settings.write_text(
+        "[detection]\nthreshold_sigmas = 7.0\n[matching]\ntolerance = 2.0e-4\n"
+        "[linking]\nmax_speed = 1.2\n[statistics]\nn_bins = 12\n[run]\nsnapshots = 1\n"
+    )
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration), "--quiet"]
+    out = tmp_path / "set"
+    assert main([*argv, "--settings", str(settings), "--max-speed", "1.3", "--out", str(out)]) == 0
+    used = json.loads((out / "summary.json").read_text())["settings"]
+    assert used["threshold_sigmas"] == 7.0 and used["tolerance"] == 2.0e-4
+    assert used["n_bins"] == 12 and used["snapshots"] == 1
+    assert used["max_speed"] == 1.3  # the command line over the file
+    capsys.readouterr()
+    assert main(["ptv", "--settings", str(settings), "--print-settings"]) == 0
+    printed = capsys.readouterr().out
+    assert "threshold_sigmas = 7.0" in printed and "n_bins = 12" in printed
+
+
 def test_ptv_command_reports_bad_input_in_one_line(dataset, tmp_path, capsys):
     folder, calibration = dataset
     out = str(tmp_path / "bad")
@@ -85,7 +107,7 @@ def test_ptv_command_reports_bad_input_in_one_line(dataset, tmp_path, capsys):
     assert main([*argv, "--max-speed", "-1", "--quiet"]) == 2
     assert "max_speed must be a finite number > 0" in capsys.readouterr().err
     assert main([*argv, "--min-cameras", "3", "--quiet"]) == 2
-    assert "--min-cameras 3: the dataset has 2 cameras" in capsys.readouterr().err
+    assert "min_cameras is 3 but the dataset has 2 cameras" in capsys.readouterr().err
     assert main([*argv, "--min-cameras", "1", "--quiet"]) == 2
     assert "min_cameras must be an integer >= 2" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()

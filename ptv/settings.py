@@ -1,0 +1,197 @@
+"""Every option of ``synptv ptv`` in one TOML file (``--settings``; ``--print-settings``).
+
+Sections and the dataclass fields they fill (SI units: m, s, m/s)::
+
+    [detection]    DetectorSettings: threshold_sigmas, saturation
+    [matching]     PipelineSettings: volume, tolerance, min_cameras
+    [linking]      PipelineSettings: max_speed, position_noise, outlier_threshold,
+                   outlier_neighbours
+    [statistics]   StatisticsSettings: analysis_volume, r_min, r_max, n_bins, plateau,
+                   plateau_method, kolmogorov_c2, n_boot, eulerian_cells,
+                   min_cell_count, trajectory_threshold, seed
+    [run]          PipelineSettings: snapshots
+
+A missing section or field keeps its default. Boxes are ``[[x0, y0, z0], [x1, y1, z1]]``
+(lower and upper corners). TOML has no null: a field whose default is "none"
+(``saturation``: the image type's maximum; ``snapshots``: all) is left out for that
+default, and ``outlier_threshold`` or ``trajectory_threshold`` = false turns that test
+off. Unknown sections or fields, wrong types and values the settings refuse are
+:class:`SettingsError` naming the file, the section and the field.
+"""
+
+import dataclasses
+import math
+import tomllib
+from pathlib import Path
+
+from ptv.frames import DetectorSettings
+from ptv.pipeline import PipelineSettings
+from ptv.stats.run_statistics import StatisticsSettings
+
+__all__ = ["PtvSettings", "SettingsError", "load_settings", "settings_from_dict", "settings_toml"]
+
+#: Section → (settings class, fields of it that the section holds).
+SECTIONS = {
+    "detection": (DetectorSettings, ("threshold_sigmas", "saturation")),
+    "matching": (PipelineSettings, ("volume", "tolerance", "min_cameras")),
+    "linking": (
+        PipelineSettings,
+        ("max_speed", "position_noise", "outlier_threshold", "outlier_neighbours"),
+    ),
+    "statistics": (
+        StatisticsSettings,
+        tuple(f.name for f in dataclasses.fields(StatisticsSettings)),
+    ),
+    "run": (PipelineSettings, ("snapshots",)),
+}
+#: Fields whose "none" is written as false (a test turned off).
+_OFF_WITH_FALSE = ("outlier_threshold", "trajectory_threshold")
+#: Fields whose "none" is their absence.
+_NONE_WHEN_ABSENT = ("saturation", "snapshots")
+#: Units and meaning written beside each field by :func:`settings_toml`.
+_COMMENTS = {
+    "threshold_sigmas": "detection threshold, noise σ above the background",
+    "saturation": "saturation level, DN (left out: the image type's maximum)",
+    "volume": "matching volume: lower and upper corners, m",
+    "tolerance": "largest ray distance from a matched point, m (2-3x the calibration error)",
+    "min_cameras": "fewest cameras a match must use",
+    "max_speed": "largest particle speed, m/s: link radius max_speed·Δt + 5·position_noise",
+    "position_noise": "expected position noise, one component, m",
+    "outlier_threshold": "normalised median test on the displacements (false: off)",
+    "outlier_neighbours": "neighbours of the median test",
+    "analysis_volume": "statistics box by X(t): lower and upper corners, m",
+    "r_min": "smallest separation bin edge, m",
+    "r_max": "largest separation bin edge, m",
+    "n_bins": "log-spaced separation bins",
+    "plateau": "r range of the plateau ε, m",
+    "plateau_method": '"mean" of ε(r) over the plateau range, or its "max"',
+    "kolmogorov_c2": "C2 in S2 = C2 (εr)^(2/3)",
+    "n_boot": "bootstrap replicates over snapshots (at least 2)",
+    "eulerian_cells": "cells of the mean-flow grid over the analysis volume",
+    "min_cell_count": "displacements a cell needs at every Δt",
+    "trajectory_threshold": "trajectory test, times the median residual (false: off)",
+    "seed": "seed of the bootstrap",
+    "snapshots": "process only the first N snapshots per Δt (left out: all)",
+}
+
+
+class SettingsError(ValueError):
+    """A settings file that cannot be used; the message names file, section and field."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PtvSettings:
+    """What ``synptv ptv`` needs besides the dataset and the calibration.
+
+    Attributes
+    ----------
+    detection : DetectorSettings
+        Particle detection on the images.
+    pipeline : PipelineSettings
+        Matching, linking, the snapshots processed and the statistics.
+    """
+
+    detection: DetectorSettings = dataclasses.field(default_factory=DetectorSettings)
+    pipeline: PipelineSettings = dataclasses.field(default_factory=PipelineSettings)
+
+
+def _value(name: str, value: object):
+    """A TOML value as the settings field expects it (lists to tuples, false to None)."""
+    if value is False and name in _OFF_WITH_FALSE:
+        return None
+    if isinstance(value, list):
+        return tuple(_value(name, v) for v in value)
+    return value
+
+
+def _section_values(table: object, section: str, source: str) -> dict:
+    if not isinstance(table, dict):
+        raise SettingsError(f"{source}: [{section}] must be a table")
+    known = SECTIONS[section][1]
+    unknown = [key for key in table if key not in known]
+    if unknown:
+        raise SettingsError(
+            f"{source}: [{section}] unknown field {unknown[0]!r}; known: {', '.join(known)}"
+        )
+    return {key: _value(key, value) for key, value in table.items()}
+
+
+def settings_from_dict(spec: dict, *, source: str = "<settings>") -> PtvSettings:
+    """Settings from a parsed file (module docstring for the layout).
+
+    Raises
+    ------
+    SettingsError
+        Unknown sections or fields, or values the settings refuse.
+    """
+    unknown = [key for key in spec if key not in SECTIONS]
+    if unknown:
+        raise SettingsError(
+            f"{source}: unknown section [{unknown[0]}]; known: {', '.join(SECTIONS)}"
+        )
+    values = {s: _section_values(spec.get(s, {}), s, source) for s in SECTIONS}
+    # Each section on its own first, so that an error names the section it comes from.
+    built = {}
+    for section, (cls, _) in SECTIONS.items():
+        try:
+            built[section] = cls(**values[section])
+        except (TypeError, ValueError) as err:
+            raise SettingsError(f"{source}: [{section}] {err}") from None
+    pipeline = PipelineSettings(
+        **values["matching"], **values["linking"], **values["run"], statistics=built["statistics"]
+    )
+    return PtvSettings(detection=built["detection"], pipeline=pipeline)
+
+
+def load_settings(path: str | Path) -> PtvSettings:
+    """The settings in a TOML file (module docstring).
+
+    Raises
+    ------
+    SettingsError
+        Missing, unreadable or invalid file; the message names file, section and field.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise SettingsError(f"settings file {str(path)!r} does not exist")
+    try:
+        spec = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
+        raise SettingsError(f"{path}: not a readable TOML file ({err})") from None
+    return settings_from_dict(spec, source=str(path))
+
+
+def _toml(value: object) -> str:
+    """A settings value written as TOML."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else str(value)
+    if isinstance(value, str):
+        return f'"{value}"'
+    return "[" + ", ".join(_toml(v) for v in value) + "]"
+
+
+def settings_toml(settings: PtvSettings | None = None) -> str:
+    """The settings (default: the defaults) as a commented TOML file that
+    :func:`load_settings` reads back."""
+    settings = PtvSettings() if settings is None else settings
+    objects = {
+        DetectorSettings: settings.detection,
+        PipelineSettings: settings.pipeline,
+        StatisticsSettings: settings.pipeline.statistics,
+    }
+    lines = ["# synptv ptv settings (SI units). Missing fields keep their defaults."]
+    for section, (cls, names) in SECTIONS.items():
+        lines += ["", f"[{section}]"]
+        for name in names:
+            value = getattr(objects[cls], name)
+            comment = _COMMENTS[name]
+            if value is None and name in _NONE_WHEN_ABSENT:
+                lines.append(f"# {name} = ...  # {comment}")
+                continue
+            text = "false" if value is None else _toml(value)
+            lines.append(f"{name} = {text}  # {comment}")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,103 @@
+"""The settings file of ``synptv ptv``: printed defaults read back, any settings survive
+write ∘ read, and every refusal names the file, the section and the field."""
+
+import tomllib
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ptv.frames import DetectorSettings
+from ptv.pipeline import PipelineSettings
+from ptv.settings import (
+    PtvSettings,
+    SettingsError,
+    load_settings,
+    settings_from_dict,
+    settings_toml,
+)
+from ptv.stats.run_statistics import StatisticsSettings
+
+
+def test_the_printed_defaults_are_the_defaults():
+    assert settings_from_dict(tomllib.loads(settings_toml())) == PtvSettings()
+
+
+def test_an_empty_file_keeps_every_default(tmp_path):
+    path = tmp_path / "empty.toml"
+    path.write_text("")
+    assert load_settings(path) == PtvSettings()
+
+
+lengths = st.floats(1e-4, 0.2)
+
+
+@st.composite
+def ptv_settings(draw):
+    half = [draw(lengths) for _ in range(3)]
+    r_min = draw(st.floats(1e-4, 1e-3))
+    r_max = draw(st.floats(2e-2, 5e-2))
+    statistics = StatisticsSettings(
+        analysis_volume=(tuple(-h for h in half), tuple(half)),
+        r_min=r_min,
+        r_max=r_max,
+        n_bins=draw(st.integers(2, 60)),
+        plateau=(2 * r_min, r_max / 2),
+        kolmogorov_c2=draw(st.floats(1.0, 3.0)),
+        n_boot=draw(st.integers(2, 500)),
+        plateau_method=draw(st.sampled_from(["mean", "max"])),
+        trajectory_threshold=draw(st.none() | st.floats(1.5, 20.0)),
+        seed=draw(st.integers(0, 2**31)),
+    )
+    pipeline = PipelineSettings(
+        volume=(tuple(-2 * h for h in half), tuple(2 * h for h in half)),
+        tolerance=draw(st.floats(1e-6, 1e-3)),
+        min_cameras=draw(st.integers(2, 6)),
+        max_speed=draw(st.floats(0.01, 20.0)),
+        outlier_threshold=draw(st.none() | st.floats(1.0, 10.0)),
+        snapshots=draw(st.none() | st.integers(1, 10_000)),
+        statistics=statistics,
+    )
+    detection = DetectorSettings(
+        threshold_sigmas=draw(st.floats(1.0, 20.0)),
+        saturation=draw(st.none() | st.floats(100.0, 65535.0)),
+    )
+    return PtvSettings(detection=detection, pipeline=pipeline)
+
+
+@settings(max_examples=60, deadline=None)
+@given(ptv_settings())
+def test_any_settings_survive_writing_and_reading_back(chosen):
+    assert settings_from_dict(tomllib.loads(settings_toml(chosen))) == chosen
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        ("[detect]\n", "unknown section [detect]"),
+        ("[linking]\nmax_sped = 1.0\n", "[linking] unknown field 'max_sped'"),
+        ("[matching]\nmin_cameras = 1\n", "[matching] min_cameras must be an integer >= 2"),
+        ("[linking]\nmax_speed = -1.0\n", "[linking] max_speed must be a finite number > 0"),
+        ("[detection]\nsaturation = 'x'\n", "[detection] saturation must be a finite number"),
+        ("[statistics]\nplateau = [0.02, 0.002]\n", "[statistics] plateau must be"),
+        ("[statistics]\nanalysis_volume = [1, 2]\n", "[statistics] analysis_volume"),
+        ("[run]\nsnapshots = 0\n", "[run] snapshots must be an integer >= 1"),
+        ("matching = 3\n", "[matching] must be a table"),
+    ],
+)
+def test_bad_settings_are_one_line_errors_naming_file_section_and_field(tmp_path, body, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(body)
+    with pytest.raises(SettingsError) as error:
+        load_settings(path)
+    assert str(error.value).startswith(f"{path}: ") and message in str(error.value)
+    assert "\n" not in str(error.value)
+
+
+def test_a_missing_or_broken_file_is_named(tmp_path):
+    with pytest.raises(SettingsError, match="does not exist"):
+        load_settings(tmp_path / "none.toml")
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[linking\n")
+    with pytest.raises(SettingsError, match=r"broken\.toml: not a readable TOML file"):
+        load_settings(broken)
