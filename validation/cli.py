@@ -591,9 +591,10 @@ def _add_scene_parser(sub) -> None:
     scene = sub.add_parser(
         "scene",
         help="draw a picture of a rig: tank, windows, cameras, laser sheet, plate",
-        description="Render an offscreen picture (pyrender, EGL) of a rig: the icosahedral "
-        "tank, the windows the cameras look through, camera frusta and refracted corner "
-        "rays, the laser sheet, optionally the calibration plate and particles.",
+        description="Render an offscreen picture (pyrender, EGL) of a rig: its tank "
+        "(icosahedron or box), the part of each window its camera looks through, the "
+        "cameras with their names, frusta and refracted corner rays, the laser sheet, the "
+        "labelled axes, optionally the calibration plate and particles.",
     )
     scene.add_argument(
         "--rig", default="paper-stereo", help=f"{', '.join(rig_presets())} or a .toml file"
