@@ -39,7 +39,7 @@ results, ``validation`` draws and compares.
 """
 
 import logging
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -57,6 +57,7 @@ from ptv.track import link, search_radius
 
 __all__ = [
     "MEASUREMENT_VOLUME",
+    "MatchedPoints",
     "PipelineSettings",
     "PtvResult",
     "SnapshotMeasurement",
@@ -225,6 +226,8 @@ class SnapshotMeasurement:
         ΔX = X(t + Δt) − X(t), m.
     outlier : ndarray of bool, shape (N,)
         Links failing the normalised median test (made on all the links).
+    matched : (ndarray (N_a, 3), ndarray (N_b, 3)) or None
+        The matched points of frames a and b, m (None unless asked for).
     """
 
     k: int
@@ -235,6 +238,7 @@ class SnapshotMeasurement:
     positions: np.ndarray
     displacements: np.ndarray
     outlier: np.ndarray
+    matched: tuple[np.ndarray, np.ndarray] | None = None
 
     def within(self, box: Box) -> "SnapshotMeasurement":
         """The same measurement keeping only the links whose X(t) lies in ``box``."""
@@ -285,6 +289,7 @@ def measure_snapshot(
     settings: PipelineSettings,
     *,
     frame_a: tuple[list[int], np.ndarray] | None = None,
+    keep_matched: bool = False,
 ) -> SnapshotMeasurement:
     """Match frames a and b of snapshot m at Δt_k, then link and test the links.
 
@@ -301,6 +306,8 @@ def measure_snapshot(
     frame_a : (list of int, ndarray (N, 3)), optional
         Detections per camera and matched points of frame a, already measured (as when
         every Δt shares it).
+    keep_matched : bool
+        Keep the matched points of both frames in the measurement.
 
     Returns
     -------
@@ -345,6 +352,7 @@ def measure_snapshot(
         positions=positions,
         displacements=displacements,
         outlier=outlier,
+        matched=(points[0], points[1]) if keep_matched else None,
     )
 
 
@@ -355,6 +363,7 @@ def measure_snapshots(
     settings: PipelineSettings,
     *,
     tick: Callable[[], None] | None = None,
+    keep_matched: bool = False,
 ) -> list[list[SnapshotMeasurement]]:
     """Measure some snapshots at every Δt (a chunk of a run; snapshots are independent).
 
@@ -371,6 +380,8 @@ def measure_snapshots(
         Options.
     tick : callable, optional
         Called after each snapshot of each Δt.
+    keep_matched : bool
+        Keep the matched points of both frames in each measurement.
 
     Returns
     -------
@@ -386,7 +397,11 @@ def measure_snapshots(
             if frames.shared_first_frame and frame_a is None:
                 xy = frames.detections(k, m, "a")
                 frame_a = ([len(v) for v in xy], match_frame(xy, cameras, settings))
-            out[k].append(measure_snapshot(frames, k, m, cameras, settings, frame_a=frame_a))
+            out[k].append(
+                measure_snapshot(
+                    frames, k, m, cameras, settings, frame_a=frame_a, keep_matched=keep_matched
+                )
+            )
             if tick is not None:
                 tick()
     return out
@@ -473,6 +488,39 @@ def run_particles(
 
 
 @dataclass(frozen=True, eq=False)
+class MatchedPoints:
+    """Matched 3-D points of many frames, one row per point.
+
+    Attributes
+    ----------
+    k : ndarray of int, shape (N,)
+        Δt index.
+    snapshot : ndarray of int, shape (N,)
+        Snapshot number m.
+    frame : ndarray of int, shape (N,)
+        0 for frame a (t), 1 for frame b (t + Δt).
+    positions : ndarray, shape (N, 3)
+        The points, m, in the calibration's frame.
+    """
+
+    k: np.ndarray
+    snapshot: np.ndarray
+    frame: np.ndarray
+    positions: np.ndarray
+
+    @classmethod
+    def from_frames(cls, frames: Iterable[tuple[int, int, int, np.ndarray]]) -> "MatchedPoints":
+        """The rows of frames given as (k, m, frame, points (N, 3)), in that order."""
+        keys, points = [], []
+        for k, m, frame, p in frames:
+            keys.append(np.repeat([[k, m, frame]], len(p), axis=0))
+            points.append(np.asarray(p, dtype=np.float64).reshape(-1, 3))
+        keys = np.concatenate(keys).astype(np.int64) if keys else np.empty((0, 3), np.int64)
+        points = np.concatenate(points) if points else np.empty((0, 3))
+        return cls(keys[:, 0], keys[:, 1], keys[:, 2], points)
+
+
+@dataclass(frozen=True, eq=False)
 class PtvResult:
     """Everything :func:`run_pipeline` measured.
 
@@ -488,6 +536,9 @@ class PtvResult:
         Particles per Δt (all Δt of the dataset).
     statistics : PtvStatistics
         The statistics.
+    matched : MatchedPoints or None
+        The matched points of the frames measured (:func:`run_pipeline`: every frame of
+        every Δt, frame a repeated at each Δt that shares it).
     """
 
     source: FrameDetections
@@ -495,6 +546,7 @@ class PtvResult:
     settings: PipelineSettings
     runs: list[RunParticles]
     statistics: PtvStatistics
+    matched: MatchedPoints | None = None
 
 
 def run_pipeline(
@@ -543,7 +595,9 @@ def run_pipeline(
         if progress is not None:
             progress(done[0], total)
 
-    measured = measure_snapshots(frames, range(max(frames.frames)), cameras, settings, tick=tick)
+    measured = measure_snapshots(
+        frames, range(max(frames.frames)), cameras, settings, tick=tick, keep_matched=True
+    )
     runs = [
         run_particles(k, float(frames.dt[k]), measured[k], len(cameras), settings)
         for k in range(len(frames.dt))
@@ -569,4 +623,10 @@ def run_pipeline(
         settings=settings,
         runs=runs,
         statistics=statistics,
+        matched=MatchedPoints.from_frames(
+            (s.k, s.m, f, points)
+            for run in measured
+            for s in run
+            for f, points in enumerate(s.matched)
+        ),
     )

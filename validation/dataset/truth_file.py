@@ -41,6 +41,7 @@ import h5py
 import numpy as np
 
 from simulator.rigs import Rig, rig_from_dict
+from simulator.turbulence import TurbulenceParameters
 
 FORMAT_VERSION = 3
 
@@ -248,6 +249,15 @@ class TruthFile:
             self.frames = int(particles.attrs["frames"])
             self.shared_first_frame = bool(particles.attrs["shared_first_frame"])
             self.dt = np.array([particles[f"dt{k}"].attrs["dt"] for k in range(len(particles))])
+
+    def flow(self) -> tuple[TurbulenceParameters, str]:
+        """The flow the dataset was simulated with: u', ε, ν, and its spectrum's name."""
+        with h5py.File(self.path, "r") as f:
+            attrs = f["flow"].attrs
+            parameters = TurbulenceParameters(
+                u_rms=float(attrs["u_rms"]), epsilon=float(attrs["epsilon"]), nu=float(attrs["nu"])
+            )
+            return parameters, str(attrs["spectrum"])
 
     def runs(self, m0: int = 0, m1: int | None = None) -> list[TruthRun]:
         """The truth of snapshots m0 … m1 − 1 (default: all), one TruthRun per Δt."""

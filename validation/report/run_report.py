@@ -385,10 +385,11 @@ def _detection_section(results: dict, scenario: Scenario) -> list[str]:
     header += ["yield (sheet)", "ghosts (sheet)", "frame rotation (°)"]
     parts.append(_table(header, rows))
     parts.append(
-        "<p>Matching scored on frame a of the first snapshots: a matched point within one "
-        "voxel of a true particle is a hit. Yield, ghosts and particles count the analysis "
-        "volume; “sheet” the whole lit sheet, whose dim wings lose more particles to "
-        "detection.</p>"
+        "<p>Matching scored on frame a of the first snapshots: matched points and true "
+        "particles are paired one-to-one within one voxel, and a paired point is a hit "
+        "(synptv score scores any code's positions the same way). Yield, ghosts and "
+        "particles count the analysis volume; “sheet” the whole lit sheet, whose dim wings "
+        "lose more particles to detection.</p>"
     )
     return parts
 

@@ -19,6 +19,7 @@ from ptv.camera_model import CameraModel
 from ptv.detect.store import DetectionStore
 from ptv.frames import ChunkDetections
 from ptv.pipeline import (
+    MatchedPoints,
     PipelineSettings,
     PtvResult,
     SnapshotMeasurement,
@@ -98,7 +99,9 @@ def ptv_rung(
     -------
     (PtvResult, list of ndarray (N, 3))
         The result, and the matched points of frame a of the first
-        :data:`SCORED_SNAPSHOTS` snapshots of Δt_0 (in the calibration's frame).
+        :data:`SCORED_SNAPSHOTS` snapshots of Δt_0 (in the calibration's frame; the
+        result holds them too, as its ``matched`` points, which ``results.h5`` keeps
+        for ``synptv score``).
     """
     results = map_chunks(
         executor,
@@ -125,4 +128,5 @@ def ptv_rung(
         runs, settings.statistics, shared_first_frame=store.shared_first_frame
     )
     frame_a = [points for r in results for _, points in sorted(r.frame_a.items())]
-    return PtvResult(store, store.cameras, settings, runs, statistics), frame_a
+    matched = MatchedPoints.from_frames((0, m, 0, points) for m, points in enumerate(frame_a))
+    return PtvResult(store, store.cameras, settings, runs, statistics, matched), frame_a

@@ -1,20 +1,27 @@
-"""Stereo matching scored against the truth: yield and ghost fraction.
+"""Measured 3-D positions scored against the truth: yield, ghost fraction, errors.
 
-A matched point is a true positive when it lies within one voxel (the object-side
-pixel) of a true particle. Calibrations from a physical plate live in the plate's
-frame, which differs from the world frame by the plate's tilt and the traverse origin
-(a rotation of ~0.1° and tens of µm); the matched points are therefore brought into the
-world frame by the rigid transform that best fits their nearest true particles
-(Kabsch) before they are scored.
+A measured point is a true positive when it lies within one voxel (the object-side
+pixel) of a true particle, each point and each particle counting once: points and
+particles are paired one-to-one, the closest pairs first (:func:`assign_one_to_one`). A
+point left without a particle is a ghost; the yield is the fraction of the reference
+particles (those imaged by enough cameras) that have a point. Calibrations from a
+physical plate live in the plate's frame, which differs from the world frame by the
+plate's tilt and the traverse origin (a rotation of ~0.1° and tens of µm); the measured
+points are therefore brought into the world frame by the rigid transform that best fits
+their nearest true particles (Kabsch, :func:`align_to_truth`) before they are scored.
+
+``synptv run`` scores the matched points of frame a of its first snapshots
+(:func:`score_matching`); ``synptv score`` scores any code's positions with the same
+functions (:mod:`validation.score`).
 """
 
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ptv.box import inside_box
+from ptv.box import Box, inside_box
 from ptv.pipeline import PipelineSettings
 from validation.dataset.truth_file import TruthRun
 
@@ -30,9 +37,9 @@ class MatchingQuality:
     ----------
     yield_fraction : float
         Particles in the analysis volume imaged by every camera that have a matched
-        point within one voxel.
+        point (one-to-one, within one voxel).
     ghost_fraction : float
-        Matched points in the analysis volume within one voxel of no particle.
+        Matched points in the analysis volume paired with no particle.
     sheet_yield_fraction, sheet_ghost_fraction : float
         The same over the whole lit sheet, whose wings hold dim particles that the
         detection misses more often.
@@ -77,11 +84,6 @@ class MatchingQuality:
         }
 
 
-def _fraction(selected: np.ndarray, among: np.ndarray) -> float:
-    """Fraction of the ``among`` entries that are ``selected`` (0 if there are none)."""
-    return float(np.sum(selected & among) / max(int(among.sum()), 1))
-
-
 def rigid_fit(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rotation R and translation t minimising Σ|R·source + t − target|² (Kabsch).
 
@@ -99,6 +101,214 @@ def rigid_fit(source: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.nd
     d = np.sign(np.linalg.det(vt.T @ u.T))
     rotation = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
     return rotation, ct - rotation @ cs
+
+
+def rotation_angle_deg(rotation: np.ndarray) -> float:
+    """The angle of a rotation matrix (3, 3), degrees."""
+    return float(np.degrees(np.arccos(np.clip((np.trace(rotation) - 1) / 2, -1.0, 1.0))))
+
+
+def align_to_truth(
+    frames: Callable[[], Iterable[tuple[np.ndarray, np.ndarray]]],
+) -> tuple[np.ndarray, np.ndarray]:
+    """The rigid transform that brings measured points onto their true particles.
+
+    Each measured point is paired with its nearest true particle within 0.5 mm, the
+    pairs of every frame are fitted at once (:func:`rigid_fit`), and the fit is made
+    again on the pairs the first one brings together.
+
+    Parameters
+    ----------
+    frames : callable() -> iterable of (ndarray (N, 3), ndarray (P, 3))
+        Gives, each time it is called, the measured points and the true particles of
+        every frame scored, m, in the same order.
+
+    Returns
+    -------
+    (ndarray (3, 3), ndarray (3,))
+        R and t, X_world = R X + t; the identity when fewer than 3 points pair up.
+    """
+    rotation, translation = np.eye(3), np.zeros(3)
+    for _ in range(2):  # refit once on the pairs the first fit brings together
+        src, dst = [], []
+        for points, particles in frames():
+            if not len(points) or not len(particles):
+                continue
+            moved = points @ rotation.T + translation
+            dist, nearest = cKDTree(particles).query(moved, distance_upper_bound=_ALIGN_RADIUS)
+            ok = np.isfinite(dist)
+            src.append(points[ok])
+            dst.append(particles[nearest[ok]])
+        if sum(len(s) for s in src) < 3:
+            return np.eye(3), np.zeros(3)
+        rotation, translation = rigid_fit(np.concatenate(src), np.concatenate(dst))
+    return rotation, translation
+
+
+def assign_one_to_one(points: np.ndarray, particles: np.ndarray, voxel: float) -> np.ndarray:
+    """Pair measured points with true particles one-to-one within one voxel.
+
+    The pairs closer than ``voxel`` are taken in order of distance (ties by point, then
+    particle index), each point and each particle at most once.
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 3)
+        Measured points in the world frame, m.
+    particles : ndarray, shape (P, 3)
+        True particles, m.
+    voxel : float
+        Largest distance of a pair, m (inclusive).
+
+    Returns
+    -------
+    ndarray of int, shape (N,)
+        The particle each point is paired with, −1 for a ghost.
+    """
+    partner = np.full(len(points), -1, dtype=np.int64)
+    if not len(points) or not len(particles):
+        return partner
+    pairs = cKDTree(points).sparse_distance_matrix(cKDTree(particles), voxel, output_type="ndarray")
+    i, j = pairs["i"], pairs["j"]
+    alone = (np.bincount(i, minlength=len(points))[i] == 1) & (
+        np.bincount(j, minlength=len(particles))[j] == 1
+    )
+    partner[i[alone]] = j[alone]  # the usual case: a point and a particle alone together
+    taken = np.zeros(len(particles), dtype=bool)
+    contested = np.flatnonzero(~alone)
+    for q in contested[np.lexsort((j[contested], i[contested], pairs["v"][contested]))]:
+        if partner[i[q]] < 0 and not taken[j[q]]:
+            partner[i[q]] = j[q]
+            taken[j[q]] = True
+    return partner
+
+
+def reference_particles(visible: Sequence[np.ndarray], min_cameras: int) -> np.ndarray:
+    """The particles a measurement should find: those imaged by at least ``min_cameras``
+    cameras.
+
+    Parameters
+    ----------
+    visible : sequence of C ndarray of bool, shape (P,)
+        Per camera, each particle lit and on its sensor.
+    min_cameras : int
+        Fewest cameras.
+
+    Returns
+    -------
+    ndarray of bool, shape (P,)
+    """
+    return np.sum(np.asarray(visible, dtype=np.int64), axis=0) >= min_cameras
+
+
+@dataclass(frozen=True, eq=False)
+class FrameMatch:
+    """One frame's measured points paired with its true particles.
+
+    Attributes
+    ----------
+    points : ndarray, shape (N, 3)
+        Measured points in the world frame (aligned), m.
+    partner : ndarray of int, shape (N,)
+        Index of each point's particle, −1 for a ghost.
+    particles : ndarray, shape (P, 3)
+        True particles, m.
+    reference : ndarray of bool, shape (P,)
+        Particles imaged by enough cameras to be measured.
+    """
+
+    points: np.ndarray
+    partner: np.ndarray
+    particles: np.ndarray
+    reference: np.ndarray
+
+    @property
+    def found(self) -> np.ndarray:
+        """(P,) bool: particles paired with a point."""
+        found = np.zeros(len(self.particles), dtype=bool)
+        found[self.partner[self.partner >= 0]] = True
+        return found
+
+    def counts(self, box: Box) -> np.ndarray:
+        """The counts of :func:`matching_fractions`, shape (6,): reference particles,
+        those found, points and ghosts inside ``box``, then reference particles and
+        those found in the whole frame (points and ghosts there: ``len(points)`` and
+        ``(partner < 0).sum()``)."""
+        found, particle_in = self.found, inside_box(self.particles, box)
+        point_in, ghost = inside_box(self.points, box), self.partner < 0
+        scored = self.reference & particle_in
+        return np.array(
+            [
+                scored.sum(),
+                (found & scored).sum(),
+                point_in.sum(),
+                (ghost & point_in).sum(),
+                self.reference.sum(),
+                (found & self.reference).sum(),
+            ],
+            dtype=np.int64,
+        )
+
+
+def match_frame(
+    points: np.ndarray,
+    particles: np.ndarray,
+    reference: np.ndarray,
+    *,
+    voxel: float,
+    rotation: np.ndarray,
+    translation: np.ndarray,
+) -> FrameMatch:
+    """Bring one frame's points into the world frame and pair them with its particles.
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 3)
+        Measured points in their own frame, m.
+    particles : ndarray, shape (P, 3)
+        True particles, m.
+    reference : ndarray of bool, shape (P,)
+        Particles imaged by enough cameras.
+    voxel : float
+        Pairing distance, m.
+    rotation, translation : ndarray, shapes (3, 3) and (3,)
+        Own frame → world (:func:`align_to_truth`).
+
+    Returns
+    -------
+    FrameMatch
+    """
+    moved = np.asarray(points, dtype=np.float64).reshape(-1, 3) @ rotation.T + translation
+    partner = assign_one_to_one(moved, particles, voxel)
+    return FrameMatch(moved, partner, particles, np.asarray(reference, dtype=bool))
+
+
+def matching_fractions(counts: np.ndarray, points: int, ghosts: int) -> dict:
+    """Yield and ghost fraction from summed :meth:`FrameMatch.counts`.
+
+    Parameters
+    ----------
+    counts : ndarray of int, shape (6,)
+        :meth:`FrameMatch.counts` summed over the frames scored.
+    points, ghosts : int
+        Points and ghosts over the whole frames.
+
+    Returns
+    -------
+    dict
+        ``yield`` and ``ghost_fraction`` in the box, ``sheet_yield`` and
+        ``sheet_ghost_fraction`` over the whole frames (0 where nothing is counted),
+        ``particles`` and ``matches`` (reference particles and points in the box).
+    """
+    scored, found, point_in, ghost_in, reference, found_all = (int(c) for c in counts)
+    return {
+        "yield": found / max(scored, 1),
+        "ghost_fraction": ghost_in / max(point_in, 1),
+        "sheet_yield": found_all / max(reference, 1),
+        "sheet_ghost_fraction": ghosts / max(points, 1),
+        "particles": scored,
+        "matches": point_in,
+    }
 
 
 def score_matching(
@@ -119,7 +329,7 @@ def score_matching(
     truth : TruthRun
         The truth of Δt_0 holding those snapshots (``first`` = 0).
     cameras : sequence of str
-        Camera names (a particle counts when every camera images it).
+        Camera names.
     settings : PipelineSettings
         Analysis volume.
     voxel : float
@@ -129,48 +339,27 @@ def score_matching(
     -------
     MatchingQuality
     """
-    particles, measurable = [], []
+    particles, reference = [], []
     for m in range(len(points)):
         particles.append(truth.positions[m - truth.first, 0])
-        measurable.append(
-            np.all([truth.visible[name][m - truth.first, 0] for name in cameras], axis=0)
-        )
-    rotation, translation = np.eye(3), np.zeros(3)
-    for _ in range(2):  # refit once on the pairs the first fit brings together
-        src, dst = [], []
-        for p, t in zip(points, particles, strict=True):
-            moved = p @ rotation.T + translation
-            dist, nearest = cKDTree(t).query(moved, distance_upper_bound=_ALIGN_RADIUS)
-            ok = np.isfinite(dist)
-            src.append(p[ok])
-            dst.append(t[nearest[ok]])
-        rotation, translation = rigid_fit(np.concatenate(src), np.concatenate(dst))
-    box = settings.statistics.analysis_volume
-    found, measured, particle_in, ghost, point_in = [], [], [], [], []
-    for p, t, m in zip(points, particles, measurable, strict=True):
-        moved = p @ rotation.T + translation
-        ghost.append(cKDTree(t).query(moved)[0] > voxel)
-        point_in.append(inside_box(moved, box))
-        hit = np.zeros(len(t), dtype=bool)
-        if len(p):
-            hit[m] = cKDTree(moved).query(t[m])[0] <= voxel
-        found.append(hit)
-        measured.append(m)
-        particle_in.append(inside_box(t, box))
-    found, measured, particle_in, ghost, point_in = (
-        np.concatenate(v) for v in (found, measured, particle_in, ghost, point_in)
-    )
-    scored = measured & particle_in
-    angle = np.degrees(np.arccos(np.clip((np.trace(rotation) - 1) / 2, -1.0, 1.0)))
+        visible = [truth.visible[name][m - truth.first, 0] for name in cameras]
+        reference.append(reference_particles(visible, len(cameras)))
+    rotation, translation = align_to_truth(lambda: zip(points, particles, strict=True))
+    counts, total, ghosts = np.zeros(6, dtype=np.int64), 0, 0
+    for p, t, ref in zip(points, particles, reference, strict=True):
+        frame = match_frame(p, t, ref, voxel=voxel, rotation=rotation, translation=translation)
+        counts += frame.counts(settings.statistics.analysis_volume)
+        total, ghosts = total + len(frame.points), ghosts + int((frame.partner < 0).sum())
+    fractions = matching_fractions(counts, total, ghosts)
     return MatchingQuality(
-        yield_fraction=_fraction(found, scored),
-        ghost_fraction=_fraction(ghost, point_in),
-        sheet_yield_fraction=_fraction(found, measured),
-        sheet_ghost_fraction=_fraction(ghost, np.ones_like(ghost)),
+        yield_fraction=fractions["yield"],
+        ghost_fraction=fractions["ghost_fraction"],
+        sheet_yield_fraction=fractions["sheet_yield"],
+        sheet_ghost_fraction=fractions["sheet_ghost_fraction"],
         voxel=voxel,
-        particles=int(scored.sum()),
-        matches=int(point_in.sum()),
+        particles=fractions["particles"],
+        matches=fractions["matches"],
         rotation=rotation,
-        rotation_deg=float(angle),
+        rotation_deg=rotation_angle_deg(rotation),
         translation=translation,
     )

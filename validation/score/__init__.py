@@ -1,0 +1,11 @@
+"""``synptv score``: any PTV code's 3-D positions and tracks scored against a rendered
+dataset's truth.
+
+Modules, one job each: :mod:`~validation.score.positions` reads and checks a positions
+file; :mod:`~validation.score.reference` pairs the positions with the reference
+particles one-to-one (:mod:`validation.truth.matching`, as ``synptv run`` scores its
+matching); :mod:`~validation.score.scores` gives yield, ghosts, position errors and the
+links of tracks; :mod:`~validation.score.statistics` S2 and ε through synptv's
+multi-Δt statistics against the truth; :mod:`~validation.score.report` the report;
+:mod:`~validation.score.command` the command line.
+"""

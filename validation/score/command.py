@@ -1,0 +1,200 @@
+"""``synptv score``: any code's 3-D positions (and tracks) against a dataset's truth.
+
+Everything the command reads is checked before anything is written (the dataset and
+its truth.h5, the options, every row of the positions file): bad input is a one-line
+error with exit status 2 and no output folder. The report files are written together
+(:func:`validation.workflow.files.staged_output`).
+"""
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from validation.run.scenario import PtvSection, Scenario, pipeline_settings
+from validation.workflow.files import (
+    as_json,
+    check_output_folder,
+    hold_output_folder,
+    staged_output,
+)
+
+
+def _positive_length(text: str) -> float:
+    """An argparse type: a finite length > 0, m."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a length in m, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite length > 0 (m), got {text!r}")
+    return value
+
+
+def _box_size(text: str) -> tuple[float, float, float]:
+    """An argparse type: three lengths LX,LY,LZ > 0, m."""
+    parts = text.split(",")
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(f"must be three sizes LX,LY,LZ in m, got {text!r}")
+    return tuple(_positive_length(p) for p in parts)  # type: ignore[return-value]
+
+
+def add_score_parser(sub) -> None:
+    """The ``synptv score`` subcommand."""
+    score = sub.add_parser(
+        "score",
+        help="score any code's 3-D positions (and tracks) against a dataset's truth",
+        description="Score 3-D positions (CSV with header dt,snapshot,frame,x,y,z and an "
+        "optional track column, metres in the dataset's world frame; or the same columns "
+        "in HDF5, e.g. a results.h5 of synptv ptv) against the truth of a rendered "
+        "dataset: yield, ghost fraction and position errors per dt and in total, the "
+        "links of tracks, and S2/epsilon through synptv's multi-dt statistics against the "
+        "truth. Writes score.json, report.html and score.png.",
+    )
+    score.add_argument("--dataset", required=True, help="a dataset rendered by synptv")
+    score.add_argument("--positions", required=True, help="the positions file (CSV or HDF5)")
+    score.add_argument(
+        "--tracks", action="store_true", help="score the links of the track column too"
+    )
+    score.add_argument("--json", action="store_true", help="print one JSON object")
+    score.add_argument("--out", default="synptv-score", help="report folder (default synptv-score)")
+    score.add_argument(
+        "--voxel", type=_positive_length, help="pairing distance, m (default: one object pixel)"
+    )
+    score.add_argument(
+        "--min-cameras",
+        type=int,
+        default=2,
+        help="cameras a reference particle is imaged by, at least (default 2)",
+    )
+    score.add_argument(
+        "--analysis-volume",
+        type=_box_size,
+        default=PtvSection().analysis_volume,
+        metavar="LX,LY,LZ",
+        help="sizes of the centred analysis volume, m (default synptv run's, 0.07,0.07,0.008)",
+    )
+    score.set_defaults(run=run_score)
+
+
+def _settings(size: tuple[float, float, float]):
+    """synptv run's default PTV settings with the analysis volume of ``size``."""
+    return pipeline_settings(Scenario("score", ptv=PtvSection(analysis_volume=size)))
+
+
+def _truth(dataset: str):
+    """The dataset's :class:`~validation.dataset.truth_file.TruthFile`, or a one-line
+    error."""
+    from validation.dataset.truth_file import TruthFile
+
+    folder = Path(dataset)
+    if not folder.is_dir():
+        raise ValueError(f"--dataset {folder}: no such folder")
+    if not (folder / "truth.h5").is_file():
+        raise ValueError(
+            f"--dataset {folder}: no truth.h5 (score needs a dataset rendered by synptv)"
+        )
+    return TruthFile(folder)
+
+
+def score(args: argparse.Namespace) -> tuple[dict, np.ndarray]:
+    """The score of ``args.positions`` (module docstring) and the position errors of
+    its true positives (N, 3), m; raises ValueError on bad input, writes nothing."""
+    from validation.run.experiment import object_pixel
+    from validation.score.positions import check_positions, read_positions
+    from validation.score.reference import score_positions
+    from validation.score.scores import per_dt, summarize, track_scores
+    from validation.score.statistics import score_statistics
+    from validation.truth.matching import rotation_angle_deg
+
+    truth = _truth(args.dataset)
+    cameras = len(truth.rig.camera_names)
+    if not 1 <= args.min_cameras <= cameras:
+        raise ValueError(
+            f"--min-cameras {args.min_cameras}: must be 1 to the dataset's {cameras} cameras"
+        )
+    positions = read_positions(args.positions, tracks=args.tracks)
+    check_positions(positions, n_dt=len(truth.dt), snapshots=truth.frames)
+    settings = _settings(args.analysis_volume)
+    box = settings.statistics.analysis_volume
+    voxel = object_pixel(truth.rig) if args.voxel is None else args.voxel
+    scored = score_positions(positions, truth, voxel=voxel, min_cameras=args.min_cameras, box=box)
+    result = {
+        **summarize(scored.frames),
+        "per_dt": per_dt(scored.frames, truth.dt),
+        "tracks": track_scores(positions, scored.frames) if args.tracks else None,
+        "statistics": score_statistics(positions, scored, truth, settings, voxel=voxel),
+        "alignment": {
+            "rotation": scored.rotation,
+            "rotation_deg": rotation_angle_deg(scored.rotation),
+            "translation_m": scored.translation,
+        },
+        "settings": {
+            "dataset": str(args.dataset),
+            "positions": str(args.positions),
+            "voxel_m": voxel,
+            "min_cameras": args.min_cameras,
+            "analysis_volume_m": list(args.analysis_volume),
+            "rows": len(positions.k),
+        },
+    }
+    errors = np.concatenate([f.error[f.tp_in] for f in scored.frames])
+    return as_json(result), errors
+
+
+def _print(result: dict, out: Path) -> None:
+    """The score in a few lines."""
+    print(
+        f"{'dt (ms)':>8s} {'frames':>6s} {'reference':>9s} {'found':>7s} {'yield':>7s} "
+        f"{'ghosts':>7s}  RMS x, y, z (um)"
+    )
+    for label, s in [(f"{1e3 * s['dt_s']:8.4f}", s) for s in result["per_dt"]] + [
+        (f"{'total':>8s}", result)
+    ]:
+        rms = ", ".join("–" if v is None else f"{v:.3g}" for v in s["position_rms_um"].values())
+        print(
+            f"{label} {s['frames']:6d} {s['n_reference']:9d} {s['n_found']:7d} "
+            f"{s['yield']:7.4f} {s['ghost_fraction']:7.4f}  {rms}"
+        )
+    tracks = result["tracks"]
+    if tracks is not None:
+        print(
+            f"links: {tracks['links']}, correct {tracks['correct']}, wrong {tracks['wrong']}; "
+            f"broken {tracks['broken']} of {tracks['found_in_both']} particles found in both frames"
+        )
+    statistics = result["statistics"]
+    if statistics["computed"]:
+        c1, eps = statistics["c1"], statistics["epsilon"]
+        deviation, relative = c1["max_abs_deviation"], eps["relative_to_exact_d_ll"]
+        print(
+            "c1 within "
+            + ("–" if deviation is None else f"{100 * deviation:.3g} %")
+            + " of the sample truth over the check range; plateau epsilon "
+            + ("–" if relative is None else f"{100 * relative:+.3g} %")
+            + " from the estimator on the exact D_LL"
+        )
+    else:
+        print(statistics["reason"])
+    print(f"report written to {out / 'report.html'}")
+
+
+def run_score(args: argparse.Namespace) -> int:
+    """``synptv score`` (module docstring)."""
+    from validation.score.report import write_report
+
+    out = check_output_folder(args.out)
+    result, errors = score(args)
+    with hold_output_folder(out, "synptv score") as took_over:
+        if took_over:
+            print(f"synptv score: {took_over}", file=sys.stderr)
+        with staged_output(out) as staging:
+            write_report(staging, result, errors)
+    if args.json:
+        json.dump(result, sys.stdout, indent=2, allow_nan=False)
+        print()
+    else:
+        _print(result, out)
+    return 0

@@ -1,0 +1,215 @@
+"""S2 and ε from a code's own positions through synptv's multi-Δt statistics, compared
+with the truth as ``synptv run``'s error budget compares its rungs.
+
+The positions of frames a and b of each snapshot at each Δt are linked: by their track
+ids when the file has tracks, else by synptv's double-frame linker
+(:func:`ptv.track.link`, radius max_speed·Δt + 5σ_b); a normalised median test flags
+mislinks (:func:`ptv.pipeline.median_test_outliers`), as for synptv's own links. The
+links in the analysis volume go through :func:`ptv.stats.run_statistics.compute_statistics`
+(with a shared first frame when the dataset has one and the file gives the same
+frame-a positions at every Δt). Then, as in ``synptv run`` (:mod:`validation.run.checks`):
+c1 against the sample-truth S2 of the pairs it used, the plateau ε against the same
+estimator on the exact D_LL.
+"""
+
+import numpy as np
+
+from ptv.pipeline import (
+    PipelineSettings,
+    SnapshotMeasurement,
+    link_radius,
+    median_test_outliers,
+    run_particles,
+)
+from ptv.results import statistics_summary
+from ptv.stats.links import RunParticles
+from ptv.stats.run_statistics import compute_statistics
+from ptv.track import link
+from validation.dataset.truth_file import TruthFile
+from validation.run.checks import compare_variant, predicted_noise
+from validation.run.particle_chunks import snapshot_chunks
+from validation.run.scenario import ChecksSection
+from validation.score.positions import Positions
+from validation.score.reference import Scored
+from validation.truth.flow import flow_truth, population_truth
+
+
+def _pairs(positions: Positions, a: np.ndarray, b: np.ndarray, radius: float | None):
+    """Row indices (into ``a`` and ``b``) of the links of one snapshot: by track id when
+    ``radius`` is None, else by :func:`ptv.track.link`."""
+    if radius is None:
+        in_b = {t: j for j, t in enumerate(positions.track[b].tolist())}
+        pairs = [(i, in_b[t]) for i, t in enumerate(positions.track[a].tolist()) if t in in_b]
+        pairs = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+        return pairs[:, 0], pairs[:, 1]
+    if not len(a) or not len(b):
+        return np.empty(0, np.int64), np.empty(0, np.int64)
+    links = link(positions.xyz[a], positions.xyz[b], radius=radius)
+    return links.index_a, links.index_b
+
+
+def link_runs(
+    positions: Positions, scored: Scored, dt: np.ndarray, settings: PipelineSettings
+) -> list[RunParticles]:
+    """The links of every Δt whose frames a and b are both scored (module docstring).
+
+    Parameters
+    ----------
+    positions : Positions
+        The rows (with track ids to link by them).
+    scored : Scored
+        The frames scored (their rows).
+    dt : ndarray, shape (K,)
+        The dataset's Δt, s.
+    settings : PipelineSettings
+        Link radius, median test, analysis volume.
+
+    Returns
+    -------
+    list of RunParticles
+        One per Δt with both frames, positions in the file's own frame.
+    """
+    rows = {(f.k, f.m, f.frame): f.rows for f in scored.frames}
+    runs = []
+    for k in sorted({key[0] for key in rows}):
+        snapshots = sorted(m for kk, m, frame in rows if kk == k and frame == 0)
+        measured = []
+        for m in snapshots:
+            if (k, m, 1) not in rows:
+                continue
+            a, b = rows[(k, m, 0)], rows[(k, m, 1)]
+            radius = None if positions.track is not None else link_radius(dt[k], settings)
+            i, j = _pairs(positions, a, b, radius)
+            x, d = positions.xyz[a[i]], positions.xyz[b[j]] - positions.xyz[a[i]]
+            outlier = np.zeros(len(x), dtype=bool)
+            if settings.outlier_threshold is not None:
+                outlier = median_test_outliers(
+                    x,
+                    d,
+                    threshold=settings.outlier_threshold,
+                    noise=settings.position_noise,
+                    neighbours=settings.outlier_neighbours,
+                )
+            measured.append(
+                SnapshotMeasurement(
+                    k=k,
+                    m=m,
+                    detections=np.zeros((2, 1), dtype=np.int64),  # a file has no detections
+                    matches=np.array([len(a), len(b)]),
+                    links=len(x),
+                    positions=x,
+                    displacements=d,
+                    outlier=outlier,
+                )
+            )
+        if measured:
+            runs.append(run_particles(k, float(dt[k]), measured, 1, settings))
+    return runs
+
+
+def _shares_first_frame(positions: Positions, scored: Scored) -> bool:
+    """Whether every snapshot's frame-a positions are the same at every Δt."""
+    first: dict[int, np.ndarray] = {}
+    for f in scored.frames:
+        if f.frame != 0:
+            continue
+        x = positions.xyz[f.rows]
+        x = x[np.lexsort(x.T[::-1])]
+        if f.m in first and not np.array_equal(first[f.m], x):
+            return False
+        first.setdefault(f.m, x)
+    return True
+
+
+def score_statistics(
+    positions: Positions,
+    scored: Scored,
+    truth: TruthFile,
+    settings: PipelineSettings,
+    *,
+    voxel: float,
+) -> dict:
+    """S2, ε, c1 and their checks against truth from the positions (module docstring).
+
+    Parameters
+    ----------
+    positions : Positions
+        The rows.
+    scored : Scored
+        The frames scored and the alignment with the truth.
+    truth : TruthFile
+        The dataset's truth.
+    settings : PipelineSettings
+        Linking and statistics settings.
+    voxel : float
+        Association radius of the measured and true particles, m.
+
+    Returns
+    -------
+    dict
+        ``computed`` False with a ``reason`` when the positions do not allow it (no Δt
+        with both frames, fewer than two Δt with links); else ``linked_by``,
+        ``shared_first_frame``, ``links_used`` per Δt, the checks of
+        :func:`validation.run.checks.compare_variant` (``c1``, ``epsilon``, ``c2``,
+        ``raw_s2``, ``mean_linear``, ``subsets``, ``c1_over_truth``; ``c1_reference``:
+        which sample truth c1 is compared with), ``sample_truth`` (the sample truth and
+        exact D_LL, :class:`validation.truth.flow.FlowTruth`), ``population`` and
+        ``summary`` (:func:`ptv.results.statistics_summary`).
+    """
+    runs = link_runs(positions, scored, truth.dt, settings)
+    if not runs:
+        return {
+            "computed": False,
+            "reason": "no statistics: the file has no snapshot with positions in both "
+            "frames a and b at any Δt",
+        }
+    shared = truth.shared_first_frame and _shares_first_frame(positions, scored)
+    try:
+        statistics = compute_statistics(runs, settings.statistics, shared_first_frame=shared)
+    except ValueError as err:
+        return {"computed": False, "reason": f"no statistics: {err}"}
+    chunks = snapshot_chunks(truth.frames)
+    parameters, spectrum = truth.flow()
+    reference = flow_truth(
+        truth.snapshots_at_t(chunks), parameters, spectrum, settings.statistics
+    ).as_dict()
+    population = None
+    if statistics.population is not None:
+        population = population_truth(
+            statistics.population,
+            truth,
+            chunks,
+            settings.statistics,
+            radius=voxel,
+            rotation=scored.rotation,
+            translation=scored.translation,
+        ).as_dict()
+    lower, upper = (np.asarray(v) for v in settings.statistics.analysis_volume)
+    noise = None
+    if population is not None and all(
+        v is not None for row in population["displacement_noise_m"] for v in row
+    ):
+        noise = predicted_noise(population, settings.statistics.bins, upper - lower)
+    checks = ChecksSection()
+    summary = statistics_summary(statistics)
+    compared = compare_variant(
+        summary,
+        reference,
+        check_range=(
+            checks.c1_r_min_eta * parameters.eta,
+            checks.c1_r_max_l_int * parameters.L_int,
+        ),
+        noise=noise,
+        population=population,
+    )
+    compared["c1_reference"] = compared.pop("truth")
+    return {
+        "computed": True,
+        "linked_by": "tracks" if positions.track is not None else "synptv's linker",
+        "shared_first_frame": shared,
+        "links_used": {str(run.k): int(run.used.sum()) for run in runs},
+        **compared,
+        "sample_truth": reference,
+        "population": population,
+        "summary": summary,
+    }
