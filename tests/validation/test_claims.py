@@ -5,9 +5,13 @@ import json
 
 import pytest
 
+import ptv.calibration.model_free as model_free
+import ptv.stats.pairs as pairs
 from simulator.presets import flow_preset
 from simulator.spectra import C_KOLMOGOROV
 from validation.claims import CLAIMS, ClaimContext, dt3_gamma, run_claims
+
+CALIBRATION = [c.id for c in CLAIMS if c.id.startswith("calib.")]
 
 
 def test_claim_ids_required_by_the_validation_suite_exist():
@@ -17,6 +21,10 @@ def test_claim_ids_required_by_the_validation_suite_exist():
         "calib.similar_conventional",
         "calib.planes_7_vs_13",
         "calib.planes_3_vs_13",
+        "calib.noise_limited",
+        "calib.model_error",
+        "calib.sub_pixel",
+        "calib.plane_fit_residual",
         "stats.c1_matches_truth",
         "stats.c2_positive",
         "stats.epsilon_recovered",
@@ -53,6 +61,38 @@ def test_switching_refraction_off_breaks_the_scheimpflug_claim():
         ClaimContext("quick", refraction=False), ids=["calib.model_free_beats_tsai_scheimpflug"]
     )
     assert not result.passed and result.value < 3
+
+
+def test_the_calibration_claims_pass_and_state_where_their_limits_come_from():
+    results = run_claims(ClaimContext("quick"), ids=CALIBRATION)
+    assert [r.id for r in results if not r.passed] == []
+    by_id = {r.id: r for r in results}
+    assert "d_noise" in by_id["calib.noise_limited"].tolerance
+    assert "σ√(2(1 − p/N))" in by_id["calib.plane_fit_residual"].tolerance
+
+
+def test_quadratic_plane_maps_break_the_noise_derived_calibration_claims(monkeypatch):
+    # The mutation: model-free d 7.5 → 11 µm passed every relative claim.
+    monkeypatch.setitem(model_free.calibrate_model_free.__kwdefaults__, "degree", 2)
+    failed = {r.id for r in run_claims(ClaimContext("quick"), ids=CALIBRATION) if not r.passed}
+    assert {"calib.noise_limited", "calib.model_error", "calib.plane_fit_residual"} <= failed
+
+
+@pytest.mark.slow
+def test_a_three_percent_error_in_the_shared_pair_sums_breaks_the_c1_and_epsilon_claims(
+    monkeypatch,
+):
+    # The estimate and the stack's sample truth share ptv.stats.pairs; the brute-force
+    # reference and the ε deficit do not, so the error cannot cancel.
+    kernel = pairs._pair_sums
+
+    def biased(*args):
+        count, sum_q, sum_q2, sum_r = kernel(*args)
+        return count, 1.03 * sum_q, 1.03**2 * sum_q2, sum_r
+
+    monkeypatch.setattr(pairs, "_pair_sums", biased)
+    ids = ["stats.c1_matches_truth", "stats.epsilon_recovered", "stats.raw_s2_biased"]
+    assert not any(r.passed for r in run_claims(ClaimContext("quick"), ids=ids))
 
 
 @pytest.fixture(scope="module")

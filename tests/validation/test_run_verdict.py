@@ -93,6 +93,27 @@ def test_a_rung_fails_the_check_it_was_built_to_fail(rung, fails):
     assert failed(rung_checks(*rung)) == fails
 
 
+def test_the_comparisons_with_independent_references_are_checked_when_the_truth_has_them():
+    c = comparison()
+    c["c1_independent"] = {
+        "max_abs_deviation": 0.02,
+        "tolerance": "5% + 2σ of the reference per bin",
+        "sample_over_reference": 1.031,
+        "se_sample_over_reference": 0.004,
+        "passed": False,  # the sample truth 7.8σ off the brute force: a shared-code error
+    }
+    c["epsilon_independent"] = {
+        "relative_to_reference": 0.01,
+        "plateau_deficit": -0.2,
+        "tolerance": 0.05,
+        "passed": True,
+    }
+    checks = rung_checks(c, matching())
+    assert failed(checks) == ["stats.c1_matches_independent_truth"]
+    assert "stats.epsilon_matches_input_deficit" in [r["id"] for r in checks]
+    assert "1.0310 within 3σ" in checks[5]["tolerance"]
+
+
 def test_a_rung_without_a_raw_s2_bin_has_no_raw_s2_check():
     c = comparison()
     del c["raw_s2"]

@@ -12,6 +12,14 @@ Checks on one variant (tolerances from the issue and docs/claims.md):
   its error (the deviation from the sample truth of every particle is given beside);
 - ``epsilon``: plateau ε against the same estimator on the exact D_LL: within 5 %;
   the estimator's own gap to the input ε (finite-Reynolds plateau deficit) beside it;
+- ``c1_independent`` and ``epsilon_independent`` (truth files that carry the references
+  of :mod:`validation.truth.independent`), comparisons that share no code with the
+  stack, so that an error common to the stack and its sample truth cannot cancel:
+  c1 against the brute-force S2 of a subsample of every snapshot, in every bin of the
+  c1 range within 5 % widened by twice the subsample's error, and the sample truth
+  against that reference within :data:`REFERENCE_SE` of its error (the mean over the
+  bins); the plateau ε within 5 % of the input ε times the plateau deficit from an
+  independent quadrature of the spectrum;
 - ``c2``: c2 > 0 in every fitted bin of the check range; and consistent with the noise
   of the particles the variant's S2 used, measured against the truth (the detection
   rung's when that is not known; :class:`NoisePrediction`): the median of c2 over the
@@ -46,6 +54,8 @@ RAW_S2_OCTAVES = 2.0
 #: Δt, 1-2 %).
 C2_MARGIN = 0.05
 SUBSET_TOLERANCES = {"3 largest dt": 0.10, "smallest and largest dt": 0.05}
+#: Standard errors allowed between the sample truth and the brute-force reference.
+REFERENCE_SE = 3.0
 
 
 def float_array(values) -> np.ndarray:
@@ -219,6 +229,9 @@ def compare_variant(
         else None,
     }
     out["epsilon"] = _epsilon_check(summary, truth)
+    if "s2_reference" in truth:
+        out["c1_independent"] = _c1_independent(s2, truth, sel)
+        out["epsilon_independent"] = _epsilon_independent(summary, truth)
     out["c2"] = _c2_check(c2[sel], noise, sel)
     if noise is not None and sel.any():
         out["c1"]["noise_part_max"] = float(np.max(noise.c1_noise[sel] / truth_s2[sel]))
@@ -243,6 +256,43 @@ def _epsilon_check(summary: dict, truth: dict) -> dict:
         "estimator_on_sample_truth": truth["epsilon_sample_truth"],
         "input": truth["epsilon_input"],
         "plateau_deficit_of_estimator": reference / truth["epsilon_input"] - 1,
+        "tolerance": EPSILON_TOLERANCE,
+        "passed": eps is not None and abs(eps / reference - 1) <= EPSILON_TOLERANCE,
+    }
+
+
+def _c1_independent(s2: np.ndarray, truth: dict, sel: np.ndarray) -> dict:
+    """c1 and the sample truth against the brute-force reference (module docstring)."""
+    reference = float_array(truth["s2_reference"])
+    se = float_array(truth["se_s2_reference"])
+    ok = sel & np.isfinite(reference) & (reference > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        excess = np.abs(s2[ok] / reference[ok] - 1) - (C1_TOLERANCE + 2 * se[ok] / reference[ok])
+    ratio, se_ratio = truth["sample_over_reference"]
+    consistent = abs(ratio - 1) <= REFERENCE_SE * se_ratio
+    return {
+        "bins": int(ok.sum()),
+        "max_abs_deviation": float(np.max(np.abs(s2[ok] / reference[ok] - 1)))
+        if ok.any()
+        else None,
+        "worst_excess_over_tolerance": float(excess.max()) if ok.any() else None,
+        "tolerance": f"{C1_TOLERANCE:.0%} + 2σ of the reference per bin",
+        "sample_over_reference": ratio,
+        "se_sample_over_reference": se_ratio,
+        "passed": bool(ok.any() and np.all(excess <= 0) and consistent),
+    }
+
+
+def _epsilon_independent(summary: dict, truth: dict) -> dict:
+    """The plateau ε against the input ε times the independently computed deficit."""
+    plateau = summary["epsilon"]["plateau"]
+    eps = plateau["epsilon"] if plateau else None
+    reference = truth["epsilon_reference"]
+    return {
+        "value": eps,
+        "reference": reference,
+        "plateau_deficit": reference / truth["epsilon_input"] - 1,
+        "relative_to_reference": None if eps is None else eps / reference - 1,
         "tolerance": EPSILON_TOLERANCE,
         "passed": eps is not None and abs(eps / reference - 1) <= EPSILON_TOLERANCE,
     }

@@ -8,8 +8,9 @@ docs/claims.md §3):
   of the truth-paired detections against their measured noise;
 - checks of a calibration rung (the PTV stack with one method of ``[ptv] methods``),
   the same on every rung: matching yield and ghosts in the analysis volume, c1, ε,
-  c2 > 0, the raw S2 at the smallest Δt, the mean displacement linear in Δt, the ε of
-  the Δt subsets.
+  c2 > 0, c1 and ε against references that share no code with the stack (where the
+  truth file has them), the raw S2 at the smallest Δt, the mean displacement linear in
+  Δt, the ε of the Δt subsets.
 
 The rule of the verdict: the checks of the run and those of the method under test,
 the first of ``[ptv] methods`` (model-free in every preset), must hold; ``synptv run``
@@ -20,6 +21,8 @@ windows loses particles and adds ghosts: claim #16), not a failure of the run.
 """
 
 import numpy as np
+
+from validation.run.checks import REFERENCE_SE
 
 #: Matching in the analysis volume: the least yield and the most ghosts.
 YIELD_MIN = 0.90
@@ -180,6 +183,25 @@ def rung_checks(comparison: dict, matching: dict) -> list[dict]:
             "stats.c2_positive", c["c2"]["negative_bins"], "0 bins with c2 ≤ 0", c["c2"]["passed"]
         ),
     ]
+    if "c1_independent" in c:
+        ind, eps = c["c1_independent"], c["epsilon_independent"]
+        rows += [
+            _row(
+                "stats.c1_matches_independent_truth",
+                ind["max_abs_deviation"],
+                f"≤ {ind['tolerance']}; sample truth / reference "
+                f"{ind['sample_over_reference']:.4f} within {REFERENCE_SE:g}σ "
+                f"({ind['se_sample_over_reference']:.2%})",
+                ind["passed"],
+            ),
+            _row(
+                "stats.epsilon_matches_input_deficit",
+                eps["relative_to_reference"],
+                f"within ±{100 * eps['tolerance']:g} % of ε_input × (1 "
+                f"{eps['plateau_deficit']:+.1%}), the deficit by an independent quadrature",
+                eps["passed"],
+            ),
+        ]
     if "raw_s2" in c:
         raw = c["raw_s2"]
         rows.append(

@@ -12,8 +12,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
-from ptv.stats.multidt import dt_subsets, wls_line
+from ptv.stats.dissipation import DEFAULT_C2, dissipation_profile, plateau_epsilon
+from ptv.stats.links import RunParticles
+from ptv.stats.mean_displacement import MeanDisplacement, mean_displacement
+from ptv.stats.multidt import dt_subsets
 from ptv.stats.pairs import LogBins, PairSums, pair_sums
 from ptv.stats.snapshots import SnapshotSums
 from ptv.stats.structure import StructureFunction, double_frame_sums, structure_function
@@ -71,8 +73,8 @@ class MultiDtResult:
     ----------
     fit : StructureFunction
         The stack's multi-Δt fit (c₁ = ``fit.s2``, c₂ = ``fit.noise``).
-    sample_truth : ndarray, shape (B,)
-        S2 of the exact velocities over the same pairs, m²/s².
+    sample_truth : ndarray, shape (B,), or None
+        S2 of the exact velocities over the same pairs, m²/s² (None when not asked for).
     exact_dll : ndarray, shape (B,)
         D_LL of the spectrum at the bins' mean separations, m²/s².
     epsilon_fit, epsilon_exact : float
@@ -80,10 +82,12 @@ class MultiDtResult:
         the exact D_LL, m²/s³.
     epsilon_subsets : dict
         Plateau ε of each Δt subset of :func:`ptv.stats.multidt.dt_subsets`.
-    mean_offset_pull : ndarray, shape (3,)
-        β₀/σ(β₀) of the fit ⟨ΔX⟩ = αΔt + β₀ per component, with σ of ⟨ΔX⟩ from the
-        scatter of per-snapshot means (particles of one snapshot share its large scales,
-        so they are not independent samples).
+    mean_displacement : MeanDisplacement
+        The stack's line ⟨ΔX⟩ = αΔt + β₀ per component
+        (:func:`ptv.stats.mean_displacement.mean_displacement`, errors from the scatter
+        of snapshot means).
+    links : tuple of RunParticles
+        The measured X(t) and ΔX of each Δt run, as the stack's statistics take them.
     inertial : ndarray of bool, shape (B,)
         Bins inside the inertial range used for the plateau.
     sums : SnapshotSums
@@ -91,12 +95,13 @@ class MultiDtResult:
     """
 
     fit: StructureFunction
-    sample_truth: np.ndarray
+    sample_truth: np.ndarray | None
     exact_dll: np.ndarray
     epsilon_fit: float
     epsilon_exact: float
     epsilon_subsets: dict
-    mean_offset_pull: np.ndarray
+    mean_displacement: MeanDisplacement
+    links: tuple[RunParticles, ...]
     inertial: np.ndarray
     sums: SnapshotSums
 
@@ -166,9 +171,10 @@ def analyse(
     region: Box = ANALYSIS_VOLUME,
     bins: int = 16,
     inertial_range: tuple[float, float] = (2e-3, 20e-3),
-    kolmogorov_c2: float = 2.0,
+    kolmogorov_c2: float = DEFAULT_C2,
     spectrum: Spectrum | None = None,
     n_boot: int = 200,
+    sample_truth: bool = True,
     rng: np.random.Generator | int | None = None,
 ) -> MultiDtResult:
     """Measure the sample, fit the multi-Δt statistics and put them beside the truth.
@@ -188,12 +194,15 @@ def analyse(
     inertial_range : (float, float)
         Separations (m) over which the ε plateau is taken.
     kolmogorov_c2 : float
-        C₂ of the estimator ε = (S2/C₂)^{3/2}/r.
+        C₂ of the estimator ε = (S2/C₂)^{3/2}/r (default: the stack's).
     spectrum : PopeSpectrum, KolmogorovBandSpectrum or None
         The spectrum the sample was simulated with, for the exact D_LL (None: the Pope
         spectrum of ``preset``).
     n_boot : int
         Bootstrap replicates over snapshots.
+    sample_truth : bool
+        Compute the sample truth with the stack's pair sums (False: ``sample_truth``
+        is None, for callers that compare with independent references instead).
     rng : numpy.random.Generator, int or None
         Noise draws and bootstrap.
 
@@ -206,7 +215,6 @@ def analyse(
     log_bins = LogBins(10 * p.eta, p.L_int / 2, bins)
     gain = 1.0 + measurement.scale_error
     runs, truth = [], None
-    mean_shift, se_shift = [], []
     for run in sample.runs:
         pairs = []
         for x, u in zip(run.positions, run.velocity[:, 0], strict=True):
@@ -214,12 +222,13 @@ def analyse(
             inside = region.contains(measured[0])
             start, delta = measured[0][inside], (measured[1] - measured[0])[inside]
             pairs.append((start, delta))
-            sums = pair_sums(x[0][inside], u[inside], log_bins)
-            truth = sums if truth is None else truth + sums
+            if sample_truth:
+                sums = pair_sums(x[0][inside], u[inside], log_bins)
+                truth = sums if truth is None else truth + sums
         runs.append(pairs)
-        per_snapshot = np.array([d.mean(axis=0) for _, d in pairs])
-        mean_shift.append(per_snapshot.mean(axis=0))
-        se_shift.append(per_snapshot.std(axis=0, ddof=1) / np.sqrt(len(per_snapshot)))
+    links = tuple(
+        run_particles(k, d, pairs) for k, (d, pairs) in enumerate(zip(sample.dt, runs, strict=True))
+    )
     snapshot_sums = double_frame_sums(runs, log_bins)
     fit = structure_function(snapshot_sums, sample.dt, n_boot=n_boot, rng=rng)
     r = np.where(np.isfinite(fit.r), fit.r, log_bins.centres)
@@ -236,17 +245,53 @@ def analyse(
     for name, use in dt_subsets(sample.dt).items():
         sub = structure_function(snapshot_sums, sample.dt, use=use, n_boot=n_boot, rng=rng)
         subsets[name] = plateau(sub.s2)
-    mean = wls_line(sample.dt, np.array(mean_shift).T, np.array(se_shift).T)
     return MultiDtResult(
         fit=fit,
-        sample_truth=_mean(truth),
+        sample_truth=None if truth is None else _mean(truth),
         exact_dll=exact,
         epsilon_fit=plateau(fit.s2),
         epsilon_exact=plateau(exact),
         epsilon_subsets=subsets,
-        mean_offset_pull=mean.c2 / mean.se_c2,
+        mean_displacement=mean_displacement(links),
+        links=links,
         inertial=inertial,
         sums=snapshot_sums,
+    )
+
+
+def run_particles(k: int, dt: float, pairs) -> RunParticles:
+    """The measured links of one Δt run as the stack's statistics take them.
+
+    Parameters
+    ----------
+    k : int
+        Δt index.
+    dt : float
+        Δt, s.
+    pairs : sequence of (ndarray (P, 3), ndarray (P, 3))
+        Per snapshot, X(t) and ΔX of the particles inside the analysis volume, m.
+
+    Returns
+    -------
+    RunParticles
+        Every snapshot kept and every link used (in the analysis volume, no outliers).
+    """
+    counts = np.array([len(x) for x, _ in pairs], dtype=np.int64)
+    snapshots = np.arange(len(pairs), dtype=np.int64)
+    total = int(counts.sum())
+    return RunParticles(
+        k=k,
+        dt=float(dt),
+        positions=np.concatenate([x for x, _ in pairs]),
+        displacements=np.concatenate([d for _, d in pairs]),
+        offsets=np.concatenate([[0], np.cumsum(counts)]),
+        snapshot_ids=snapshots,
+        detections=np.zeros((len(pairs), 2, 0), dtype=np.int64),
+        matches=np.zeros((len(pairs), 2), dtype=np.int64),
+        links=counts,
+        processed=snapshots,
+        in_analysis=np.ones(total, dtype=bool),
+        outlier=np.zeros(total, dtype=bool),
     )
 
 

@@ -7,7 +7,11 @@
 - the plateau ε of the same estimator (ε(r) = (S2/C2)^{3/2}/r averaged over the
   plateau range) applied to both, beside the input ε: the estimator on the exact D_LL
   is what the PTV plateau ε should match, and its gap to the input ε is the
-  finite-Reynolds plateau deficit.
+  finite-Reynolds plateau deficit;
+- references that share no code with the stack (:mod:`validation.truth.independent`):
+  the S2 of a subsample of every snapshot by brute force, with the consistency of the
+  sample truth with it, and the input ε times the plateau deficit from an independent
+  quadrature of the spectrum and estimator.
 """
 
 from collections.abc import Iterable, Sequence
@@ -25,7 +29,19 @@ from simulator.spectra import SPECTRA
 from simulator.truth import longitudinal_structure_function
 from simulator.turbulence import TurbulenceParameters
 from validation.dataset.truth_file import TruthFile
+from validation.truth.independent import (
+    check_edges,
+    collect,
+    log_edges,
+    plateau_epsilon_reference,
+    subsample_sums,
+)
 from validation.truth.sample import sample_structure_function
+
+#: The brute-force reference: particles per group, groups per snapshot, seed.
+REFERENCE_PARTICLES = 300
+REFERENCE_GROUPS = 2
+REFERENCE_SEED = 0
 
 
 @dataclass(frozen=True)
@@ -52,6 +68,17 @@ class FlowTruth:
         RMS velocity component of the particles in the analysis volume at t, m/s.
     parameters : dict
         u', ε, ν and the derived η, τ_η, R_λ, L_int.
+    r_reference, s2_reference, se_s2_reference : ndarray, shape (B,)
+        Mean separation (m), S2 and its subsampling error (m²/s²) of the brute-force
+        reference (:func:`validation.truth.independent.brute_force_s2`).
+    sample_over_reference : (float, float)
+        ``s2_sample`` over ``s2_reference``, the mean over the bins weighted by the
+        reference's precision, and its subsampling error: 1 within a few errors unless
+        the shared pair sums are wrong.
+    epsilon_reference : float
+        The input ε times the plateau deficit from an independent quadrature of the
+        spectrum, the plateau of (D_LL/C2)^{3/2}/r taken as the run takes it at
+        ``r_reference``, m²/s³.
     """
 
     r: np.ndarray
@@ -63,6 +90,11 @@ class FlowTruth:
     epsilon_sample: float
     u_rms_sample: float
     parameters: dict
+    r_reference: np.ndarray
+    s2_reference: np.ndarray
+    se_s2_reference: np.ndarray
+    sample_over_reference: tuple[float, float]
+    epsilon_reference: float
 
     def as_dict(self) -> dict:
         """JSON-able form (NaN → None)."""
@@ -81,6 +113,11 @@ class FlowTruth:
             "plateau_deficit": self.epsilon_exact / self.epsilon_input - 1.0,
             "u_rms_sample": self.u_rms_sample,
             "parameters": self.parameters,
+            "r_reference": listed(self.r_reference),
+            "s2_reference": listed(self.s2_reference),
+            "se_s2_reference": listed(self.se_s2_reference),
+            "sample_over_reference": list(self.sample_over_reference),
+            "epsilon_reference": self.epsilon_reference,
         }
 
 
@@ -247,16 +284,35 @@ def flow_truth(
     """
     lower, upper = (np.asarray(v) for v in settings.analysis_volume)
     region = Box(tuple(upper - lower), tuple((upper + lower) / 2))
-    per_snapshot, inside = [], []
+    edges = check_edges(
+        log_edges(settings.r_min, settings.r_max, settings.n_bins),
+        REFERENCE_PARTICLES,
+        REFERENCE_GROUPS,
+    )
+    rng = np.random.default_rng(REFERENCE_SEED)
+    per_snapshot, inside, parts = [], [], []
     for x, u in snapshots:
         sums = sample_structure_function(x[None], u[None], settings.bins, region=region)
         per_snapshot.append(sums)
-        inside.append(u[region.contains(x)])
+        mask = region.contains(x)
+        inside.append(u[mask])
+        parts.append(
+            subsample_sums(
+                x[mask],
+                u[mask],
+                edges,
+                per_group=REFERENCE_PARTICLES,
+                groups=REFERENCE_GROUPS,
+                rng=rng,
+            )
+        )
     r, s2, se = _pooled(per_snapshot)
     ok = np.isfinite(r)
     exact = np.full_like(r, np.nan)
-    exact[ok] = longitudinal_structure_function(SPECTRA[spectrum](parameters), r[ok])
+    model = SPECTRA[spectrum](parameters)
+    exact[ok] = longitudinal_structure_function(model, r[ok])
     velocities = np.concatenate(inside)
+    reference = collect(edges, parts)
     return FlowTruth(
         r=r,
         s2_sample=s2,
@@ -267,4 +323,15 @@ def flow_truth(
         epsilon_sample=_plateau(r[ok], s2[ok], settings),
         u_rms_sample=float(np.sqrt(np.mean(velocities**2))),
         parameters=parameters.as_dict(),
+        r_reference=reference.r,
+        s2_reference=reference.s2,
+        se_s2_reference=reference.se_s2(),
+        sample_over_reference=reference.mean_ratio(s2),
+        epsilon_reference=plateau_epsilon_reference(
+            model,
+            reference.r,
+            r_range=settings.plateau,
+            method=settings.plateau_method,
+            kolmogorov_c2=settings.kolmogorov_c2,
+        ),
     )
