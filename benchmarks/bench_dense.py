@@ -227,7 +227,7 @@ def figure(rows: list, path: Path) -> None:
     axes[0].legend()
     fig.suptitle(
         "Dense images: pixel-integrated Gaussian spots, σ 0.7–1.0 px, 800–8000 e⁻ "
-        "(dotted: issue 13's targets)",
+        "(dotted: the targets)",
         fontsize=10,
     )
     path.parent.mkdir(parents=True, exist_ok=True)
