@@ -11,10 +11,9 @@ import json
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
-
 from simulator.rigs import load_rig
 from simulator.turbulence import TurbulenceParameters
+from validation.report.html_parts import number, table
 from validation.report.png import save_figure
 from validation.report.run_figures import budget_figure, noise_figure
 from validation.run.checks import compare_variant, error_budget, float_array, predicted_noise
@@ -174,24 +173,6 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     }
 
 
-def _fmt(value, digits: int = 4) -> str:
-    if value is None:
-        return "–"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, int | np.integer):
-        return str(value)
-    return f"{value:.{digits}g}"
-
-
-def _table(header, rows) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    body = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows
-    )
-    return f"<table><tr>{head}</tr>{body}</table>"
-
-
 def _img(path: str, caption: str) -> str:
     return (
         f'<figure><img src="{html.escape(path)}" alt="{html.escape(caption)}">'
@@ -248,10 +229,10 @@ def _verdict_cell(check: dict | None) -> str:
     if check is None:
         return "<td>–</td>"
     mark, css = ("PASS", "pass") if check["passed"] else ("FAIL", "fail")
-    return f'<td class="{css}">{mark} {html.escape(_fmt(check["value"]))}</td>'
+    return f'<td class="{css}">{mark} {html.escape(number(check["value"]))}</td>'
 
 
-def _rung_table(checks: dict) -> str:
+def _rungtable(checks: dict) -> str:
     """The checks of every calibration rung: a row per check, a column per rung."""
     rungs = checks["rungs"]
     by_id = {m: {c["id"]: c for c in rung["checks"]} for m, rung in rungs.items()}
@@ -262,7 +243,7 @@ def _rung_table(checks: dict) -> str:
     ]
     rows = [
         "<tr><td>calibration: Table 1 d, nominal dots (µm)</td><td>reported</td>"
-        + "".join(f"<td>{_fmt(rung['table1_d_um'], 3)}</td>" for rung in rungs.values())
+        + "".join(f"<td>{number(rung['table1_d_um'], 3)}</td>" for rung in rungs.values())
         + "</tr>"
     ]
     for i in ids:
@@ -293,7 +274,7 @@ def _checks_section(results: dict, scenario: Scenario) -> list[str]:
     header = "".join(f"<th>{h}</th>" for h in ("check", "tolerance", "verdict"))
     parts.append(f"<table><tr>{header}</tr>{''.join(rows)}</table>")
     parts.append("<h3>Every calibration rung</h3>")
-    parts.append(_rung_table(checks))
+    parts.append(_rungtable(checks))
     return parts
 
 
@@ -309,17 +290,17 @@ def _flow_section(results: dict, scenario: Scenario) -> list[str]:
     parts = ["<h2>Flow</h2>"]
     p = results["flow"]
     parts.append(
-        _table(
+        table(
             ["u' (m/s)", "ε (m²/s³)", "ν (m²/s)", "η (µm)", "τ_η (ms)", "R_λ", "L_int (cm)"],
             [
                 (
-                    _fmt(p["u_rms"]),
-                    _fmt(p["epsilon"]),
-                    _fmt(p["nu"]),
-                    _fmt(p["eta"] * 1e6),
-                    _fmt(p["tau_eta"] * 1e3),
-                    _fmt(p["R_lambda"]),
-                    _fmt(p["L_int"] * 100),
+                    number(p["u_rms"]),
+                    number(p["epsilon"]),
+                    number(p["nu"]),
+                    number(p["eta"] * 1e6),
+                    number(p["tau_eta"] * 1e3),
+                    number(p["R_lambda"]),
+                    number(p["L_int"] * 100),
                 )
             ],
         )
@@ -334,9 +315,9 @@ def _calibration_section(results: dict, scenario: Scenario) -> list[str]:
     for method, refs in results["calibration"]["table1"].items():
         for ref, t in refs.items():
             rows.append(
-                (method, ref, *(_fmt(t[k], 3) for k in ("d_X_um", "d_Y_um", "d_Z_um", "d_um")))
+                (method, ref, *(number(t[k], 3) for k in ("d_X_um", "d_Y_um", "d_Z_um", "d_um")))
             )
-    parts.append(_table(["method", "against", "d_X (µm)", "d_Y (µm)", "d_Z (µm)", "d (µm)"], rows))
+    parts.append(table(["method", "against", "d_X (µm)", "d_Y (µm)", "d_Z (µm)", "d (µm)"], rows))
     parts.append(
         "<p>“nominal”: the paper's metric (dots at their design positions); “true”: against "
         "the dots' true centres (the plate's imperfections removed). The difference is "
@@ -355,14 +336,14 @@ def _detection_section(results: dict, scenario: Scenario) -> list[str]:
     rows = [
         (
             cam,
-            _fmt(d["rms_error_px"][i][0], 3),
-            _fmt(d["rms_error_px"][i][1], 3),
-            _fmt(d["found"][i], 4),
-            _fmt(d["spurious"][i], 3),
+            number(d["rms_error_px"][i][0], 3),
+            number(d["rms_error_px"][i][1], 3),
+            number(d["found"][i], 4),
+            number(d["spurious"][i], 3),
         )
         for i, cam in enumerate(d["cameras"])
     ]
-    parts.append(_table(["camera", "rms x (px)", "rms y (px)", "found", "spurious"], rows))
+    parts.append(table(["camera", "rms x (px)", "rms y (px)", "found", "spurious"], rows))
     noise = ", ".join(f"{v * 1e6:.2f}" for v in d["position_noise_m"])
     parts.append(
         f"<p>Position noise (X, Y, Z) with the true cameras, particles in the analysis "
@@ -372,18 +353,18 @@ def _detection_section(results: dict, scenario: Scenario) -> list[str]:
     rows = [
         (
             v,
-            _fmt(m["yield"], 4),
-            _fmt(m["ghost_fraction"], 3),
+            number(m["yield"], 4),
+            number(m["ghost_fraction"], 3),
             m["particles"],
-            _fmt(m["sheet_yield"], 4),
-            _fmt(m["sheet_ghost_fraction"], 3),
-            _fmt(m["frame_rotation_deg"], 3),
+            number(m["sheet_yield"], 4),
+            number(m["sheet_ghost_fraction"], 3),
+            number(m["frame_rotation_deg"], 3),
         )
         for v, m in results["matching"].items()
     ]
     header = ["cameras", "yield", "ghost fraction", "particles"]
     header += ["yield (sheet)", "ghosts (sheet)", "frame rotation (°)"]
-    parts.append(_table(header, rows))
+    parts.append(table(header, rows))
     parts.append(
         "<p>Matching scored on frame a of the first snapshots: matched points and true "
         "particles are paired one-to-one within one voxel, and a paired point is a hit "
@@ -407,7 +388,7 @@ def _statistics_section(results: dict, scenario: Scenario) -> list[str]:
             rows.append((variant, *counts, associated))
     if rows:
         header = ["measurement", "snapshots", "particles in S2", "trajectory outliers"]
-        parts.append(_table([*header, "with a true particle"], rows))
+        parts.append(table([*header, "with a true particle"], rows))
         parts.append(
             "<p>S2 uses the particles linked at every Δt (frame a is shared) that pass the "
             "trajectory test; c1 is compared with the sample truth of those particles' "
@@ -431,11 +412,11 @@ def _table3_section(results: dict, scenario: Scenario) -> list[str]:
     main = scenario.ptv.methods[0]
     parts = ["<h2>Table 3: recovered against truth</h2>"]
     rows = [
-        (t["quantity"], _fmt(t["recovered"]), _fmt(t["input"]), _fmt(t["reference"]))
+        (t["quantity"], number(t["recovered"]), number(t["input"]), number(t["reference"]))
         for t in results["table3"]
     ]
     parts.append(
-        _table(
+        table(
             [
                 "quantity",
                 f"recovered ({main})",
@@ -447,8 +428,8 @@ def _table3_section(results: dict, scenario: Scenario) -> list[str]:
     )
     e = results["ptv"][main]["checks"]["epsilon"]
     parts.append(
-        f"<p>The plateau estimator on the exact D_LL gives {_fmt(e['estimator_on_exact_d_ll'])} "
-        f"m²/s³, {_fmt(100 * e['plateau_deficit_of_estimator'], 3)} % from the input ε: the "
+        f"<p>The plateau estimator on the exact D_LL gives {number(e['estimator_on_exact_d_ll'])} "
+        f"m²/s³, {number(100 * e['plateau_deficit_of_estimator'], 3)} % from the input ε: the "
         "finite-Reynolds plateau deficit of the spectrum, not a measurement error. The "
         "recovered row is to be read against the reference column, whose scales follow "
         "from the same estimator; the input column differs from both by that deficit "
@@ -464,15 +445,15 @@ def _budget_section(results: dict, scenario: Scenario) -> list[str]:
         (
             b["variant"],
             b["adds"],
-            _fmt(None if b["c1_mean_deviation"] is None else 100 * b["c1_mean_deviation"], 3),
-            _fmt(None if b.get("c1_added") is None else 100 * b["c1_added"], 3),
-            _fmt(None if b["epsilon_relative"] is None else 100 * b["epsilon_relative"], 3),
-            _fmt(None if b.get("epsilon_added") is None else 100 * b["epsilon_added"], 3),
+            number(None if b["c1_mean_deviation"] is None else 100 * b["c1_mean_deviation"], 3),
+            number(None if b.get("c1_added") is None else 100 * b["c1_added"], 3),
+            number(None if b["epsilon_relative"] is None else 100 * b["epsilon_relative"], 3),
+            number(None if b.get("epsilon_added") is None else 100 * b["epsilon_added"], 3),
         )
         for b in results["error_budget"]
     ]
     parts.append(
-        _table(
+        table(
             [
                 "rung",
                 "adds",
@@ -503,13 +484,13 @@ def _noise_section(results: dict, scenario: Scenario) -> list[str]:
     parts.append(
         "<p>The noise term c2 against the c2 predicted from the displacement noise, "
         "measured against the truth, of the particles each S2 used (median ratio over "
-        f"the check range): truth-paired detections {_fmt(ratio_detection, 3)}, "
-        f"the {html.escape(main)} run {_fmt(ratio_main, 3)} "
+        f"the check range): truth-paired detections {number(ratio_detection, 3)}, "
+        f"the {html.escape(main)} run {number(ratio_main, 3)} "
         "(its ghosts and mislinks add noise that no true particle can be blamed for). "
         "Part of the detection error is common to frames a and b (mostly an unresolved "
         "neighbour's light), so the measured noise grows with Δt: the band spans the "
         "intercepts that allows. The part growing as Δt² goes into c1: at most "
-        f"{_fmt(100 * c['c1'].get('noise_part_max', float('nan')), 2)} % of S2 in the "
+        f"{number(100 * c['c1'].get('noise_part_max', float('nan')), 2)} % of S2 in the "
         "check range.</p>"
     )
     parts.append(_img("figures/noise.png", "c2 against the noise measured against truth"))

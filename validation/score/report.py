@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
+from validation.report.html_parts import number, table
 from validation.report.png import save_figure
 from validation.report.ptv_figures import mark_off_axis, plain_log_axis
 from validation.report.run_figures import BUDGET_AXIS
@@ -28,35 +29,19 @@ _STYLE = (
 )
 
 
-def _fmt(value, digits: int = 4) -> str:
-    if value is None:
-        return "–"
-    if isinstance(value, int | np.integer):
-        return str(value)
-    return f"{value:.{digits}g}"
-
-
-def _table(header, rows) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    body = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows
-    )
-    return f"<table><tr>{head}</tr>{body}</table>"
-
-
 def _score_row(label: str, s: dict) -> list[str]:
     """A table row of :func:`validation.score.scores.summarize`."""
     return [
         label,
-        _fmt(s["frames"]),
-        _fmt(s["n_reference"]),
-        _fmt(s["n_found"]),
-        _fmt(s["yield"]),
-        _fmt(s["ghost_fraction"]),
-        *(_fmt(s["position_mean_um"][axis], 3) for axis in "xyz"),
-        *(_fmt(s["position_rms_um"][axis], 3) for axis in "xyz"),
-        _fmt(s["sheet"]["yield"]),
-        _fmt(s["sheet"]["ghost_fraction"]),
+        number(s["frames"]),
+        number(s["n_reference"]),
+        number(s["n_found"]),
+        number(s["yield"]),
+        number(s["ghost_fraction"]),
+        *(number(s["position_mean_um"][axis], 3) for axis in "xyz"),
+        *(number(s["position_rms_um"][axis], 3) for axis in "xyz"),
+        number(s["sheet"]["yield"]),
+        number(s["sheet"]["ghost_fraction"]),
     ]
 
 
@@ -71,12 +56,12 @@ def _statistics_html(statistics: dict) -> list[str]:
         ["links by", statistics["linked_by"]],
         ["links used per Δt index", ", ".join(f"{k}: {n}" for k, n in used.items())],
         ["c1 reference", statistics["c1_reference"]],
-        [f"max |c1/S2 − 1| over {lo:.3g}–{hi:.3g} mm", _fmt(c1["max_abs_deviation"])],
-        ["mean c1/S2 − 1", _fmt(c1["mean_deviation"])],
-        ["plateau ε (m²/s³)", _fmt(eps["value"])],
-        ["ε / estimator on exact D_LL − 1", _fmt(eps["relative_to_exact_d_ll"])],
+        [f"max |c1/S2 − 1| over {lo:.3g}–{hi:.3g} mm", number(c1["max_abs_deviation"])],
+        ["mean c1/S2 − 1", number(c1["mean_deviation"])],
+        ["plateau ε (m²/s³)", number(eps["value"])],
+        ["ε / estimator on exact D_LL − 1", number(eps["relative_to_exact_d_ll"])],
     ]
-    return [*parts, _table(["quantity", "value"], rows)]
+    return [*parts, table(["quantity", "value"], rows)]
 
 
 def render_html(result: dict) -> str:
@@ -96,7 +81,7 @@ def render_html(result: dict) -> str:
         + ", ".join(f"{1e6 * v:.3g}" for v in alignment["translation_m"])
         + " µm.</p>",
         "<h2>Positions</h2>",
-        _table(
+        table(
             [
                 "Δt",
                 "frames",
@@ -119,15 +104,15 @@ def render_html(result: dict) -> str:
     if tracks is not None:
         parts.append("<h2>Links of the tracks</h2>")
         parts.append(
-            _table(
+            table(
                 ["links", "correct", "wrong", "found in both frames", "broken"],
                 [
                     [
                         tracks["links"],
-                        f"{tracks['correct']} ({_fmt(tracks['correct_fraction'])})",
-                        f"{tracks['wrong']} ({_fmt(tracks['wrong_fraction'])})",
+                        f"{tracks['correct']} ({number(tracks['correct_fraction'])})",
+                        f"{tracks['wrong']} ({number(tracks['wrong_fraction'])})",
                         tracks["found_in_both"],
-                        f"{tracks['broken']} ({_fmt(tracks['broken_fraction'])})",
+                        f"{tracks['broken']} ({number(tracks['broken_fraction'])})",
                     ]
                 ],
             )
