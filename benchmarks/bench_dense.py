@@ -41,7 +41,7 @@ from ptv.detect import detect_particles
 
 DENSITIES = (0.002, 0.005, 0.01, 0.02, 0.03, 0.05)
 SHAPE = (512, 512)
-#: Issue 13's targets: (largest density, rms px at most, found at least).
+#: The targets: (largest density, rms px at most, found at least).
 TARGETS = ((0.01, 0.08, 0.95), (0.03, 0.1, 0.85))
 #: trackpy's grid (``separation`` None: its default, diameter + 1).
 TRACKPY_DIAMETERS = (3, 5, 7)

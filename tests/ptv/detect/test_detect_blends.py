@@ -1,4 +1,4 @@
-"""Blended particle images split by the model test (ptv.detect, issue 13 item 4).
+"""Blended particle images split by the model test (ptv.detect, docs/ptv.md §1).
 
 The images are made here, independently of :mod:`simulator` and of :mod:`ptv`: each
 particle is a pixel-integrated Gaussian spot (erf differences), recorded with Poisson
