@@ -203,9 +203,6 @@ def median_test_outliers(
 # ------------------------------------------------------------------------ per snapshot
 
 
-# ------------------------------------------------------------------------ per snapshot
-
-
 @dataclass(frozen=True, eq=False)
 class SnapshotMeasurement:
     """What one snapshot gave.

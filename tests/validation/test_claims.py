@@ -1,12 +1,16 @@
 """Claims: JSON form, and claims fail when what they guard is broken."""
 
 import copy
+import dataclasses
 import json
 
+import numpy as np
 import pytest
 
 import ptv.calibration.model_free as model_free
+import ptv.match as match
 import ptv.stats.pairs as pairs
+import validation.claims.rendered_case as rendered_case
 from simulator.presets import flow_preset
 from simulator.spectra import C_KOLMOGOROV
 from validation.claims import CLAIMS, ClaimContext, dt3_gamma, run_claims
@@ -129,3 +133,34 @@ def test_a_ten_times_larger_dt3_term_is_not_negligible(quick):
 def test_dt3_gamma_of_the_table4_sets_is_that_of_physics_4(preset, gamma_over_tau_eta):
     p = flow_preset(preset)
     assert dt3_gamma(p.dt) / p.parameters.tau_eta == pytest.approx(gamma_over_tau_eta, abs=6e-4)
+
+
+IMAGE = [c.id for c in CLAIMS if c.id.startswith("image.")]
+
+
+@pytest.mark.slow
+def test_centres_rounded_to_whole_pixels_break_the_detection_claims(monkeypatch):
+    # The issue's mutation: rounding every centre changed no claim before the image stack
+    # was reached.
+    detect = rendered_case.detect_particles
+
+    def rounded(*args, **kwargs):
+        found = detect(*args, **kwargs)
+        return dataclasses.replace(found, xy=np.round(found.xy))
+
+    monkeypatch.setattr(rendered_case, "detect_particles", rounded)
+    failed = {r.id for r in run_claims(ClaimContext("quick"), ids=IMAGE) if not r.passed}
+    assert {"image.detection_rms", "image.peak_locking"} <= failed
+
+
+@pytest.mark.slow
+def test_a_ten_micron_bias_of_the_matched_points_breaks_the_matching_claims(monkeypatch):
+    candidates = match._pair_candidates
+
+    def shifted(*args):
+        i, j, distance, midpoint = candidates(*args)
+        return i, j, distance, midpoint + np.array([10e-6, 0.0, 0.0])
+
+    monkeypatch.setattr(match, "_pair_candidates", shifted)
+    failed = {r.id for r in run_claims(ClaimContext("quick"), ids=IMAGE) if not r.passed}
+    assert failed == {"image.matching_reference", "image.position_bias"}

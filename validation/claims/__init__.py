@@ -4,14 +4,16 @@ A claim has an id, its source in the paper, what it states, and a check that mea
 value and compares it with a tolerance whose origin its text states. Checks share the
 expensive runs through a :class:`ClaimContext` (one calibration comparison per rig, one
 KS multi-Δt experiment on the Pope spectrum with and without a calibration scale error,
-one on a band-limited K41 spectrum with and without an injected Δt³ term) and compare
+one on a band-limited K41 spectrum with and without an injected Δt³ term, one small
+rendered case that the image stack measures) and compare
 every estimate with a reference it shares no code with
 (:mod:`validation.truth.independent`, :mod:`validation.truth.noise_floor`). ``quick``
 sizes run in CI in 1–2 minutes; ``full`` sizes take the sample sizes the
 tolerances were designed for.
 
-Not regressed yet: the calibration claims on rendered images
-(``synptv calibrate`` measures those; here dots are exact projections plus noise).
+Not regressed here: the calibration claims on rendered plate images
+(``synptv calibrate`` and ``synptv run`` measure those; here dots are exact
+projections plus noise).
 """
 
 from collections.abc import Callable
@@ -19,6 +21,7 @@ from collections.abc import Callable
 from validation.claims.base import Claim, ClaimResult
 from validation.claims.calibration import CALIBRATION_CLAIMS
 from validation.claims.context import CORRELATION_LENGTH, SIZES, ClaimContext, Sizes
+from validation.claims.images import IMAGE_CLAIMS
 from validation.claims.statistics import FLOW_CLAIMS, STATISTICS_CLAIMS, dt3_gamma
 
 __all__ = [
@@ -33,7 +36,7 @@ __all__ = [
     "run_claims",
 ]
 
-CLAIMS: tuple[Claim, ...] = FLOW_CLAIMS + CALIBRATION_CLAIMS + STATISTICS_CLAIMS
+CLAIMS: tuple[Claim, ...] = FLOW_CLAIMS + CALIBRATION_CLAIMS + STATISTICS_CLAIMS + IMAGE_CLAIMS
 
 
 def run_claims(

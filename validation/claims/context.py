@@ -11,6 +11,7 @@ from simulator.presets import flow_preset
 from simulator.rigs import load_rig, rig_from_dict
 from simulator.spectra import KolmogorovBandSpectrum, PopeSpectrum
 from simulator.target import Imperfections, PlateDesign, build_plate, traverse_positions
+from validation.claims.rendered_case import RenderedCase, render_case
 from validation.studies.calibration_methods import (
     calibrate_cameras,
     compare_methods,
@@ -56,17 +57,20 @@ class Sizes:
         Particles per group of the brute-force reference (two groups per snapshot).
     dot_noise_px : float
         Dot-centre noise of the synthetic calibration dots, px.
+    image_snapshots : int
+        Frame pairs of the rendered case of the image-stack claims.
     """
 
     particles: int
     snapshots: int
     reference_particles: int = 300
     dot_noise_px: float = 0.05
+    image_snapshots: int = 3
 
 
 SIZES = {
     "quick": Sizes(particles=1000, snapshots=100),
-    "full": Sizes(particles=2000, snapshots=600, reference_particles=500),
+    "full": Sizes(particles=2000, snapshots=600, reference_particles=500, image_snapshots=12),
 }
 
 
@@ -200,6 +204,11 @@ class ClaimContext:
             spectrum=self.band_spectrum,
             rng=self.seed + 6,
         )
+
+    @cached_property
+    def rendered_case(self) -> RenderedCase:
+        """The small rendered case of the image-stack claims, measured by the stack."""
+        return render_case(self.sizes.image_snapshots, seed=self.seed + 10)
 
     @cached_property
     def reference(self) -> BruteForceS2:

@@ -1,7 +1,7 @@
 """The checks of ``synptv run`` on the run and on every calibration rung, and its verdict.
 
 Two kinds of checks (tolerances here, in :mod:`validation.run.checks` and in
-docs/claims.md §3):
+docs/claims.md §4):
 
 - checks of the run, one value each: Table 1 of the model-free calibration against
   classic Tsai (where claim #16 applies), the detection error and its peak locking, c2
