@@ -8,16 +8,19 @@ can be put in it (lengths in m, times in s)::
     particles/dt<k>/<camera>/<mmmmmm>_a.tif      frame pair m of the run at Δt_k: frame a
     particles/dt<k>/<camera>/<mmmmmm>_b.tif      at t, frame b at t + Δt_k
 
-``experiment.json`` keys used here: ``cameras`` ({name: {"image_size": [width,
-height], ...}}), ``dt`` (list of s), ``frames_per_dt`` (an int, or one int per Δt),
+``experiment.json`` is checked against its JSON Schema first (:mod:`ptv.experiment`,
+docs/experiment.md: every problem named in one line). Keys used here: ``cameras``
+({name: {"image_size": [width, height], "mask": optional image path}}), ``dt`` (list
+of s), ``frames_per_dt`` (an int, or one int per Δt),
 ``bit_depth`` (optional; sets the saturation level 2^B − 1 of images stored in wider
 integers), ``shared_first_frame`` (optional, default false: true when snapshot m of
 every Δt starts from the same frame a, as when a time-resolved recording is cut into
 pairs; the statistics then follow the same particles over every Δt) and
 ``particle_images`` (optional pattern, default
 ``particles/dt{k}/{camera}/{m:06d}_{a|b}.tif``; null for a dataset without particle
-images, which cannot be processed here). Nothing else of the folder (plate
-images, a ground truth) is read.
+images, which cannot be processed here). Images are 8- or 16-bit TIFF or PNG
+(:mod:`ptv.images`); a camera's mask (pixels at 0 are not used) must have its image
+size. Nothing else of the folder (plate images, a ground truth) is read.
 
 :func:`open_dataset` checks the description and that every image file exists, so a
 run fails at once, not after an hour; :meth:`Dataset.read_frame` checks each image's
@@ -25,15 +28,16 @@ shape against the declared size. Bad input raises :class:`DatasetError` (a
 ``ValueError``) or ``FileNotFoundError``, naming the file and what was expected.
 """
 
-import json
 import logging
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import tifffile
 
+from ptv.errors import DatasetError
+from ptv.experiment import read_experiment
+from ptv.images import read_image, read_mask
 from ptv.names import FILE_NAME_RULE, is_file_name
 
 __all__ = [
@@ -50,10 +54,6 @@ log = logging.getLogger(__name__)
 
 #: File pattern of the particle images when experiment.json does not give one.
 DEFAULT_PARTICLE_IMAGES = "particles/dt{k}/{camera}/{m:06d}_{a|b}.tif"
-
-
-class DatasetError(ValueError):
-    """A dataset folder that cannot be processed (the message names file and value)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,6 +129,8 @@ class Dataset:
         Particle image file pattern, relative to the folder.
     shared_first_frame : bool
         Snapshot m of every Δt shares its frame a (same particles at t).
+    masks : dict of str to ndarray of bool, shape (H, W)
+        The masks of the cameras that have one: True where the image is used.
     """
 
     folder: Path
@@ -139,6 +141,7 @@ class Dataset:
     saturation: float | None
     pattern: str
     shared_first_frame: bool = False
+    masks: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def n_dt(self) -> int:
@@ -160,19 +163,14 @@ class Dataset:
         FileNotFoundError
             The file is missing.
         DatasetError
-            Not readable as an image, not 2-D, of the wrong size, not grey levels, or
-            with NaN or infinite pixels.
+            Not readable as an image (:class:`ptv.images.ImageError`), not 2-D, of the
+            wrong size, not grey levels, or with NaN or infinite pixels.
         """
         path = self.frame_path(k, camera, m, frame)
         if not path.is_file():
             raise FileNotFoundError(f"particle image {path} is missing")
-        try:
-            image = tifffile.imread(path)
-        except Exception as err:  # tifffile raises many kinds on a corrupt file
-            raise _fail(path, f"not readable as a TIFF image ({err})") from None
+        image = read_image(path)
         expected = self.image_shape[camera]
-        if image.ndim != 2:
-            raise _fail(path, f"expected a 2-D grey image of shape {expected}, got {image.shape}")
         if image.shape != expected:
             raise _fail(
                 path,
@@ -221,28 +219,6 @@ class Dataset:
         """One snapshot iterator per Δt, in the order of ``dt``."""
         for k in range(self.n_dt):
             yield self.snapshots(k, limit=limit, cameras=cameras)
-
-
-def read_description(folder: Path) -> dict:
-    """A dataset folder's experiment.json as a JSON object.
-
-    Raises
-    ------
-    FileNotFoundError
-        No experiment.json in ``folder``.
-    DatasetError
-        Not readable, not JSON or not an object (the message names the file).
-    """
-    path = folder / "experiment.json"
-    if not path.is_file():
-        raise FileNotFoundError(f"{folder} is not a dataset folder: {path.name} is missing")
-    try:
-        spec = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise _fail(path, f"not readable as JSON ({err})") from None
-    if not isinstance(spec, dict):
-        raise _fail(path, f"expected a JSON object, got {type(spec).__name__}")
-    return spec
 
 
 def _cameras(spec: dict, path: Path) -> dict[str, tuple[int, int]]:
@@ -323,14 +299,19 @@ def open_dataset(folder: str | Path, *, check_files: bool = True) -> Dataset:
     ------
     FileNotFoundError
         The folder, its experiment.json or a particle image is missing.
+    DescriptionError
+        experiment.json breaks the schema or lacks a field particles need (all the
+        problems in one line).
     DatasetError
-        A malformed description: fewer than two cameras, a bad image size, a single Δt
-        ("the multi-Δt method needs at least two Δt values"), bad frame counts.
+        A malformed description the schema cannot see: Δt values not distinct, a frame
+        count per Δt that does not match, a bad pattern.
+    ImageError
+        A mask that cannot be read, of the wrong size, or 0 everywhere.
     """
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"dataset folder {folder} does not exist")
-    spec = read_description(folder)
+    spec = read_experiment(folder, needs=("particles",))
     path = folder / "experiment.json"
     shapes = _cameras(spec, path)
     dt = _dt(spec, path)
@@ -354,6 +335,7 @@ def open_dataset(folder: str | Path, *, check_files: bool = True) -> Dataset:
         saturation=_saturation(spec, path),
         pattern=pattern,
         shared_first_frame=shared,
+        masks=camera_masks(folder, spec, shapes),
     )
     try:
         dataset.frame_path(0, dataset.cameras[0], 0, "a")
@@ -379,6 +361,18 @@ def open_dataset(folder: str | Path, *, check_files: bool = True) -> Dataset:
         frames,
     )
     return dataset
+
+
+def camera_masks(
+    folder: Path, spec: dict, shapes: Mapping[str, tuple[int, int]]
+) -> dict[str, np.ndarray]:
+    """The masks experiment.json gives (``cameras.<name>.mask``, relative to ``folder``),
+    each checked against its camera's (rows, columns) in ``shapes``."""
+    return {
+        name: read_mask(folder / info["mask"], shapes[name])
+        for name, info in spec["cameras"].items()
+        if "mask" in info
+    }
 
 
 def cameras_in_order(dataset: Dataset, calibrations: Mapping[str, object]) -> list[object]:

@@ -249,7 +249,7 @@ class ImageDetector:
             shared = self._shared_frame_a(k, m)
             if frame == "a":
                 return shared
-        return [self._detect(self.dataset.read_frame(k, c, m, frame)) for c in self.cameras]
+        return [self._detect(self.dataset.read_frame(k, c, m, frame), c) for c in self.cameras]
 
     def _shared_frame_a(self, k: int, m: int) -> list[Detections]:
         """Frame a of snapshot m: detected the first time, checked against it after."""
@@ -259,7 +259,11 @@ class ImageDetector:
             for image in images
         )
         if self._frame_a is None or self._frame_a[0] != m:
-            self._frame_a = (m, digest, [self._detect(image) for image in images])
+            self._frame_a = (
+                m,
+                digest,
+                [self._detect(image, c) for image, c in zip(images, self.cameras, strict=True)],
+            )
         elif self._frame_a[1] != digest:
             raise DatasetError(
                 f"{self.dataset.frame_path(k, self.cameras[0], m, 'a')}: the dataset declares "
@@ -282,9 +286,12 @@ class ImageDetector:
         }
         return ChunkDetections.of(self, (m0, m1), found)
 
-    def _detect(self, image: np.ndarray) -> Detections:
-        return detect_particles(
+    def _detect(self, image: np.ndarray, camera: str) -> Detections:
+        """The particles on one image of ``camera``, those on its mask's 0 pixels dropped."""
+        found = detect_particles(
             image,
             threshold_sigmas=self.settings.threshold_sigmas,
             saturation=self.settings.saturation,
         )
+        mask = self.dataset.masks.get(camera)
+        return found if mask is None else found.within(mask)

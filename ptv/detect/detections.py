@@ -109,3 +109,15 @@ class Detections:
             flags=self.flags[idx],
             shape=self.shape,
         )
+
+    def within(self, mask: np.ndarray) -> "Detections":
+        """The detections whose centre's pixel is True in ``mask`` (H, W), bool."""
+        mask = np.asarray(mask, dtype=bool)
+        if mask.shape != self.shape:
+            raise ValueError(f"mask of shape {mask.shape} for an image of shape {self.shape}")
+        col, row = np.round(self.xy).astype(np.int64).T
+        rows, cols = self.shape
+        on = (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
+        keep = np.zeros(len(self), dtype=bool)
+        keep[on] = mask[row[on], col[on]]
+        return self.select(keep)

@@ -18,6 +18,7 @@ import pytest
 import tifffile
 from scipy.spatial import cKDTree
 
+from ptv.calibration.grid_errors import nominal_positions
 from ptv.calibration.io import load_calibrations
 from ptv.dataset import DatasetError, open_dataset
 from ptv.frames import ImageDetector
@@ -40,7 +41,6 @@ from simulator.target import PlateDesign
 from validation.dataset.calibrate import calibrate_dataset
 from validation.dataset.render import RenderSettings, write_dataset
 from validation.dataset.truth_file import TruthFile
-from validation.truth.calibration_errors import nominal_positions
 
 SETTINGS = RenderSettings(frames=3, planes=3, particles=800)
 
@@ -74,7 +74,8 @@ def to_calibration_frame(rendered):
     design = PlateDesign(**{key: target[key] for key in keys})
     with h5py.File(folder / "truth.h5") as truth:
         true_dots = truth["plate/dots_world"][:].reshape(-1, 3)
-        nominal = nominal_positions(design, truth["plate/z_nominal"][:]).reshape(-1, 3)
+        z = truth["plate/z_nominal"][:]
+        nominal = nominal_positions(design.indices, design.pitch, z).reshape(-1, 3)
     design_matrix = np.column_stack([true_dots, np.ones(len(true_dots))])
     affine, *_ = np.linalg.lstsq(design_matrix, nominal, rcond=None)
     residual = design_matrix @ affine - nominal

@@ -5,11 +5,13 @@ import os
 import shutil
 from dataclasses import replace
 
+import cv2
 import h5py
 import numpy as np
 import pytest
 import tifffile
 
+from ptv.experiment import description_problems
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.cli import main
@@ -29,6 +31,7 @@ def dataset(tmp_path_factory):
 def test_layout_and_experiment_description(dataset):
     out, rig = dataset
     exp = json.loads((out / "experiment.json").read_text())
+    assert description_problems(exp, needs=("particles", "calibration")) == []
     assert exp["dt"] == pytest.approx(list(flow_preset("lem-10hz").dt))
     assert exp["traverse_z"] == pytest.approx([-0.5e-3, 0.5e-3])
     assert exp["target"]["pitch"] == 5e-3 and exp["target"]["marks"]["x_axis"] == [2, 0]
@@ -167,6 +170,27 @@ def test_calibrate_command_finds_every_dot_and_scores_against_nominal_and_truth(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model-free.h5", "tsai.h5"]
 
 
+def test_png_plates_under_their_own_pattern_calibrate_as_the_tiff_ones(dataset, tmp_path):
+    from ptv.calibration.experiment import find_traverse_dots, plate_setup
+
+    out, _ = dataset
+    copy = tmp_path / "png"
+    spec = json.loads((out / "experiment.json").read_text())
+    spec["calibration_images"] = "plates/{j}-{camera}.png"
+    for name in spec["cameras"]:
+        for j in range(len(spec["traverse_z"])):
+            image = tifffile.imread(out / "calibration" / name / f"plane_{j:02d}.tif")
+            path = copy / "plates" / f"{j}-{name}.png"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            assert cv2.imwrite(str(path), image)
+    (copy / "experiment.json").write_text(json.dumps(spec))
+    png, tiff = (find_traverse_dots(plate_setup(folder)) for folder in (copy, out))
+    for name in spec["cameras"]:
+        for a, b in zip(png[name], tiff[name], strict=True):
+            np.testing.assert_array_equal(a.indices, b.indices)
+            np.testing.assert_array_equal(a.pixels, b.pixels)
+
+
 def test_calibrate_command_on_a_folder_that_is_no_dataset(capsys, tmp_path):
     assert main(["calibrate", "--dataset", str(tmp_path), "--quiet"]) == 2
     assert "is not a dataset" in capsys.readouterr().err
@@ -184,7 +208,7 @@ def test_calibrate_command_refuses_bad_methods_before_reading(capsys, tmp_path, 
 
 
 def test_a_method_that_fails_leaves_no_calibration_file(dataset, capsys, tmp_path, monkeypatch):
-    import validation.dataset.calibrate as module
+    import ptv.calibration.experiment as module
 
     def fails_for_tsai(method, planes, sheet):
         if method == "tsai":
@@ -205,23 +229,23 @@ def _spoil_experiment(spec: dict, case: str) -> None:
         del spec["traverse_z"]
     elif case == "string image size":
         next(iter(spec["cameras"].values()))["image_size"] = "2048x1088"
-    elif case == "target without thickness":
-        del spec["target"]["thickness"]
+    elif case == "target without pitch":
+        del spec["target"]["pitch"]
 
 
 @pytest.mark.parametrize(
     ("case", "file", "message"),
     [
         ("invalid JSON", "experiment.json", "not readable as JSON"),
-        ("no traverse_z", "experiment.json", "'traverse_z' must be a list"),
-        ("string image size", "experiment.json", "image_size must be [width, height]"),
-        ("target without thickness", "experiment.json", "target: missing thickness"),
+        ("no traverse_z", "experiment.json", "traverse_z: required to calibrate"),
+        ("string image size", "experiment.json", "image_size: '2048x1088' is not of type"),
+        ("target without pitch", "experiment.json", "target: 'pitch' is a required property"),
         ("missing plane", "plane_01.tif", "plate image missing"),
         ("text as a plane", "plane_00.tif", "not readable as a TIFF image"),
         ("truncated truth", "truth.h5", "cannot read plate/dots_world"),
         ("stuck traverse", "plane_01.tif", "the same image as plane_00.tif"),
         ("noisy stuck traverse", "plane_01.tif", "dots sit where they were in plane_00.tif"),
-        ("small plane", "plane_01.tif", "image of shape (10, 20), but experiment.json gives"),
+        ("small plane", "plane_01.tif", "image of 20 × 10 px, but experiment.json gives"),
     ],
 )
 def test_calibrate_command_names_the_file_and_field_of_a_bad_dataset(

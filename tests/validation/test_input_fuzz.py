@@ -235,7 +235,7 @@ def test_calibrate_accepts_or_refuses_any_experiment_json(small_dataset, data, c
     spec = data.draw(spoilt(json.loads((small_dataset / "experiment.json").read_text())))
     with (
         _dataset_with(small_dataset, spec) as (root, copy),
-        mock.patch("validation.dataset.calibrate.find_dots", _stop),
+        mock.patch("ptv.calibration.experiment.find_dots", _stop),
     ):
         argv = ["calibrate", "--dataset", str(copy), "--out", str(root / "cal"), "--quiet"]
         assert_accepted_or_refused_in_one_line(argv, copy / "experiment.json", root, capsys)

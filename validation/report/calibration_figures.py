@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from validation.truth.calibration_errors import PositionErrors
+from ptv.calibration.grid_errors import PositionErrors
 
 
 def _site_means(errors: PositionErrors) -> tuple[np.ndarray, np.ndarray]:

@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ptv.calibration.grid_errors import TraverseDots, nominal_positions, table1_errors
 from ptv.calibration.methods import CALIBRATION_METHODS, CameraSheet, calibrate
 from ptv.camera_model import CameraModel
 from simulator.optics import Camera
@@ -24,13 +25,7 @@ from simulator.target import (
     build_plate,
     traverse_positions,
 )
-from validation.truth.calibration_errors import (
-    TraverseDots,
-    model_errors,
-    nominal_positions,
-    synthetic_plane_dots,
-    table1_errors,
-)
+from validation.truth.calibration_errors import model_errors, synthetic_plane_dots
 
 log = logging.getLogger(__name__)
 
@@ -88,7 +83,7 @@ def compare_methods(
         ``{method: {"table1": {d_X_um, d_Y_um, d_Z_um, d_um, coverage},
         "model": {...}}}``.
     """
-    expected = nominal_positions(plate.design, plate.z_nominal)
+    expected = nominal_positions(plate.design.indices, plate.design.pitch, plate.z_nominal)
     out = {}
     for method in methods:
         calibrations = calibrate_cameras(method, rig, dots)
@@ -117,7 +112,7 @@ def plane_count_errors(
         ``planes``, ``table1_d_um`` (on the dots of every plane) and ``model_d_um``
         (at random points), µm.
     """
-    expected = nominal_positions(plate.design, plate.z_nominal)
+    expected = nominal_positions(plate.design.indices, plate.design.pitch, plate.z_nominal)
     calibrations = calibrate_cameras(
         method, rig, dots, planes=plane_subset(len(plate.poses), count)
     )

@@ -6,6 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from ptv.calibration.grid_errors import table1_errors
 from ptv.calibration.model_free import PlaneObservation, calibrate_model_free
 from ptv.calibration.pinhole import (
     PARAMETER_NAMES,
@@ -15,7 +16,7 @@ from ptv.calibration.pinhole import (
 )
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions
-from validation.truth.calibration_errors import synthetic_plane_dots, table1_errors, true_positions
+from validation.truth.calibration_errors import synthetic_plane_dots, true_positions
 
 DESIGN = PlateDesign()
 Z = traverse_positions()

@@ -339,7 +339,8 @@ def test_observations_need_matching_sizes_and_two_planes(stereo):
 @pytest.mark.slow
 @pytest.mark.parametrize(("imperfections", "bound_um"), [(Imperfections(), 3.0), (REALISTIC, 80.0)])
 def test_table1_from_detected_dots(imperfections, bound_um):
-    from validation.truth.calibration_errors import TraverseDots, table1_errors, true_positions
+    from ptv.calibration.grid_errors import TraverseDots, table1_errors
+    from validation.truth.calibration_errors import true_positions
 
     rig = load_rig("paper-stereo")
     plate = build_plate(DESIGN, Z, imperfections=imperfections, rng=0)

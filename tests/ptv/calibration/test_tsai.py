@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from ptv.calibration.grid_errors import table1_errors
 from ptv.calibration.model_free import calibrate_model_free
 from ptv.calibration.tsai import (
     TsaiCalibration,
@@ -21,7 +22,7 @@ from ptv.calibration.tsai import (
 )
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions
-from validation.truth.calibration_errors import synthetic_plane_dots, table1_errors, true_positions
+from validation.truth.calibration_errors import synthetic_plane_dots, true_positions
 
 PITCH = 5.5e-6
 SENSOR = (2048, 1088)

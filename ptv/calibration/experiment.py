@@ -1,0 +1,267 @@
+"""Calibrate the cameras of a dataset folder from its plate images: no truth needed.
+
+What a real experiment provides is enough: experiment.json (checked against its schema
+up front, :mod:`ptv.experiment`) with the plate (``target``), the traverse readings
+(``traverse_z``), the plate images' pattern (``calibration_images``) and each camera's
+pixel pitch and focal length, optionally a mask per camera. :func:`plate_setup` reads
+and checks all of it, and every plate image (present, readable, of the declared size,
+no two alike), before any dot is searched; :func:`find_traverse_dots` finds and indexes
+the dots; :func:`calibrate_cameras` fits one calibration per camera; Table 1 against the
+nominal grid is :func:`ptv.calibration.grid_errors.table1_errors` with
+:func:`nominal_grid`.
+"""
+
+import hashlib
+import itertools
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ptv.calibration.grid_errors import TraverseDots, nominal_positions
+from ptv.calibration.methods import CameraSheet, calibrate
+from ptv.calibration.targets import PlateDescription, find_dots
+from ptv.camera_model import CameraModel
+from ptv.dataset import DatasetError, camera_masks
+from ptv.experiment import read_experiment
+from ptv.images import read_image
+
+__all__ = [
+    "PlateSetup",
+    "calibrate_cameras",
+    "find_traverse_dots",
+    "nominal_grid",
+    "plate_setup",
+]
+
+#: RMS image shift of the dots between two traverse positions below which the plate is
+#: taken not to have moved, px: a few times the scatter of a dot centre found twice on
+#: independent noise (~0.02 px), far below the shift of a 1 mm step seen at any angle.
+STUCK_TRAVERSE_SHIFT_PX = 0.1
+
+
+@dataclass(frozen=True, eq=False)
+class PlateSetup:
+    """A dataset's calibration plate, traverse, cameras and plate images, all checked.
+
+    Attributes
+    ----------
+    folder : Path
+        The dataset folder.
+    plate : PlateDescription
+        The nominal plate.
+    z : list of float
+        Traverse reading of each plate position, m.
+    sheets : dict of str to CameraSheet
+        Each camera's image size, pixel pitch and focal length, in experiment.json's order.
+    images : dict of str to list of Path
+        Each camera's plate image per traverse position.
+    masks : dict of str to ndarray of bool, shape (H, W)
+        The masks of the cameras that have one (True where the image is used).
+    """
+
+    folder: Path
+    plate: PlateDescription
+    z: list[float]
+    sheets: dict[str, CameraSheet]
+    images: dict[str, list[Path]]
+    masks: Mapping[str, np.ndarray]
+
+    @property
+    def cameras(self) -> list[str]:
+        """Camera names, in experiment.json's order."""
+        return list(self.sheets)
+
+
+def plate_setup(folder: str | Path) -> PlateSetup:
+    """Read and check everything calibrating ``folder`` needs, before any dot search.
+
+    Raises
+    ------
+    FileNotFoundError
+        No experiment.json, or a plate image missing.
+    ptv.experiment.DescriptionError
+        experiment.json breaks its schema or lacks a field calibrating needs (all the
+        problems in one line).
+    DatasetError
+        A bad plate description, a bad ``calibration_images`` pattern, a plate image of
+        the wrong size, or two plate images alike (a stuck traverse).
+    ptv.images.ImageError
+        A plate image or a mask that cannot be read, or a mask of the wrong size.
+    """
+    folder = Path(folder)
+    spec = read_experiment(folder, needs=("calibration",))
+    source = folder / "experiment.json"
+    try:
+        plate = PlateDescription.from_dict(spec["target"], source=f"{source}: target")
+    except ValueError as err:
+        raise DatasetError(str(err)) from None
+    sheets = {
+        name: CameraSheet(tuple(info["image_size"]), info["pixel_pitch"], info["focal_length"])
+        for name, info in spec["cameras"].items()
+    }
+    z = [float(v) for v in spec["traverse_z"]]
+    images = {
+        name: _plate_paths(folder, spec["calibration_images"], name, len(z)) for name in sheets
+    }
+    shapes = {name: (sheet.image_size[1], sheet.image_size[0]) for name, sheet in sheets.items()}
+    for name, paths in images.items():
+        _check_plate_images(paths, shapes[name])
+    return PlateSetup(folder, plate, z, sheets, images, camera_masks(folder, spec, shapes))
+
+
+def _plate_paths(folder: Path, pattern: str, camera: str, planes: int) -> list[Path]:
+    """The plate images of ``camera`` from experiment.json's pattern, each present."""
+    try:
+        paths = [folder / pattern.format(camera=camera, j=j) for j in range(planes)]
+    except (KeyError, IndexError, ValueError) as err:
+        raise DatasetError(
+            f"{folder / 'experiment.json'}: bad 'calibration_images' pattern {pattern!r} "
+            f"(use {{camera}} and {{j}}: {err})"
+        ) from None
+    missing = [path for path in paths if not path.is_file()]
+    if missing:
+        raise FileNotFoundError(f"{missing[0]}: plate image missing ({len(missing)} of {planes})")
+    return paths
+
+
+def _check_plate_images(paths: list[Path], shape: tuple[int, int]) -> None:
+    """One camera's plate images: readable, of ``shape`` (rows, columns), no two alike."""
+    first_seen = {}
+    for path in paths:
+        image = read_image(path)
+        if image.shape != shape:
+            raise DatasetError(
+                f"{path}: image of {image.shape[1]} × {image.shape[0]} px, but experiment.json "
+                f"gives {shape[1]} × {shape[0]} px for this camera"
+            )
+        digest = hashlib.sha256(image.tobytes()).hexdigest()
+        if digest in first_seen:
+            raise DatasetError(
+                f"{path}: the same image as {first_seen[digest].name} (a stuck traverse?)"
+            )
+        first_seen[digest] = path
+
+
+def _masked(image: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
+    """``image`` with the pixels ``mask`` leaves out set to the median of the others."""
+    if mask is None:
+        return image
+    out = image.copy()
+    out[~mask] = np.median(image[mask]).astype(image.dtype)
+    return out
+
+
+def find_traverse_dots(
+    setup: PlateSetup, progress: Callable[[], None] | None = None
+) -> dict[str, list[TraverseDots]]:
+    """The dots found and indexed on every plate image, per camera and traverse position.
+
+    Parameters
+    ----------
+    setup : PlateSetup
+        From :func:`plate_setup`.
+    progress : callable(), optional
+        Called after each image.
+
+    Returns
+    -------
+    dict of str to list of TraverseDots
+        Per camera (experiment.json's order), one entry per traverse position.
+
+    Raises
+    ------
+    ptv.calibration.targets.NoTargetError
+        The plate's marks or grid not found on an image (the message names it).
+    DatasetError
+        Two traverse positions whose dots sit at the same pixels (a stuck traverse).
+    """
+    found = {}
+    for name, paths in setup.images.items():
+        planes = []
+        for z, path in zip(setup.z, paths, strict=True):
+            image = _masked(read_image(path), setup.masks.get(name))
+            dots = find_dots(image, setup.plate, source=str(path))
+            planes.append(TraverseDots(z, dots.indices, dots.pixels, setup.plate.pitch))
+            if progress is not None:
+                progress()
+        _check_traverse_moved(planes, paths)
+        found[name] = planes
+    return found
+
+
+def _check_traverse_moved(planes: list[TraverseDots], paths: list[Path]) -> None:
+    """Refuse two traverse positions whose dots sit at the same pixels (the images differ
+    only by noise: the traverse did not move)."""
+    for (a, path_a), (b, path_b) in itertools.pairwise(zip(planes, paths, strict=True)):
+        rows_a = {tuple(index): k for k, index in enumerate(a.indices.tolist())}
+        common = [
+            (rows_a[tuple(index)], k)
+            for k, index in enumerate(b.indices.tolist())
+            if tuple(index) in rows_a
+        ]
+        if not common:
+            continue
+        ka, kb = np.array(common).T
+        shift = np.sqrt(np.mean(np.sum((a.pixels[ka] - b.pixels[kb]) ** 2, axis=1)))
+        if shift < STUCK_TRAVERSE_SHIFT_PX:
+            raise DatasetError(
+                f"{path_b}: the plate's dots sit where they were in {path_a.name} "
+                f"({shift:.3f} px RMS over {len(common)} dots, though traverse_z moved "
+                f"{abs(b.z - a.z) * 1e3:g} mm): a stuck traverse?"
+            )
+
+
+def calibrate_cameras(
+    setup: PlateSetup,
+    dots: Mapping[str, Sequence[TraverseDots]],
+    method: str,
+    *,
+    fit_planes: Sequence[int] | None = None,
+) -> dict[str, CameraModel]:
+    """One calibration per camera by ``method`` (``ptv.calibration.methods``).
+
+    Parameters
+    ----------
+    setup : PlateSetup
+        The cameras' sheets.
+    dots : dict of str to sequence of TraverseDots
+        From :func:`find_traverse_dots`.
+    method : str
+        A calibration method.
+    fit_planes : sequence of int, optional
+        Traverse positions fitted on (default: all).
+
+    Returns
+    -------
+    dict of str to CameraModel
+        In experiment.json's camera order.
+    """
+    calibrations = {}
+    for name, sheet in setup.sheets.items():
+        planes = dots[name] if fit_planes is None else [dots[name][j] for j in fit_planes]
+        calibrations[name] = calibrate(method, [d.observation() for d in planes], sheet)
+    return calibrations
+
+
+def nominal_grid(setup: PlateSetup, dots: Mapping[str, Sequence[TraverseDots]]):
+    """The plate's grid indices and their nominal positions.
+
+    Returns
+    -------
+    indices : ndarray of int, shape (D, 2)
+        Every node of the plate's extent (i fastest), or, with no extent given, every
+        node some camera found.
+    positions : ndarray, shape (N_Z, D, 3)
+        (indices × pitch, Z_j), m.
+    """
+    extent = setup.plate.extent
+    if extent is None:
+        found = np.concatenate([d.indices for planes in dots.values() for d in planes])
+        indices = np.unique(found, axis=0)
+    else:
+        (i0, i1), (j0, j1) = extent
+        ii, jj = np.meshgrid(np.arange(i0, i1 + 1), np.arange(j0, j1 + 1), indexing="xy")
+        indices = np.column_stack([ii.ravel(), jj.ravel()])
+    return indices, nominal_positions(indices, setup.plate.pitch, setup.z)

@@ -1,0 +1,151 @@
+"""experiment.json, checked against its JSON Schema before anything else is read.
+
+The schema ships with the package (``ptv/schemas/experiment.schema.json``,
+:func:`experiment_schema`; docs/experiment.md explains each field). Every problem of a
+description is found at once and reported in one line that names the file and each
+field (``cameras.cam1.image_size: [2048] is too short; dt: ...``), so an experimentalist
+fixes them all in one go, before any image is read.
+
+What a command needs beyond the schema's few required fields is asked for by name
+(:data:`NEEDS`): processing particles needs ``dt``, ``frames_per_dt`` and
+``particle_images``; calibrating needs ``target``, ``traverse_z``,
+``calibration_images`` and every camera's ``pixel_pitch`` and ``focal_length``.
+"""
+
+import json
+from collections.abc import Iterable
+from functools import cache
+from importlib import resources
+from pathlib import Path
+
+from jsonschema import Draft202012Validator
+
+from ptv.errors import DatasetError
+from ptv.names import FILE_NAME_RULE, is_file_name
+
+__all__ = [
+    "NEEDS",
+    "DescriptionError",
+    "description_problems",
+    "experiment_schema",
+    "read_experiment",
+]
+
+
+class DescriptionError(DatasetError):
+    """A description that breaks the schema or lacks what a command needs (one line)."""
+
+
+#: Fields each use of a dataset needs, beyond the schema's required ones.
+NEEDS = {
+    "particles": ("dt", "frames_per_dt"),
+    "calibration": ("target", "traverse_z", "calibration_images"),
+}
+#: What each need is for, as the messages say it.
+_VERB = {"particles": "process particle images", "calibration": "calibrate"}
+#: Camera fields calibrating needs.
+CALIBRATION_CAMERA_FIELDS = ("pixel_pitch", "focal_length")
+
+
+@cache
+def experiment_schema() -> dict:
+    """The JSON Schema of experiment.json (draft 2020-12)."""
+    text = resources.files("ptv").joinpath("schemas/experiment.schema.json").read_text()
+    return json.loads(text)
+
+
+def _where(path: Iterable) -> str:
+    """A field path as the user writes it: ``cameras.cam1.image_size``, ``dt[2]`` or
+    ``cameras['a b']``."""
+    text = ""
+    for part in path:
+        if isinstance(part, int) or not is_file_name(part):
+            text += f"[{part!r}]"  # a name with odd characters stays on one line
+        else:
+            text += f".{part}" if text else part
+    return text or "(top level)"
+
+
+def _message(error) -> str:
+    """The schema's message, or a plainer one where a PTV user needs the reason."""
+    path = list(error.absolute_path)
+    if path == ["dt"] and error.validator == "minItems":
+        return f"{error.instance}: the multi-Δt method needs at least two Δt values"
+    if path == ["cameras"] and error.validator == "minProperties":
+        return f"3-D PTV needs at least two cameras, got {list(error.instance)!r}"
+    if path == ["cameras"] and error.validator == "pattern":  # from propertyNames
+        return f"camera name: expected {FILE_NAME_RULE}, got {error.instance!r}"
+    known = error.schema.get("properties", {})
+    if error.validator == "additionalProperties" and known:
+        unknown = ", ".join(repr(k) for k in error.instance if k not in known)
+        return f"unknown field(s) {unknown}; known: {', '.join(known)}"
+    return error.message
+
+
+def description_problems(spec: object, needs: Iterable[str] = ()) -> list[str]:
+    """Every way ``spec`` breaks the schema or misses what ``needs`` asks for.
+
+    Parameters
+    ----------
+    spec : object
+        The parsed experiment.json.
+    needs : iterable of str
+        Keys of :data:`NEEDS`.
+
+    Returns
+    -------
+    list of str
+        One ``field: problem`` text per problem, in field order; empty when none.
+    """
+    validator = Draft202012Validator(experiment_schema())
+    problems = [
+        (list(error.absolute_path), f"{_where(error.absolute_path)}: {_message(error)}")
+        for error in validator.iter_errors(spec)
+    ]
+    if isinstance(spec, dict):
+        for need in needs:
+            problems += [
+                ([field], f"{field}: required to {_VERB[need]}")
+                for field in NEEDS[need]
+                if field not in spec
+            ]
+            if need == "particles" and spec.get("particle_images", "") is None:
+                problems.append((["particle_images"], "particle_images: null, no particle images"))
+        cameras = spec.get("cameras")
+        if "calibration" in needs and isinstance(cameras, dict):
+            problems += [
+                (
+                    ["cameras", name, field],
+                    f"{_where(['cameras', name, field])}: required to calibrate",
+                )
+                for name, info in cameras.items()
+                if isinstance(info, dict)
+                for field in CALIBRATION_CAMERA_FIELDS
+                if field not in info
+            ]
+    problems.sort(key=lambda p: [str(part) for part in p[0]])
+    return [text for _, text in problems]
+
+
+def read_experiment(folder: str | Path, needs: Iterable[str] = ()) -> dict:
+    """Read ``folder``/experiment.json and check it against the schema and ``needs``.
+
+    Raises
+    ------
+    FileNotFoundError
+        No experiment.json.
+    DescriptionError
+        Not JSON, or one or more problems: all of them in one line, naming the file.
+    """
+    path = Path(folder) / "experiment.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{folder} is not a dataset folder: {path.name} is missing")
+    try:
+        spec = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise DescriptionError(f"{path}: not readable as JSON ({err})") from None
+    problems = description_problems(spec, needs)
+    if problems:
+        count = f"{len(problems)} problems" if len(problems) > 1 else "1 problem"
+        raise DescriptionError(f"{path}: {count}: {'; '.join(problems)}")
+    return spec
