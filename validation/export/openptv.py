@@ -43,7 +43,7 @@ FIRST_NUMBER = 10001
 #: Largest particle speed the tracking bounds allow, m/s (synptv ptv's default).
 MAX_SPEED = 1.5
 #: Half-width of the epipolar band of the correspondences, px (criteria.par eps0).
-EPIPOLAR_BAND_PX = 2.0
+EPIPOLAR_BAND_PX = 1.0
 #: Margin added around the laser sheet for the observed volume, m.
 VOLUME_MARGIN = 2e-3
 #: Largest grey-level step inside one target before OpenPTV splits it (8-bit).
@@ -249,7 +249,7 @@ def _par_files(source: ExportSource, guesses: Guesses) -> dict[str, str]:
             for c in names
             for line in (f"img/dt0/{c}.{FIRST_NUMBER}", f"cal/{c}/plane_{middle:02d}.tif")
         ],
-        1,  # highpass filter on (OpenPTV's default background removal)
+        0,  # no highpass filter: the rendered background is uniform
         0,  # allCam_flag: accept pairs and triplets, not only points seen by all cameras
         1,  # TIFF images
         width,
@@ -424,6 +424,8 @@ FILES
   frames.csv                   dt,snapshot,frame,number of every exposure
 
 WHAT WAS CHOSEN OR GUESSED, AND WHY
+  * No highpass filter (ptv.par hp_flag 0): the rendered background is uniform, and
+    OpenPTV's background subtraction lost particles in a trial.
   * 8-bit images. OpenPTV processes 8-bit images; the rendered ones hold 12-bit grey
     levels. Plate images are shifted right by {guesses.plate_shift} bits and particle images by
     {guesses.particle_shift} bits: the smallest shifts that keep the brightest pixel of all plates
@@ -451,7 +453,10 @@ WHAT WAS CHOSEN OR GUESSED, AND WHY
     thresholds (detect_plate.par): {plate} (at least a quarter of the 8-bit range).
     Size bounds are loose: 2-400 px per particle, 20-5000 px per dot.
   * Correspondences (criteria.par). Epipolar band eps0 = {EPIPOLAR_BAND_PX:g} px on the sensor
-    ({EPIPOLAR_BAND_PX * pitch:g} mm); OpenPTV's usual similarity limits (0.02) and corrmin 33.
+    ({EPIPOLAR_BAND_PX * pitch:g} mm): a few times a good calibration's residual, and narrow,
+    since with two cameras each other particle inside the band makes a pair ambiguous
+    (set it to about twice your calibration's RMS residual); OpenPTV's usual
+    similarity limits (0.02) and corrmin 33.
   * Tracking (track.par). Displacement bounds of +-{MAX_SPEED:g} m/s x dt per component; the
     pairs are double-frame exposures, so only the a -> b link of each pair is meaningful.
 """
