@@ -183,6 +183,31 @@ def _common_sensor(source: ExportSource) -> tuple[int, int, float]:
     return next(iter(sensors))
 
 
+def dot_size_bounds(source: ExportSource) -> tuple[tuple[int, int], tuple[int, int]]:
+    """Pixel-count and width bounds of a plate dot's image for detect_plate.par.
+
+    A dot of diameter D (the plate's small dots) to M (its marks) images to about
+    D f / L pixels across, f the principal distance in px and L the camera's distance
+    to the origin (the largest over the cameras for the smallest image, the smallest for
+    the largest). The bounds take half the smallest area and four times the largest.
+
+    Returns
+    -------
+    ((int, int), (int, int))
+        (least, most) pixels of a dot, (least, most) width in px.
+    """
+    scales = [
+        c.lens.fx / float(np.linalg.norm(c.center)) for c in source.rig.cameras
+    ]  # px per m at the origin, refraction aside
+    small = source.dot_diameters[0] * min(scales)
+    large = source.dot_diameters[1] * max(scales)
+    area = np.pi / 4
+    return (
+        (max(3, int(0.5 * area * small**2)), int(np.ceil(4 * area * large**2)) + 10),
+        (max(1, int(0.5 * small)), int(np.ceil(2 * large)) + 2),
+    )
+
+
 def _lines(*values) -> str:
     return "".join(f"{v}\n" for v in values)
 
@@ -283,7 +308,7 @@ def _par_files(source: ExportSource, guesses: Guesses) -> dict[str, str]:
         "ptv.par": ptv,
         "criteria.par": criteria,
         "targ_rec.par": _target_par(guesses.particle_threshold, (2, 400), (1, 30), 10),
-        "detect_plate.par": _target_par(guesses.plate_threshold, (20, 5000), (4, 100), 100),
+        "detect_plate.par": _target_par(guesses.plate_threshold, *dot_size_bounds(source), 100),
         "cal_ori.par": _lines(
             f"cal/target_plane_{middle:02d}.txt",
             *[
@@ -383,6 +408,7 @@ def readme(source: ExportSource, guesses: Guesses) -> str:
     z = ", ".join(f"{v * MM:g}" for v in source.dots[:, 0, 2])
     particle = ", ".join(str(v) for v in guesses.particle_threshold)
     plate = ", ".join(str(v) for v in guesses.plate_threshold)
+    dots = dot_size_bounds(source)
     return f"""OpenPTV export of the synptv dataset {source.folder}
 (written by `synptv export --format openptv`; docs/export.md of synptv)
 
@@ -451,7 +477,9 @@ WHAT WAS CHOSEN OR GUESSED, AND WHY
   * Thresholds. Particle grey thresholds (targ_rec.par) per camera: {particle}, the
     background median plus six robust noise sigmas of the first frame; plate
     thresholds (detect_plate.par): {plate} (at least a quarter of the 8-bit range).
-    Size bounds are loose: 2-400 px per particle, 20-5000 px per dot.
+    Size bounds: 2-400 px per particle (loose); per dot, from half the area of a
+    small dot to four times that of a mark as imaged at the camera's distance
+    ({dots[0][0]}-{dots[0][1]} px, {dots[1][0]}-{dots[1][1]} px across).
   * Correspondences (criteria.par). Epipolar band eps0 = {EPIPOLAR_BAND_PX:g} px on the sensor
     ({EPIPOLAR_BAND_PX * pitch:g} mm): a few times a good calibration's residual, and narrow,
     since with two cameras each other particle inside the band makes a pair ambiguous

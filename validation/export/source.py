@@ -40,6 +40,8 @@ class ExportSource:
         Nominal centre of every plate dot at every traverse position, m (the plate's
         grid times its pitch, at the nominal traverse Z_j): what a user would type
         into a target file.
+    dot_diameters : (float, float)
+        Diameters of the plate's ordinary and marked dots, m.
     plate_images : list of list of Path
         Plate image of camera c at traverse position j: ``plate_images[c][j]``.
     bit_depth : int or None
@@ -50,6 +52,7 @@ class ExportSource:
     dataset: Dataset
     rig: Rig
     dots: np.ndarray
+    dot_diameters: tuple[float, float]
     plate_images: list
     bit_depth: int | None
 
@@ -132,6 +135,7 @@ def read_source(folder: str | Path) -> ExportSource:
         dataset=dataset,
         rig=truth.rig,
         dots=nominal,
+        dot_diameters=(spec["target"]["dot_diameter"], spec["target"]["mark_diameter"]),
         plate_images=_plate_paths(folder, spec, dataset.cameras, len(nominal)),
         bit_depth=bits,
     )
