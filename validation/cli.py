@@ -17,6 +17,7 @@ from simulator.presets import FLOW_PRESETS, flow_preset
 from simulator.rigs import load_rig, rig_presets
 from simulator.spectra import SPECTRA
 from simulator.turbulence import NU_WATER, TurbulenceParameters
+from validation.export.command import add_export_parser
 from validation.run.scenario import SIZE_LIMITS, FlowSection
 from validation.score.command import add_score_parser
 from validation.studies.cli import add_study_parser
@@ -622,6 +623,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_claims_parser(sub)
     _add_ptv_parser(sub)
     add_score_parser(sub)
+    add_export_parser(sub)
     _add_scene_parser(sub)
     return parser
 

@@ -1,0 +1,164 @@
+"""A rendered dataset, read and checked for export before anything is written.
+
+Everything an export needs comes from three places of a ``synptv render`` folder:
+``experiment.json`` (cameras, image sizes, Δt values, frame pairs, the plate design and
+its traverse positions, the file layout), the images it names (plate images per camera
+and plane, particle images per Δt, camera, snapshot and frame) and ``truth.h5``, whose
+rig gives what a real experiment would have measured on its bench: where each camera
+stands and looks, its lens, and the geometry of its window. Errors name the file and
+the field, in one line (``ValueError``).
+"""
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ptv.dataset import Dataset, open_dataset, read_description
+from simulator.rigs import Rig
+from validation.dataset.calibrate import dot_positions
+from validation.dataset.truth_file import TruthFile
+
+#: The plate image pattern when experiment.json does not give one.
+DEFAULT_PLATE_IMAGES = "calibration/{camera}/plane_{j:02d}.tif"
+
+
+@dataclass(frozen=True, eq=False)
+class ExportSource:
+    """A dataset folder as an exporter reads it.
+
+    Attributes
+    ----------
+    folder : Path
+        The dataset folder.
+    dataset : ptv.dataset.Dataset
+        Cameras, image shapes, Δt values, frame pairs and the particle image paths.
+    rig : simulator.rigs.Rig
+        The rig of truth.h5: the nominal camera poses, lenses and windows.
+    dots : ndarray, shape (N_Z, D, 3)
+        Nominal centre of every plate dot at every traverse position, m (the plate's
+        grid times its pitch, at the nominal traverse Z_j): what a user would type
+        into a target file.
+    dot_diameters : (float, float)
+        Diameters of the plate's ordinary and marked dots, m.
+    plate_images : list of list of Path
+        Plate image of camera c at traverse position j: ``plate_images[c][j]``.
+    bit_depth : int or None
+        Significant bits of the grey levels (experiment.json), None if not declared.
+    """
+
+    folder: Path
+    dataset: Dataset
+    rig: Rig
+    dots: np.ndarray
+    dot_diameters: tuple[float, float]
+    plate_images: list
+    bit_depth: int | None
+
+    @property
+    def cameras(self) -> tuple[str, ...]:
+        """Camera names, in the order of experiment.json."""
+        return self.dataset.cameras
+
+    def frame_path(self, k: int, camera: str, m: int, frame: str) -> Path:
+        """Particle image of frame ``frame`` (a or b) of snapshot m at Δt_k."""
+        return self.dataset.frame_path(k, camera, m, frame)
+
+
+def _plate_paths(folder: Path, spec: dict, cameras: tuple[str, ...], planes: int) -> list:
+    """Every plate image path, checked to exist (errors name the first missing one)."""
+    pattern = spec.get("calibration_images", DEFAULT_PLATE_IMAGES)
+    if not isinstance(pattern, str):
+        raise ValueError(
+            f"{folder / 'experiment.json'}: 'calibration_images' must be a file pattern, "
+            f"got {pattern!r}"
+        )
+    try:
+        paths = [[folder / pattern.format(camera=c, j=j) for j in range(planes)] for c in cameras]
+    except (KeyError, IndexError, ValueError) as err:
+        raise ValueError(
+            f"{folder / 'experiment.json'}: bad 'calibration_images' pattern {pattern!r} ({err})"
+        ) from None
+    missing = [p for row in paths for p in row if not p.is_file()]
+    if missing:
+        raise ValueError(f"{missing[0]}: plate image missing ({len(missing)} missing in all)")
+    return paths
+
+
+def read_source(folder: str | Path) -> ExportSource:
+    """Read and check a rendered dataset folder for export.
+
+    Parameters
+    ----------
+    folder : path-like
+        A folder written by ``synptv render`` (with particle images and truth.h5).
+
+    Returns
+    -------
+    ExportSource
+
+    Raises
+    ------
+    ValueError
+        One line naming the file and the field: no such folder, no truth.h5, a
+        malformed experiment.json, a missing image, camera names that differ between
+        experiment.json and truth.h5.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ValueError(f"--dataset {folder}: no such folder")
+    if not (folder / "truth.h5").is_file():
+        raise ValueError(
+            f"--dataset {folder}: no truth.h5 (export takes each camera's nominal pose and "
+            "window from the rig a rendered dataset records there)"
+        )
+    try:
+        dataset = open_dataset(folder)
+    except FileNotFoundError as err:
+        raise ValueError(str(err)) from None
+    truth = TruthFile(folder)
+    if tuple(truth.rig.camera_names) != dataset.cameras:
+        raise ValueError(
+            f"{folder / 'truth.h5'}: rig cameras {', '.join(truth.rig.camera_names)} differ "
+            f"from experiment.json's {', '.join(dataset.cameras)}"
+        )
+    _true, nominal = dot_positions(folder)
+    spec = read_description(folder)
+    bits = spec.get("bit_depth")
+    if bits is not None and not (isinstance(bits, int) and 1 <= bits <= 16):
+        raise ValueError(
+            f"{folder / 'experiment.json'}: 'bit_depth' must be an integer 1 … 16, got {bits!r}"
+        )
+    return ExportSource(
+        folder=folder,
+        dataset=dataset,
+        rig=truth.rig,
+        dots=nominal,
+        dot_diameters=(spec["target"]["dot_diameter"], spec["target"]["mark_diameter"]),
+        plate_images=_plate_paths(folder, spec, dataset.cameras, len(nominal)),
+        bit_depth=bits,
+    )
+
+
+def rotation_angles(matrix: np.ndarray) -> tuple[float, float, float]:
+    """Angles (a, b, c), rad, with ``matrix`` = R_x(a) R_y(b) R_z(c).
+
+    Both OpenPTV (ω, φ, κ) and MyPTV (θ₁, θ₂, θ₃) write a rotation as this product of
+    rotations about the fixed x, y and z axes.
+
+    Parameters
+    ----------
+    matrix : ndarray, shape (3, 3)
+        A proper rotation.
+
+    Returns
+    -------
+    (float, float, float)
+        a, b, c, rad; b in [−π/2, π/2].
+    """
+    r = np.asarray(matrix, dtype=float)
+    b = math.asin(float(np.clip(r[0, 2], -1.0, 1.0)))
+    a = math.atan2(-r[1, 2], r[2, 2])
+    c = math.atan2(-r[0, 1], r[0, 0])
+    return a, b, c
