@@ -15,13 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ptv.dataset import Dataset, open_dataset, read_description
+from ptv.calibration.experiment import nominal_grid, plate_setup
+from ptv.dataset import Dataset, open_dataset
+from ptv.experiment import read_experiment
 from simulator.rigs import Rig
-from validation.dataset.calibrate import dot_positions
 from validation.dataset.truth_file import TruthFile
-
-#: The plate image pattern when experiment.json does not give one.
-DEFAULT_PLATE_IMAGES = "calibration/{camera}/plane_{j:02d}.tif"
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,26 +64,6 @@ class ExportSource:
         return self.dataset.frame_path(k, camera, m, frame)
 
 
-def _plate_paths(folder: Path, spec: dict, cameras: tuple[str, ...], planes: int) -> list:
-    """Every plate image path, checked to exist (errors name the first missing one)."""
-    pattern = spec.get("calibration_images", DEFAULT_PLATE_IMAGES)
-    if not isinstance(pattern, str):
-        raise ValueError(
-            f"{folder / 'experiment.json'}: 'calibration_images' must be a file pattern, "
-            f"got {pattern!r}"
-        )
-    try:
-        paths = [[folder / pattern.format(camera=c, j=j) for j in range(planes)] for c in cameras]
-    except (KeyError, IndexError, ValueError) as err:
-        raise ValueError(
-            f"{folder / 'experiment.json'}: bad 'calibration_images' pattern {pattern!r} ({err})"
-        ) from None
-    missing = [p for row in paths for p in row if not p.is_file()]
-    if missing:
-        raise ValueError(f"{missing[0]}: plate image missing ({len(missing)} missing in all)")
-    return paths
-
-
 def read_source(folder: str | Path) -> ExportSource:
     """Read and check a rendered dataset folder for export.
 
@@ -115,6 +93,7 @@ def read_source(folder: str | Path) -> ExportSource:
         )
     try:
         dataset = open_dataset(folder)
+        setup = plate_setup(folder)
     except FileNotFoundError as err:
         raise ValueError(str(err)) from None
     truth = TruthFile(folder)
@@ -123,10 +102,9 @@ def read_source(folder: str | Path) -> ExportSource:
             f"{folder / 'truth.h5'}: rig cameras {', '.join(truth.rig.camera_names)} differ "
             f"from experiment.json's {', '.join(dataset.cameras)}"
         )
-    _true, nominal = dot_positions(folder)
-    spec = read_description(folder)
-    bits = spec.get("bit_depth")
-    if bits is not None and not (isinstance(bits, int) and 1 <= bits <= 16):
+    _, nominal = nominal_grid(setup, {})
+    bits = read_experiment(folder).get("bit_depth")
+    if bits is not None and bits > 16:
         raise ValueError(
             f"{folder / 'experiment.json'}: 'bit_depth' must be an integer 1 … 16, got {bits!r}"
         )
@@ -135,8 +113,8 @@ def read_source(folder: str | Path) -> ExportSource:
         dataset=dataset,
         rig=truth.rig,
         dots=nominal,
-        dot_diameters=(spec["target"]["dot_diameter"], spec["target"]["mark_diameter"]),
-        plate_images=_plate_paths(folder, spec, dataset.cameras, len(nominal)),
+        dot_diameters=(setup.plate.dot_diameter, setup.plate.mark_diameter),
+        plate_images=[setup.images[name] for name in dataset.cameras],
         bit_depth=bits,
     )
 
