@@ -16,6 +16,7 @@ snapshot m is the same exposure for every k: a source returns the same detection
 it whatever k.
 """
 
+import dataclasses
 import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -27,6 +28,8 @@ import numpy as np
 from ptv._checks import positive
 from ptv.dataset import Dataset, DatasetError
 from ptv.detect import Detections, detect_particles
+from ptv.detect.background import BackgroundEstimate, estimate_background
+from ptv.detect.preprocess import BACKGROUND_REMOVALS, invert, median_background, tophat
 
 __all__ = [
     "ChunkDetections",
@@ -72,7 +75,8 @@ class FrameDetections(Protocol):
 
 @dataclass(frozen=True)
 class DetectorSettings:
-    """How particles are detected on a dataset's images.
+    """How particles are detected on a dataset's images (:mod:`ptv.detect.preprocess`
+    for the options real images need).
 
     Attributes
     ----------
@@ -80,19 +84,60 @@ class DetectorSettings:
         Detection threshold in noise units above background (default 6), > 0.
     saturation : float or None
         Saturation level of the images, DN (None: the dtype's maximum).
+    particles : {"bright", "dark"}
+        Bright particles on a dark background (laser sheet) or dark on bright
+        (back-lit): dark images are inverted, saturation − I, before detection.
+    background : {"none", "tophat", "median"}
+        Background removed before detection: none, a morphological top-hat of each
+        frame, or the per-pixel median of ``median_frames`` frames of the camera.
+    tophat_radius : int
+        Disc radius of the top-hat, px, >= 1 (above the largest particle image radius).
+    median_frames : int
+        Frames, spread over the recording, whose median is the background, >= 3.
+    min_peak : float
+        Particles whose brightest pixel is less than this above the background are
+        dropped, DN, >= 0.
+    min_size : int
+        Particles with fewer pixels above threshold are dropped, >= 1.
     """
 
     threshold_sigmas: float = 6.0
     saturation: float | None = None
+    particles: str = "bright"
+    background: str = "none"
+    tophat_radius: int = 4
+    median_frames: int = 25
+    min_peak: float = 0.0
+    min_size: int = 1
 
     def __post_init__(self) -> None:
         positive("threshold_sigmas", self.threshold_sigmas)
         if self.saturation is not None:
             positive("saturation", self.saturation)
+        if self.particles not in ("bright", "dark"):
+            raise ValueError(f"particles must be 'bright' or 'dark', got {self.particles!r}")
+        if self.background not in BACKGROUND_REMOVALS:
+            raise ValueError(
+                f"background must be one of {', '.join(BACKGROUND_REMOVALS)}, got "
+                f"{self.background!r}"
+            )
+        for name, low in (("tophat_radius", 1), ("median_frames", 3), ("min_size", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+        if isinstance(self.min_peak, bool) or not (
+            isinstance(self.min_peak, int | float) and self.min_peak >= 0
+        ):
+            raise ValueError(f"min_peak must be a number >= 0 (DN), got {self.min_peak!r}")
+
+    @property
+    def raw(self) -> bool:
+        """Whether the images are detected as recorded (no inversion, no removal)."""
+        return self.particles == "bright" and self.background == "none"
 
     def as_dict(self) -> dict:
         """JSON-able form (what detections depend on besides the images)."""
-        return {"threshold_sigmas": float(self.threshold_sigmas), "saturation": self.saturation}
+        return dataclasses.asdict(self)
 
 
 def exposures(
@@ -232,9 +277,10 @@ class ImageDetector:
         saturation = settings.saturation
         if saturation is None:
             saturation = dataset.saturation
-        self.settings = DetectorSettings(settings.threshold_sigmas, saturation)
+        self.settings = dataclasses.replace(settings, saturation=saturation)
         self.detector = self.settings.as_dict()
         self._frame_a: tuple[int, tuple[bytes, ...], list[Detections]] | None = None
+        self._medians: dict[str, np.ndarray] = {}
 
     def detect(self, k: int, m: int, frame: str) -> list[Detections]:
         """Detections on frame ``frame`` of snapshot m at Δt_k, one per camera.
@@ -287,11 +333,58 @@ class ImageDetector:
         return ChunkDetections.of(self, (m0, m1), found)
 
     def _detect(self, image: np.ndarray, camera: str) -> Detections:
-        """The particles on one image of ``camera``, those on its mask's 0 pixels dropped."""
+        """The particles on one image of ``camera`` (prepared as the settings ask), those
+        on its mask's 0 pixels and those fainter than ``min_peak`` dropped."""
+        s = self.settings
+        prepared, background = (image, None) if s.raw else self._prepared(image, camera)
         found = detect_particles(
-            image,
-            threshold_sigmas=self.settings.threshold_sigmas,
-            saturation=self.settings.saturation,
+            prepared,
+            threshold_sigmas=s.threshold_sigmas,
+            saturation=s.saturation if s.raw else None,
+            min_size=s.min_size,
+            background=background,
         )
+        if s.min_peak > 0:
+            found = found.select(found.peak >= s.min_peak)
         mask = self.dataset.masks.get(camera)
         return found if mask is None else found.within(mask)
+
+    def _prepared(
+        self, image: np.ndarray, camera: str
+    ) -> tuple[np.ndarray, BackgroundEstimate | None]:
+        """The image with its particles bright and its background removed (float32), and
+        the background the detector should assume (None: its own estimate).
+
+        After a top-hat the pixel noise is measured on the image before it: the top-hat
+        of pure noise is skewed (never negative), and its adjacent-pixel differences
+        would understate the spread of its upper tail, where the threshold lies.
+        """
+        s = self.settings
+        bright = invert(image, s.saturation) if s.particles == "dark" else image
+        if s.background == "tophat":
+            removed = tophat(bright, s.tophat_radius)
+            level = estimate_background(removed).level
+            noise = estimate_background(bright).noise
+            return removed, BackgroundEstimate(level, noise, removed.shape)
+        if s.background == "median":
+            return np.asarray(bright, dtype=np.float32) - self._median(camera), None
+        return np.asarray(bright, dtype=np.float32), None
+
+    def _median(self, camera: str) -> np.ndarray:
+        """The temporal median of ``camera``: ``median_frames`` exposures spread evenly
+        over the recording (particles bright), computed once."""
+        if camera not in self._medians:
+            order = exposures(
+                self.frames,
+                range(max(self.frames)),
+                shared_first_frame=self.shared_first_frame,
+            )
+            picks = np.unique(np.linspace(0, len(order) - 1, self.settings.median_frames).round())
+            frames = []
+            for i in picks.astype(int):
+                k, m, frame = order[i]
+                image = self.dataset.read_frame(max(k, 0), camera, m, frame)
+                dark = self.settings.particles == "dark"
+                frames.append(invert(image, self.settings.saturation) if dark else image)
+            self._medians[camera] = median_background(frames)
+        return self._medians[camera]

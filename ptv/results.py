@@ -130,6 +130,7 @@ def _settings_dict(result: PtvResult) -> dict:
         "eulerian_cells": list(st.eulerian_cells),
         "min_cell_count": st.min_cell_count,
         "threshold_sigmas": result.source.detector["threshold_sigmas"],
+        "detection": dict(result.source.detector),
         "outlier_threshold": s.outlier_threshold,
         "outlier_neighbours": s.outlier_neighbours,
         "trajectory_threshold": st.trajectory_threshold,

@@ -2,7 +2,8 @@
 
 Sections and the dataclass fields they fill (SI units: m, s, m/s)::
 
-    [detection]    DetectorSettings: threshold_sigmas, saturation
+    [detection]    DetectorSettings: threshold_sigmas, saturation, particles, background,
+                   tophat_radius, median_frames, min_peak, min_size
     [matching]     PipelineSettings: volume, tolerance, min_cameras
     [linking]      PipelineSettings: max_speed, position_noise, outlier_threshold,
                    outlier_neighbours
@@ -32,7 +33,7 @@ __all__ = ["PtvSettings", "SettingsError", "load_settings", "settings_from_dict"
 
 #: Section → (settings class, fields of it that the section holds).
 SECTIONS = {
-    "detection": (DetectorSettings, ("threshold_sigmas", "saturation")),
+    "detection": (DetectorSettings, tuple(f.name for f in dataclasses.fields(DetectorSettings))),
     "matching": (PipelineSettings, ("volume", "tolerance", "min_cameras")),
     "linking": (
         PipelineSettings,
@@ -52,6 +53,12 @@ _NONE_WHEN_ABSENT = ("saturation", "snapshots")
 _COMMENTS = {
     "threshold_sigmas": "detection threshold, noise σ above the background",
     "saturation": "saturation level, DN (left out: the image type's maximum)",
+    "particles": '"bright" on a dark background, or "dark" on a bright one (back-lit)',
+    "background": 'removed first: "none", "tophat" (each frame), "median" (of the sequence)',
+    "tophat_radius": "top-hat disc radius, px (above the largest particle image radius)",
+    "median_frames": "frames spread over the recording whose per-pixel median is the background",
+    "min_peak": "particles peaking less than this above the background are dropped, DN",
+    "min_size": "particles with fewer pixels above threshold are dropped",
     "volume": "matching volume: lower and upper corners, m",
     "tolerance": "largest ray distance from a matched point, m (2-3x the calibration error)",
     "min_cameras": "fewest cameras a match must use",
