@@ -18,7 +18,10 @@ every Δt starts from the same frame a, as when a time-resolved recording is cut
 pairs; the statistics then follow the same particles over every Δt) and
 ``particle_images`` (optional pattern, default
 ``particles/dt{k}/{camera}/{m:06d}_{a|b}.tif``; null for a dataset without particle
-images, which cannot be processed here). Images are 8- or 16-bit TIFF or PNG
+images, which cannot be processed here). A time-resolved recording gives instead
+``time_resolved`` (frame rate, frame-number pattern, steps; :mod:`ptv.sequence`), from
+which the Δt values, the frame pairs and the shared first frame follow. Images are
+8- or 16-bit TIFF or PNG
 (:mod:`ptv.images`); a camera's mask (pixels at 0 are not used) must have its image
 size. Nothing else of the folder (plate images, a ground truth) is read.
 
@@ -39,6 +42,7 @@ from ptv.errors import DatasetError
 from ptv.experiment import read_experiment
 from ptv.images import read_image, read_mask
 from ptv.names import FILE_NAME_RULE, is_file_name
+from ptv.sequence import TimeResolved
 
 __all__ = [
     "DEFAULT_PARTICLE_IMAGES",
@@ -131,6 +135,9 @@ class Dataset:
         Snapshot m of every Δt shares its frame a (same particles at t).
     masks : dict of str to ndarray of bool, shape (H, W)
         The masks of the cameras that have one: True where the image is used.
+    sequence : TimeResolved or None
+        The frame-numbered recording the frame pairs are cut from (then ``pattern`` is
+        its file pattern, with ``{n}``), or None for frame pairs stored as such.
     """
 
     folder: Path
@@ -142,6 +149,7 @@ class Dataset:
     pattern: str
     shared_first_frame: bool = False
     masks: Mapping[str, np.ndarray] = field(default_factory=dict)
+    sequence: TimeResolved | None = None
 
     @property
     def n_dt(self) -> int:
@@ -152,6 +160,9 @@ class Dataset:
         """File of frame ``frame`` ("a" or "b") of snapshot m, camera, run k."""
         if frame not in ("a", "b"):
             raise ValueError(f"frame must be 'a' or 'b', got {frame!r}")
+        if self.sequence is not None:
+            n = self.sequence.frame_number(k, m, frame)
+            return self.folder / self.pattern.format(camera=camera, n=n)
         name = self.pattern.replace("{a|b}", "{frame}")
         return self.folder / name.format(k=k, camera=camera, m=m, frame=frame)
 
@@ -314,18 +325,29 @@ def open_dataset(folder: str | Path, *, check_files: bool = True) -> Dataset:
     spec = read_experiment(folder, needs=("particles",))
     path = folder / "experiment.json"
     shapes = _cameras(spec, path)
-    dt = _dt(spec, path)
-    frames = _frames(spec, path, dt.size)
-    pattern = spec.get("particle_images", DEFAULT_PARTICLE_IMAGES)
-    if pattern is None:
-        raise _fail(path, "'particle_images' is null: this dataset holds no particle images")
-    if not isinstance(pattern, str) or "{a|b}" not in pattern:
-        raise _fail(path, f"'particle_images' must be a pattern with '{{a|b}}', got {pattern!r}")
-    shared = spec.get("shared_first_frame", False)
-    if not isinstance(shared, bool):
-        raise _fail(path, f"'shared_first_frame' must be true or false, got {shared!r}")
-    if shared and len(set(frames)) != 1:
-        raise _fail(path, f"a shared first frame needs the same frame count per Δt, got {frames}")
+    sequence = None
+    if "time_resolved" in spec:
+        try:
+            sequence = TimeResolved.from_dict(spec["time_resolved"])
+        except ValueError as err:
+            raise _fail(path, str(err)) from None
+        dt, pattern, shared = sequence.dt, sequence.images, True
+        frames = (sequence.snapshots,) * dt.size
+    else:
+        dt = _dt(spec, path)
+        frames = _frames(spec, path, dt.size)
+        pattern = spec.get("particle_images", DEFAULT_PARTICLE_IMAGES)
+        if pattern is None:
+            raise _fail(path, "'particle_images' is null: this dataset holds no particle images")
+        if not isinstance(pattern, str) or "{a|b}" not in pattern:
+            raise _fail(
+                path, f"'particle_images' must be a pattern with '{{a|b}}', got {pattern!r}"
+            )
+        shared = spec.get("shared_first_frame", False)
+        if shared and len(set(frames)) != 1:
+            raise _fail(
+                path, f"a shared first frame needs the same frame count per Δt, got {frames}"
+            )
     dataset = Dataset(
         folder=folder,
         cameras=tuple(shapes),
@@ -336,11 +358,13 @@ def open_dataset(folder: str | Path, *, check_files: bool = True) -> Dataset:
         pattern=pattern,
         shared_first_frame=shared,
         masks=camera_masks(folder, spec, shapes),
+        sequence=sequence,
     )
     try:
         dataset.frame_path(0, dataset.cameras[0], 0, "a")
     except (KeyError, IndexError, ValueError) as err:
-        raise _fail(path, f"bad 'particle_images' pattern {pattern!r} ({err})") from None
+        field = "time_resolved.images" if sequence else "particle_images"
+        raise _fail(path, f"bad '{field}' pattern {pattern!r} ({err})") from None
     if check_files:
         missing = [
             dataset.frame_path(k, c, m, f)

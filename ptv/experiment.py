@@ -41,6 +41,8 @@ NEEDS = {
     "particles": ("dt", "frames_per_dt"),
     "calibration": ("target", "traverse_z", "calibration_images"),
 }
+#: Fields a time-resolved description replaces.
+TIME_RESOLVED_REPLACES = ("dt", "frames_per_dt", "particle_images", "shared_first_frame")
 #: What each need is for, as the messages say it.
 _VERB = {"particles": "process particle images", "calibration": "calibrate"}
 #: Camera fields calibrating needs.
@@ -75,6 +77,11 @@ def _message(error) -> str:
         return f"3-D PTV needs at least two cameras, got {list(error.instance)!r}"
     if path == ["cameras"] and error.validator == "pattern":  # from propertyNames
         return f"camera name: expected {FILE_NAME_RULE}, got {error.instance!r}"
+    if error.validator == "not" and path == []:  # the fields time_resolved replaces
+        given = [f for f in TIME_RESOLVED_REPLACES if f in error.instance]
+        return (
+            f"time_resolved gives the Δt values and the frame pairs: leave out {', '.join(given)}"
+        )
     known = error.schema.get("properties", {})
     if error.validator == "additionalProperties" and known:
         unknown = ", ".join(repr(k) for k in error.instance if k not in known)
@@ -104,6 +111,8 @@ def description_problems(spec: object, needs: Iterable[str] = ()) -> list[str]:
     ]
     if isinstance(spec, dict):
         for need in needs:
+            if need == "particles" and "time_resolved" in spec:
+                continue  # it gives the Δt values and the frame pairs
             problems += [
                 ([field], f"{field}: required to {_VERB[need]}")
                 for field in NEEDS[need]

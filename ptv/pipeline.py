@@ -531,8 +531,8 @@ class PtvResult:
         Options used.
     runs : list of RunParticles
         Particles per Δt (all Δt of the dataset).
-    statistics : PtvStatistics
-        The statistics.
+    statistics : PtvStatistics or None
+        The statistics (None when only positions and links were asked for).
     matched : MatchedPoints or None
         The matched points of the frames measured (:func:`run_pipeline`: every frame of
         every Δt, frame a repeated at each Δt that shares it).
@@ -542,7 +542,7 @@ class PtvResult:
     cameras: tuple[str, ...]
     settings: PipelineSettings
     runs: list[RunParticles]
-    statistics: PtvStatistics
+    statistics: PtvStatistics | None
     matched: MatchedPoints | None = None
 
 
@@ -552,6 +552,7 @@ def run_pipeline(
     settings: PipelineSettings | None = None,
     *,
     progress: Progress | None = None,
+    statistics: bool = True,
 ) -> PtvResult:
     """Detections → matches → links → S2(r), ε, u′ for a whole dataset.
 
@@ -566,6 +567,8 @@ def run_pipeline(
         Options (defaults: the paper's volumes and ranges).
     progress : callable(done, total), optional
         Called after each snapshot of each Δt and after the statistics.
+    statistics : bool
+        Compute the statistics (False: positions and links only).
 
     Returns
     -------
@@ -610,8 +613,10 @@ def run_pipeline(
             int(run.used.sum()),
             len(run.skipped),
         )
-    statistics = compute_statistics(
-        runs, settings.statistics, shared_first_frame=frames.shared_first_frame
+    computed = (
+        compute_statistics(runs, settings.statistics, shared_first_frame=frames.shared_first_frame)
+        if statistics
+        else None
     )
     tick()
     return PtvResult(
@@ -619,7 +624,7 @@ def run_pipeline(
         cameras=tuple(frames.cameras),
         settings=settings,
         runs=runs,
-        statistics=statistics,
+        statistics=computed,
         matched=MatchedPoints.from_frames(
             (s.k, s.m, f, points)
             for run in measured

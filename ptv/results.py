@@ -185,10 +185,15 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     Keys: ``dataset``, ``calibration``, ``cameras``, ``settings``, ``dt``, ``counts``
     (per Δt: snapshots processed, kept and skipped, detections per camera and frame,
     matches per frame, links, links in the analysis volume, link radius), ``warnings``
-    (:func:`thin_data_warnings`), and those of :func:`statistics_summary`.
+    (:func:`thin_data_warnings`), and those of :func:`statistics_summary` (only
+    ``statistics_dt`` and ``errors``, both None, for a run of positions and links only).
     """
     counts = [_run_counts(run, result) for run in result.runs]
-    statistics = statistics_summary(result.statistics)
+    statistics = (
+        {"statistics_dt": None, "errors": None}
+        if result.statistics is None
+        else statistics_summary(result.statistics)
+    )
     return {
         "format": FORMAT_NAME,
         "format_version": FORMAT_VERSION,
@@ -338,8 +343,6 @@ def _put_matched(group: h5py.Group, matched: MatchedPoints) -> None:
 
 
 def _write_h5(path: Path, result: PtvResult, calibration: str | None, links: bool) -> None:
-    st = result.statistics
-    sf = st.structure
     with h5py.File(path, "w") as f:
         f.attrs["format"] = FORMAT_NAME
         f.attrs["format_version"] = FORMAT_VERSION
@@ -365,70 +368,77 @@ def _write_h5(path: Path, result: PtvResult, calibration: str | None, links: boo
             _put(g, "links", run.links, "count")
         if result.matched is not None:
             _put_matched(f.create_group("positions"), result.matched)
-        s = f.create_group("statistics")
-        s.attrs["errors"] = st.errors
-        s.attrs["method"] = sf.method
-        s.attrs["kolmogorov_c2"] = st.profile.kolmogorov_c2
-        s.attrs["analysis_volume"] = np.asarray(result.settings.statistics.analysis_volume)
-        _put(s, "dt", st.dt, "s")
-        _put(s, "dt_index", st.dt_index)
-        _put(s, "n_snapshots", st.n_snapshots)
-        _put(s, "r", sf.r, "m")
-        _put(s, "r_edges", st.bins.edges, "m")
-        _put(s, "s2", sf.s2, "m^2/s^2")
-        _put(s, "se_s2", sf.se_s2, "m^2/s^2")
-        _put(s, "noise", sf.noise, "m^2")
-        _put(s, "se_noise", sf.se_noise, "m^2")
-        _put(s, "chi2_dof", sf.chi2_dof)
-        _put(s, "fitted", sf.fitted)
-        _put(s, "raw_s2", sf.raw_s2, "m^2/s^2")
-        _put(s, "se_raw_s2", sf.se_raw_s2, "m^2/s^2")
-        _put(s, "q", sf.raw_s2 * st.dt**2, "m^2")
-        _put(s, "n_pairs", sf.n_pairs, "pairs")
-        _put(s, "epsilon", st.profile.epsilon, "m^2/s^3")
-        _put(s, "se_epsilon", st.profile.se_epsilon, "m^2/s^3")
-        _put(s, "epsilon_paper_caption", st.profile.epsilon_paper_caption, "m^2/s^3")
-        _put_plateau(s, st.plateau)
-        if st.population is not None:
-            g = s.create_group("population")
-            g.attrs["trajectory_outliers"] = st.population.trajectory_outliers
-            sizes = [len(x) for x in st.population.positions]
-            _put(g, "snapshot_ids", st.population.snapshot_ids)
-            _put(g, "offsets", np.concatenate([[0], np.cumsum(sizes)]), "row index")
-            positions = st.population.positions
-            _put(g, "positions", np.concatenate(positions) if positions else np.empty((0, 3)), "m")
-        for name, sub in st.subsets.items():
-            g = s.create_group(f"subsets/{name}")
-            _put(g, "used", sub.used)
-            _put(g, "s2", sub.structure.s2, "m^2/s^2")
-            _put(g, "se_s2", sub.structure.se_s2, "m^2/s^2")
-            _put(g, "noise", sub.structure.noise, "m^2")
-            _put(g, "epsilon", sub.profile.epsilon, "m^2/s^3")
-            _put_plateau(g, sub.plateau)
-        md = st.mean_displacement
-        g = s.create_group("mean_displacement")
-        _put(g, "dt", md.dt, "s")
-        _put(g, "mean", md.mean, "m")
-        _put(g, "se", md.se, "m")
-        _put(g, "count", md.count, "links")
-        _put(g, "velocity", md.fit.c1, "m/s")
-        _put(g, "se_velocity", md.fit.se_c1, "m/s")
-        _put(g, "offset", md.fit.c2, "m")
-        _put(g, "se_offset", md.fit.se_c2, "m")
-        _put(g, "se_offset_scaled", md.se_offset_scaled, "m")
-        _put(g, "chi2_dof", md.fit.chi2_dof)
-        g = s.create_group("eulerian")
-        _put(g, "cell_centres", st.grid.centres, "m")
-        _put(g, "valid", st.eulerian.valid)
-        _put(g, "variance", st.eulerian.variance, "m^2/s^2")
-        _put(g, "noise", st.eulerian.noise, "m^2")
-        _put(g, "mean_velocity", st.eulerian.mean_velocity, "m/s")
-        _put(g, "offset", st.eulerian.offset, "m")
-        up = st.u_prime
-        g.attrs["u_prime"] = np.nan if up is None else up.value
-        g.attrs["se_u_prime"] = np.nan if up is None else up.se
-        g.attrs["position_noise"] = st.position_noise
-        g.attrs["units"] = "u_prime, se_u_prime: m/s; position_noise: m"
+        if result.statistics is not None:
+            _put_statistics(f.create_group("statistics"), result)
+
+
+def _put_statistics(s: h5py.Group, result: PtvResult) -> None:
+    """The statistics of a run in the ``/statistics`` group (module docstring)."""
+    st = result.statistics
+    sf = st.structure
+    s.attrs["errors"] = st.errors
+    s.attrs["method"] = sf.method
+    s.attrs["kolmogorov_c2"] = st.profile.kolmogorov_c2
+    s.attrs["analysis_volume"] = np.asarray(result.settings.statistics.analysis_volume)
+    _put(s, "dt", st.dt, "s")
+    _put(s, "dt_index", st.dt_index)
+    _put(s, "n_snapshots", st.n_snapshots)
+    _put(s, "r", sf.r, "m")
+    _put(s, "r_edges", st.bins.edges, "m")
+    _put(s, "s2", sf.s2, "m^2/s^2")
+    _put(s, "se_s2", sf.se_s2, "m^2/s^2")
+    _put(s, "noise", sf.noise, "m^2")
+    _put(s, "se_noise", sf.se_noise, "m^2")
+    _put(s, "chi2_dof", sf.chi2_dof)
+    _put(s, "fitted", sf.fitted)
+    _put(s, "raw_s2", sf.raw_s2, "m^2/s^2")
+    _put(s, "se_raw_s2", sf.se_raw_s2, "m^2/s^2")
+    _put(s, "q", sf.raw_s2 * st.dt**2, "m^2")
+    _put(s, "n_pairs", sf.n_pairs, "pairs")
+    _put(s, "epsilon", st.profile.epsilon, "m^2/s^3")
+    _put(s, "se_epsilon", st.profile.se_epsilon, "m^2/s^3")
+    _put(s, "epsilon_paper_caption", st.profile.epsilon_paper_caption, "m^2/s^3")
+    _put_plateau(s, st.plateau)
+    if st.population is not None:
+        g = s.create_group("population")
+        g.attrs["trajectory_outliers"] = st.population.trajectory_outliers
+        sizes = [len(x) for x in st.population.positions]
+        _put(g, "snapshot_ids", st.population.snapshot_ids)
+        _put(g, "offsets", np.concatenate([[0], np.cumsum(sizes)]), "row index")
+        positions = st.population.positions
+        _put(g, "positions", np.concatenate(positions) if positions else np.empty((0, 3)), "m")
+    for name, sub in st.subsets.items():
+        g = s.create_group(f"subsets/{name}")
+        _put(g, "used", sub.used)
+        _put(g, "s2", sub.structure.s2, "m^2/s^2")
+        _put(g, "se_s2", sub.structure.se_s2, "m^2/s^2")
+        _put(g, "noise", sub.structure.noise, "m^2")
+        _put(g, "epsilon", sub.profile.epsilon, "m^2/s^3")
+        _put_plateau(g, sub.plateau)
+    md = st.mean_displacement
+    g = s.create_group("mean_displacement")
+    _put(g, "dt", md.dt, "s")
+    _put(g, "mean", md.mean, "m")
+    _put(g, "se", md.se, "m")
+    _put(g, "count", md.count, "links")
+    _put(g, "velocity", md.fit.c1, "m/s")
+    _put(g, "se_velocity", md.fit.se_c1, "m/s")
+    _put(g, "offset", md.fit.c2, "m")
+    _put(g, "se_offset", md.fit.se_c2, "m")
+    _put(g, "se_offset_scaled", md.se_offset_scaled, "m")
+    _put(g, "chi2_dof", md.fit.chi2_dof)
+    g = s.create_group("eulerian")
+    _put(g, "cell_centres", st.grid.centres, "m")
+    _put(g, "valid", st.eulerian.valid)
+    _put(g, "variance", st.eulerian.variance, "m^2/s^2")
+    _put(g, "noise", st.eulerian.noise, "m^2")
+    _put(g, "mean_velocity", st.eulerian.mean_velocity, "m/s")
+    _put(g, "offset", st.eulerian.offset, "m")
+    up = st.u_prime
+    g.attrs["u_prime"] = np.nan if up is None else up.value
+    g.attrs["se_u_prime"] = np.nan if up is None else up.se
+    g.attrs["position_noise"] = st.position_noise
+    g.attrs["units"] = "u_prime, se_u_prime: m/s; position_noise: m"
 
 
 def save_results(

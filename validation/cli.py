@@ -338,18 +338,30 @@ def _run_ptv(args: argparse.Namespace) -> int:
                 calibrations,
                 settings.pipeline,
                 progress=bar,
+                statistics=not args.positions_only,
             )
         except FileNotFoundError as err:
             raise UsageError(str(err)) from None
         with staged_output(out) as staging:  # results and figures replace the old together
-            written = [
-                *save_results(result, staging, calibration=str(args.calibration)),
-                *save_ptv_figures(result, staging).values(),
-            ]
+            written = list(save_results(result, staging, calibration=str(args.calibration)))
+            if not args.positions_only:
+                written += save_ptv_figures(result, staging).values()
     h5_path, json_path, *figures = (out / path.name for path in written)
     s = summary(result, calibration=str(args.calibration))
     for line in s["warnings"]:
         print(f"synptv ptv: warning: {line}", file=sys.stderr)
+    _print_counts(s)
+    if args.positions_only:
+        print(f"positions and links written to {h5_path} and {json_path}")
+        return 0
+    _print_statistics(s)
+    print(f"results written to {h5_path} and {json_path}")
+    print(f"figures written to {', '.join(str(p) for p in figures)}")
+    return 0
+
+
+def _print_counts(s: dict) -> None:
+    """The counts per Δt of a ``synptv ptv`` summary."""
     print(
         f"{'dt (ms)':>8s} {'snap':>5s} {'detections':>11s} {'matches':>8s} {'links':>7s} "
         f"{'outliers':>8s} {'used':>6s}"
@@ -361,6 +373,10 @@ def _run_ptv(args: argparse.Namespace) -> int:
             f"{c['matches']['a'] + c['matches']['b']:8d} {c['links']:7d} "
             f"{c['outliers']:8d} {c['links_used']:6d}"
         )
+
+
+def _print_statistics(s: dict) -> None:
+    """u', the plateau ε, its Δt subsets and the mean displacement of a summary."""
     up = s["u_prime"]
     if up is not None and up["value"] is not None:
         print(f"u' (Eulerian variance fit)        {up['value']:.4g} ± {up['se']:.2g} m/s")
@@ -385,9 +401,6 @@ def _run_ptv(args: argparse.Namespace) -> int:
         for o, e in zip(md["offset"], md["se_offset_scaled"], strict=True)
     )
     print(f"mean displacement vs dt: offset (X, Y, Z) {offset} um")
-    print(f"results written to {h5_path} and {json_path}")
-    print(f"figures written to {', '.join(str(p) for p in figures)}")
-    return 0
 
 
 def _run_scene(args: argparse.Namespace) -> int:
@@ -582,6 +595,11 @@ def _add_ptv_parser(sub) -> None:
         "--min-cameras",
         type=int,
         help="fewest cameras a match must use (default 2; matches seen by more are preferred)",
+    )
+    ptv.add_argument(
+        "--positions-only",
+        action="store_true",
+        help="write the matched positions and the links only: no statistics, no figures",
     )
     ptv.add_argument("--quiet", action="store_true", help="no progress bar")
     ptv.set_defaults(run=_run_ptv)

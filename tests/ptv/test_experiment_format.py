@@ -165,3 +165,47 @@ def test_the_documented_example_meets_the_schema():
     page = (Path(__file__).parents[2] / "docs" / "experiment.md").read_text()
     example = json.loads(page.split("```json\n", 1)[1].split("```", 1)[0])
     assert description_problems(example, needs=("particles", "calibration")) == []
+
+
+def test_a_time_resolved_recording_is_cut_into_shared_first_frame_pairs(tmp_path):
+    spec = {
+        "cameras": {"c1": {"image_size": [64, 48]}, "c2": {"image_size": [64, 48]}},
+        "time_resolved": {
+            "frame_rate": 1000.0,
+            "images": "seq/{camera}/{n:04d}.png",
+            "steps": [1, 3],
+            "first": 2,
+            "last": 14,
+        },
+    }
+    (tmp_path / "experiment.json").write_text(json.dumps(spec))
+    for c in ("c1", "c2"):
+        (tmp_path / "seq" / c).mkdir(parents=True)
+        for n in range(2, 15):
+            cv2.imwrite(str(tmp_path / "seq" / c / f"{n:04d}.png"), np.full((48, 64), n, np.uint8))
+    dataset = open_dataset(tmp_path)
+    np.testing.assert_allclose(dataset.dt, [1e-3, 3e-3])
+    # stride = the largest step, 3: frames a 2, 5, 8, 11 (11 + 3 = 14 is the last).
+    assert dataset.frames == (4, 4) and dataset.shared_first_frame
+    assert dataset.read_frame(1, "c2", 3, "a")[0, 0] == 11
+    assert dataset.read_frame(1, "c2", 3, "b")[0, 0] == 14
+    assert dataset.read_frame(0, "c1", 2, "b")[0, 0] == 9
+
+
+def test_a_time_resolved_recording_replaces_the_frame_pair_fields(tmp_path):
+    spec = {
+        **PARTICLES,
+        "time_resolved": {
+            "frame_rate": -5.0,
+            "images": "{camera}/{n}.tif",
+            "steps": [2],
+            "last": 9,
+        },
+    }
+    problems = description_problems(spec, needs=("particles",))
+    assert problems == [
+        "(top level): time_resolved gives the Δt values and the frame pairs: leave out dt, "
+        "frames_per_dt",
+        "time_resolved.frame_rate: -5.0 is less than or equal to the minimum of 0",
+        "time_resolved.steps: [2] is too short",
+    ]

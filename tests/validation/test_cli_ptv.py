@@ -144,3 +144,17 @@ def test_a_folder_held_by_another_command_is_refused_before_the_pipeline(dataset
         assert main([*argv, "--out", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "is in use by synptv ptv" in err and err.count("\n") == 1
+
+
+def test_positions_only_writes_the_points_and_links_without_statistics(dataset, tmp_path, capsys):
+    folder, calibration = dataset
+    out = tmp_path / "positions"
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration), "--quiet"]
+    assert main([*argv, "--positions-only", "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["results.h5", "summary.json"]
+    with h5py.File(out / "results.h5") as f:
+        assert "statistics" not in f
+        assert len(f["positions/x"]) > 0 and len(f["particles/dt0/positions"]) > 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["statistics_dt"] is None and "epsilon" not in summary
+    assert "positions and links written to" in capsys.readouterr().out
