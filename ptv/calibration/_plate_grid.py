@@ -37,6 +37,65 @@ class MarkersNotFoundError(ValueError):
     """The three marked dots of the plate could not be found or placed."""
 
 
+class SeedDotsError(ValueError):
+    """Seed dots given by the user that no dot answers, or that contradict each other."""
+
+
+#: A seed dot takes the dot nearest to its pixel within this fraction of a pitch.
+_SEED_REACH = 0.4
+#: Seed dots further than this (pitches) from the affine grid of all of them contradict.
+_SEED_TOL = 0.3
+
+
+def _seed_rows(
+    pts: np.ndarray,
+    tree: cKDTree,
+    seeds: dict[tuple[int, int], tuple[float, float]],
+    pitch_px: float,
+    source: str,
+) -> dict[tuple[int, int], int]:
+    """The detection each seed dot names: grid index → row in ``pts``.
+
+    Raises
+    ------
+    SeedDotsError
+        Fewer than three seeds or all on a line; a seed with no dot near its pixel; two
+        seeds on one dot; seeds that no single affine grid holds (with four or more).
+    """
+    nodes = np.array(list(seeds), dtype=float).reshape(-1, 2)
+    pixels = np.array(list(seeds.values()), dtype=float).reshape(-1, 2)
+    if len(nodes) < 3 or np.linalg.matrix_rank(np.column_stack([nodes, np.ones(len(nodes))])) < 3:
+        raise SeedDotsError(
+            f"seed dots for {source}: need at least three, not on one line, got "
+            f"{[tuple(int(v) for v in n) for n in nodes]}"
+        )
+    fit, *_ = np.linalg.lstsq(np.column_stack([nodes, np.ones(len(nodes))]), pixels, rcond=None)
+    step = np.linalg.norm(fit[:2], axis=1).min()
+    off = np.linalg.norm(np.column_stack([nodes, np.ones(len(nodes))]) @ fit - pixels, axis=1)
+    if len(nodes) > 3 and off.max() > _SEED_TOL * step:
+        given = ", ".join(
+            f"{tuple(int(v) for v in n)} at ({x:.1f}, {y:.1f})"
+            for n, (x, y) in zip(nodes, pixels, strict=True)
+        )
+        raise SeedDotsError(
+            f"seed dots for {source} contradict each other: no grid holds {given} (one is "
+            f"{off.max() / step:.2f} pitches off; check the indices)"
+        )
+    distance, rows = tree.query(pixels)
+    reach = _SEED_REACH * min(step, pitch_px)
+    far = np.flatnonzero(distance > reach)
+    if len(far):
+        n = far[0]
+        x, y = pixels[n]
+        raise SeedDotsError(
+            f"seed dot {tuple(int(v) for v in nodes[n])} of {source}: no dot within "
+            f"{reach:.1f} px of ({x:.1f}, {y:.1f})"
+        )
+    if len(set(rows.tolist())) < len(rows):
+        raise SeedDotsError(f"seed dots for {source}: two seeds name the same dot")
+    return {tuple(int(v) for v in n): int(r) for n, r in zip(nodes, rows, strict=True)}
+
+
 # -- marks ---------------------------------------------------------------------------------
 def _affine_from(grid: np.ndarray, pixels: np.ndarray) -> np.ndarray | None:
     """Exact affine (3, 2) with [i, j, 1] @ M = pixel from three correspondences."""
@@ -166,30 +225,14 @@ def _predict(nodes: np.ndarray, pix: np.ndarray, targets: np.ndarray) -> np.ndar
     return out
 
 
-def index_grid(
-    pts: np.ndarray,
-    usable: np.ndarray,
-    relative_area: np.ndarray,
-    description: PlateDescription,
-    dot_area: float,
-    image_size: tuple[int, int],
-    source: str,
-) -> tuple[np.ndarray, np.ndarray, dict[str, int], np.ndarray]:
-    """Place the marks among the ``usable`` blobs larger than their neighbours (by
-    ``relative_area``, largest first), grow the grid from them over the usable blobs and
-    drop the gross outliers of a cubic grid fit. ``dot_area`` is a dot's area, px.
-
-    Returns
-    -------
-    nodes : ndarray, shape (N, 2), int64
-        Grid index (i, j) of each indexed blob.
-    det : ndarray, shape (N,), int64
-        Its row in ``pts``.
-    mark_rows : dict of str to int
-        Row in ``pts`` of each mark.
-    outliers : ndarray of int64
-        Rows in ``pts`` dropped as off the smooth grid.
-    """
+def _marks(pts, tree, usable, relative_area, description, pitch_px, image_size, source):
+    """The row in ``pts`` of each mark, among the usable blobs larger than their
+    neighbours (by ``relative_area``, largest first)."""
+    if not description.marks:
+        raise MarkersNotFoundError(
+            f"markers not found in {source}: the plate has no marks; give seed dots "
+            "(docs/experiment.md §3)"
+        )
     ratio = description.mark_area_ratio
     mark_like = np.flatnonzero(usable & (relative_area > np.sqrt(ratio)))
     if len(mark_like) < 3:
@@ -200,11 +243,45 @@ def index_grid(
         )
     mark_like = mark_like[np.argsort(-relative_area[mark_like], kind="stable")]
     mark_like = mark_like[:_MAX_MARK_CANDIDATES]
+    return _locate_marks(pts, tree, mark_like, description, pitch_px, image_size, source)
+
+
+def index_grid(
+    pts: np.ndarray,
+    usable: np.ndarray,
+    relative_area: np.ndarray,
+    description: PlateDescription,
+    dot_area: float,
+    image_size: tuple[int, int],
+    source: str,
+    seeds: dict[tuple[int, int], tuple[float, float]] | None = None,
+) -> tuple[np.ndarray, np.ndarray, dict[str, int], np.ndarray]:
+    """Place the marks among the ``usable`` blobs larger than their neighbours (by
+    ``relative_area``, largest first), or take the dots the ``seeds`` name (grid index →
+    pixel, given by the user), grow the grid from them over the usable blobs and drop
+    the gross outliers of a cubic grid fit. ``dot_area`` is a dot's area, px.
+
+    Returns
+    -------
+    nodes : ndarray, shape (N, 2), int64
+        Grid index (i, j) of each indexed blob.
+    det : ndarray, shape (N,), int64
+        Its row in ``pts``.
+    mark_rows : dict of str to int
+        Row in ``pts`` of each mark (none with seeds).
+    outliers : ndarray of int64
+        Rows in ``pts`` dropped as off the smooth grid.
+    """
     tree = cKDTree(np.where(usable[:, None], pts, -1e9))  # usable blobs only (others far)
     pitch_px = 2.0 * np.sqrt(dot_area / np.pi) * description.pitch / description.dot_diameter
-    mark_rows = _locate_marks(pts, tree, mark_like, description, pitch_px, image_size, source)
-    seeds = {description.marks[name]: k for name, k in mark_rows.items()}
-    assigned = _grow(pts, tree, usable, seeds, description)
+    if seeds:
+        start, mark_rows = _seed_rows(pts, tree, seeds, pitch_px, source), {}
+    else:
+        mark_rows = _marks(
+            pts, tree, usable, relative_area, description, pitch_px, image_size, source
+        )
+        start = {description.marks[name]: k for name, k in mark_rows.items()}
+    assigned = _grow(pts, tree, usable, start, description)
     nodes = np.array(list(assigned), dtype=np.int64)
     det = np.array(list(assigned.values()), dtype=np.int64)
     outliers = np.empty(0, dtype=np.int64)

@@ -3,7 +3,8 @@
 What a real experiment provides is enough: experiment.json (checked against its schema
 up front, :mod:`ptv.experiment`) with the plate (``target``), the traverse readings
 (``traverse_z``), the plate images' pattern (``calibration_images``) and each camera's
-pixel pitch and focal length, optionally a mask per camera. :func:`plate_setup` reads
+pixel pitch and focal length, optionally a mask per camera and seed dots (a CSV file,
+``calibration_seeds``, :func:`read_seed_dots`) for plates without marks. :func:`plate_setup` reads
 and checks all of it, and every plate image (present, readable, of the declared size,
 no two alike), before any dot is searched; :func:`find_traverse_dots` finds and indexes
 the dots; :func:`calibrate_cameras` fits one calibration per camera; Table 1 against the
@@ -11,10 +12,11 @@ nominal grid is :func:`ptv.calibration.grid_errors.table1_errors` with
 :func:`nominal_grid`.
 """
 
+import csv
 import hashlib
 import itertools
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +35,7 @@ __all__ = [
     "find_traverse_dots",
     "nominal_grid",
     "plate_setup",
+    "read_seed_dots",
 ]
 
 #: RMS image shift of the dots between two traverse positions below which the plate is
@@ -59,6 +62,8 @@ class PlateSetup:
         Each camera's plate image per traverse position.
     masks : dict of str to ndarray of bool, shape (H, W)
         The masks of the cameras that have one (True where the image is used).
+    seeds : dict of (str, int) to dict of (int, int) to (float, float)
+        Seed dots of (camera, plate position): grid index → pixel (empty: the marks).
     """
 
     folder: Path
@@ -67,6 +72,7 @@ class PlateSetup:
     sheets: dict[str, CameraSheet]
     images: dict[str, list[Path]]
     masks: Mapping[str, np.ndarray]
+    seeds: Mapping[tuple[str, int], dict] = field(default_factory=dict)
 
     @property
     def cameras(self) -> list[str]:
@@ -108,7 +114,67 @@ def plate_setup(folder: str | Path) -> PlateSetup:
     shapes = {name: (sheet.image_size[1], sheet.image_size[0]) for name, sheet in sheets.items()}
     for name, paths in images.items():
         _check_plate_images(paths, shapes[name])
-    return PlateSetup(folder, plate, z, sheets, images, camera_masks(folder, spec, shapes))
+    seeds = {}
+    if "calibration_seeds" in spec:
+        seeds = read_seed_dots(folder / spec["calibration_seeds"], list(sheets), len(z))
+    elif not plate.marks:
+        raise DatasetError(
+            f"{source}: the target has no marks and there is no 'calibration_seeds' file: "
+            "the dots cannot be indexed"
+        )
+    masks = camera_masks(folder, spec, shapes)
+    return PlateSetup(folder, plate, z, sheets, images, masks, seeds)
+
+
+#: Columns of a seed-dot file.
+SEED_COLUMNS = ("camera", "plane", "i", "j", "x", "y")
+
+
+def read_seed_dots(
+    path: Path, cameras: Sequence[str], planes: int
+) -> dict[tuple[str, int], dict[tuple[int, int], tuple[float, float]]]:
+    """Seed dots from a CSV file with the header ``camera,plane,i,j,x,y``.
+
+    Each row is one dot a user located on plate image ``plane`` (0-based traverse
+    position) of ``camera``: its grid indices (i, j) and its approximate pixel (x, y).
+    Images without rows are indexed from the plate's marks.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    DatasetError
+        A missing column, or a row with an unknown camera, a plane out of range, or a
+        value that is not a number (the message names the file and the row).
+    """
+    if not path.is_file():
+        raise FileNotFoundError(f"seed dot file {path} is missing")
+    with path.open(newline="") as f:
+        reader = csv.DictReader(f)
+        missing = [c for c in SEED_COLUMNS if c not in (reader.fieldnames or [])]
+        if missing:
+            raise DatasetError(f"{path}: missing column(s) {', '.join(missing)}")
+        seeds: dict = {}
+        for row_number, row in enumerate(reader, start=2):
+            try:
+                plane, i, j = int(row["plane"]), int(row["i"]), int(row["j"])
+                x, y = float(row["x"]), float(row["y"])
+            except (TypeError, ValueError):
+                raise DatasetError(
+                    f"{path}: row {row_number}: plane, i, j, x, y must be numbers"
+                ) from None
+            if row["camera"] not in cameras:
+                raise DatasetError(
+                    f"{path}: row {row_number}: unknown camera {row['camera']!r} "
+                    f"(experiment.json has {', '.join(cameras)})"
+                )
+            if not (0 <= plane < planes and np.isfinite([x, y]).all()):
+                raise DatasetError(
+                    f"{path}: row {row_number}: plane {plane} out of 0 … {planes - 1} or "
+                    "pixel not finite"
+                )
+            seeds.setdefault((row["camera"], plane), {})[i, j] = (x, y)
+    return seeds
 
 
 def _plate_paths(folder: Path, pattern: str, camera: str, planes: int) -> list[Path]:
@@ -174,15 +240,18 @@ def find_traverse_dots(
     ------
     ptv.calibration.targets.NoTargetError
         The plate's marks or grid not found on an image (the message names it).
+    ptv.calibration.targets.SeedDotsError
+        Seed dots that no dot answers or that contradict each other.
     DatasetError
         Two traverse positions whose dots sit at the same pixels (a stuck traverse).
     """
     found = {}
     for name, paths in setup.images.items():
         planes = []
-        for z, path in zip(setup.z, paths, strict=True):
+        for j, (z, path) in enumerate(zip(setup.z, paths, strict=True)):
             image = _masked(read_image(path), setup.masks.get(name))
-            dots = find_dots(image, setup.plate, source=str(path))
+            seeds = setup.seeds.get((name, j))
+            dots = find_dots(image, setup.plate, source=str(path), seeds=seeds)
             planes.append(TraverseDots(z, dots.indices, dots.pixels, setup.plate.pitch))
             if progress is not None:
                 progress()

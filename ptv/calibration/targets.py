@@ -58,9 +58,10 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ptv.calibration._plate_grid import (
-    MarkersNotFoundError as MarkersNotFoundError,  # raised by find_dots: part of its API
+from ptv.calibration._plate_grid import (  # raised by find_dots: part of its API
+    MarkersNotFoundError as MarkersNotFoundError,
 )
+from ptv.calibration._plate_grid import SeedDotsError as SeedDotsError
 from ptv.calibration._plate_grid import index_grid, missing_nodes
 from ptv.calibration.observations import PlaneObservation
 from ptv.detect.background import bilinear, estimate_background
@@ -96,12 +97,14 @@ class PlateDescription:
         Dot spacing along X and Y, m.
     dot_diameter : float
         Diameter of the ordinary dots, m.
-    mark_diameter : float
-        Diameter of the three marked dots, m (larger than ``dot_diameter``).
+    mark_diameter : float or None
+        Diameter of the three marked dots, m (larger than ``dot_diameter``); None for a
+        plate without marks.
     marks : dict of str to (int, int)
         Grid indices (i, j) of the three marks, e.g. ``{"origin": (0, 0),
-        "x_axis": (2, 0), "y_axis": (0, 3)}``; not collinear. Plate coordinates are
-        (X, Y) = pitch·(i, j).
+        "x_axis": (2, 0), "y_axis": (0, 3)}``; not collinear; empty for a plate without
+        marks (then every image needs seed dots, :func:`find_dots`). Plate coordinates
+        are (X, Y) = pitch·(i, j).
     dots : str
         ``"bright"`` (back-lit dots on a dark plate) or ``"dark"`` (dark dots on a
         bright plate).
@@ -112,38 +115,43 @@ class PlateDescription:
 
     pitch: float
     dot_diameter: float
-    mark_diameter: float
-    marks: Mapping[str, tuple[int, int]]
+    mark_diameter: float | None = None
+    marks: Mapping[str, tuple[int, int]] = field(default_factory=dict)
     dots: str = "bright"
     extent: tuple[tuple[int, int], tuple[int, int]] | None = None
 
     def __post_init__(self) -> None:
-        for name in ("pitch", "dot_diameter", "mark_diameter"):
+        sizes = ("pitch", "dot_diameter") + (
+            () if self.mark_diameter is None else ("mark_diameter",)
+        )
+        for name in sizes:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
                 raise ValueError(f"plate {name} must be a number (m), got {value!r}")
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"plate {name} must be finite and > 0 (m), got {value!r}")
             object.__setattr__(self, name, float(value))
-        if not self.dot_diameter < self.mark_diameter:
+        if self.marks and self.mark_diameter is None:
+            raise ValueError("a plate with marks needs their mark_diameter")
+        if self.mark_diameter is not None and not self.dot_diameter < self.mark_diameter:
             raise ValueError(
                 f"the marks must be larger than the dots: mark_diameter {self.mark_diameter} "
                 f"m <= dot_diameter {self.dot_diameter} m"
             )
-        if not self.mark_diameter < self.pitch:
+        if self.mark_diameter is not None and not self.mark_diameter < self.pitch:
             raise ValueError(
                 f"mark_diameter {self.mark_diameter} m must be smaller than the pitch "
                 f"{self.pitch} m"
             )
         if self.dots not in ("bright", "dark"):
             raise ValueError(f"dots must be 'bright' or 'dark', got {self.dots!r}")
-        if not isinstance(self.marks, Mapping) or len(self.marks) != 3:
+        if not isinstance(self.marks, Mapping) or len(self.marks) not in (0, 3):
             raise ValueError(
-                f"the plate needs exactly three marks {{name: (i, j)}}, got {self.marks!r}"
+                f"the plate needs three marks {{name: (i, j)}} or none, got {self.marks!r}"
             )
         marks = {str(k): _grid_pair(v, f"mark {k!r}") for k, v in self.marks.items()}
-        g = np.array(list(marks.values()), dtype=float)
-        if abs(np.linalg.det(np.column_stack([g, np.ones(3)]))) < 0.5:
+        g = np.array(list(marks.values()), dtype=float).reshape(-1, 2)
+        if marks and abs(np.linalg.det(np.column_stack([g, np.ones(3)]))) < 0.5:
             raise ValueError(f"the three marks must not be collinear, got {marks}")
         object.__setattr__(self, "marks", marks)
         if self.extent is not None:
@@ -162,7 +170,9 @@ class PlateDescription:
 
     @property
     def mark_area_ratio(self) -> float:
-        """Nominal area of a mark over that of a dot, (D_mark/D_dot)²."""
+        """Nominal area of a mark over that of a dot, (D_mark/D_dot)² (1 without marks)."""
+        if self.mark_diameter is None:
+            return 1.0
         return (self.mark_diameter / self.dot_diameter) ** 2
 
     def in_extent(self, indices: np.ndarray) -> np.ndarray:
@@ -177,8 +187,9 @@ class PlateDescription:
     def from_dict(cls, spec: Mapping, *, source: str = "target description") -> "PlateDescription":
         """Read the ``"target"`` entry of ``experiment.json`` (SI units).
 
-        Required: ``pitch``, ``dot_diameter``, ``mark_diameter`` (m) and ``marks``
-        ({name: [i, j]}, three of them). Optional: ``extent``
+        Required: ``pitch`` and ``dot_diameter`` (m). Optional: ``marks`` ({name: [i, j]},
+        three of them) with ``mark_diameter`` (m), absent for a plate without marks;
+        ``extent``
         ([[i_min, i_max], [j_min, j_max]]), or ``columns`` and ``rows``, which give
         the extent of synptv's layout with the origin mark in the middle of the grid
         (i from −⌊columns/2⌋ to columns − 1 − ⌊columns/2⌋, likewise j); ``dots`` or
@@ -192,13 +203,16 @@ class PlateDescription:
         """
         if not isinstance(spec, Mapping):
             raise ValueError(f"{source}: the target must be a table of fields, got {spec!r}")
-        missing = [k for k in ("pitch", "dot_diameter", "mark_diameter", "marks") if k not in spec]
+        missing = [k for k in ("pitch", "dot_diameter") if k not in spec]
+        if "marks" in spec and "mark_diameter" not in spec:
+            missing.append("mark_diameter")
         if missing:
             raise ValueError(
                 f"{source}: the target description lacks the field(s) {', '.join(missing)} "
-                "(needs pitch, dot_diameter, mark_diameter in m and marks {name: [i, j]})"
+                "(needs pitch and dot_diameter in m; marks {name: [i, j]} with their "
+                "mark_diameter, if the plate has marks)"
             )
-        marks = spec["marks"]
+        marks = spec.get("marks", {})
         if not isinstance(marks, Mapping):
             raise ValueError(f"{source}: 'marks' must map names to [i, j], got {marks!r}")
         dots = spec.get("dots", spec.get("dots_are", "bright"))
@@ -223,7 +237,7 @@ class PlateDescription:
             return cls(
                 pitch=spec["pitch"],
                 dot_diameter=spec["dot_diameter"],
-                mark_diameter=spec["mark_diameter"],
+                mark_diameter=spec.get("mark_diameter"),
                 marks={
                     str(k): tuple(v) if isinstance(v, list | tuple) else v for k, v in marks.items()
                 },
@@ -591,6 +605,7 @@ def find_dots(
     ring: int = 3,
     background_tile: int = 64,
     saturation: float | None = None,
+    seeds: Mapping[tuple[int, int], tuple[float, float]] | None = None,
 ) -> PlaneDots:
     """Detect, centre and index the dots of one plate image.
 
@@ -619,6 +634,10 @@ def find_dots(
     saturation : float, optional
         Pixels at or above this level flag their dot as saturated (default: the
         dtype's maximum for integer images; none for floats).
+    seeds : mapping of (int, int) to (float, float), optional
+        Seed dots: grid index (i, j) → approximate pixel (x, y) of three or more dots,
+        not on a line (what OpenPTV's manual orientation asks for). They replace the
+        marks: the grid grows from the dots nearest to them.
 
     Returns
     -------
@@ -631,7 +650,10 @@ def find_dots(
     NoTargetError
         Fewer than ``MIN_BLOBS`` dot-like blobs ("no target ... in <source>").
     MarkersNotFoundError
-        The three marks cannot be found or placed ("markers not found in <source>").
+        The three marks cannot be found or placed ("markers not found in <source>"), or
+        the plate has none and no seeds are given.
+    SeedDotsError
+        Seeds with no dot near them, or that contradict each other.
     """
     raw = np.asarray(image)
     img = _check_image(raw, source)
@@ -659,7 +681,7 @@ def find_dots(
     pts = blobs.centroid
     dot_area = float(np.median(blobs.area[usable]))
     nodes, det, mark_rows, outliers = index_grid(
-        pts, usable, rel, description, dot_area, (w, h), source
+        pts, usable, rel, description, dot_area, (w, h), source, seeds=dict(seeds or {})
     )
     reason[usable & ~np.isin(np.arange(len(reason)), det)] = "unindexed"
     reason[outliers] = "outlier"

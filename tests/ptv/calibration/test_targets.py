@@ -19,6 +19,7 @@ from ptv.calibration.targets import (
     MarkersNotFoundError,
     NoTargetError,
     PlateDescription,
+    SeedDotsError,
     find_dots,
     observations_from_images,
 )
@@ -92,7 +93,7 @@ def test_description_from_experiment_json():
     assert np.isclose(desc.mark_area_ratio, 2.56)
 
 
-@pytest.mark.parametrize("field", ["pitch", "dot_diameter", "mark_diameter", "marks"])
+@pytest.mark.parametrize("field", ["pitch", "dot_diameter", "mark_diameter"])
 def test_description_missing_field_is_named(field):
     spec = DESIGN.as_dict()
     del spec[field]
@@ -106,7 +107,7 @@ def test_description_missing_field_is_named(field):
         ({"pitch": -1.0}, "pitch"),
         ({"mark_diameter": 1e-3}, "larger than the dots"),
         ({"marks": {"origin": [0, 0], "x_axis": [2, 0], "y_axis": [4, 0]}}, "collinear"),
-        ({"marks": {"origin": [0, 0], "x_axis": [2, 0]}}, "three marks"),
+        ({"marks": {"origin": [0, 0], "x_axis": [2, 0]}}, "three marks .* or none"),
         ({"marks": {"origin": [0, 0], "x_axis": [2.5, 0], "y_axis": [0, 3]}}, "two integers"),
         ({"dots_are": "grey"}, "bright"),
         ({"columns": 0}, "columns"),
@@ -115,6 +116,51 @@ def test_description_missing_field_is_named(field):
 def test_description_bad_fields(change, message):
     with pytest.raises(ValueError, match=message):
         PlateDescription.from_dict({**DESIGN.as_dict(), **change})
+
+
+# -- seed dots instead of marks -------------------------------------------------------------
+# The rendered plate's three larger dots, their grid positions not given.
+UNMARKED = PlateDescription(
+    pitch=DESIGN.pitch, dot_diameter=DESIGN.dot_diameter, mark_diameter=DESIGN.mark_diameter
+)
+
+
+def _seeds(truth, nodes, shift=(0.3, -0.4)):
+    """Seed dots as a user clicks them: grid index → true image, off by ``shift`` px."""
+    row_of = {tuple(ij): r for r, ij in enumerate(truth.indices.tolist())}
+    return {n: tuple(truth.centroid[row_of[n]] + shift) for n in nodes}
+
+
+def test_seed_dots_index_a_plate_without_marks_as_the_marks_do(stereo):
+    shot = stereo[0, 6]
+    marked = find_dots(shot.noisy, DESCRIPTION)
+    with pytest.raises(MarkersNotFoundError, match="the plate has no marks; give seed dots"):
+        find_dots(shot.noisy, UNMARKED)
+    seeded = find_dots(shot.noisy, UNMARKED, seeds=_seeds(shot.truth, [(4, 1), (-3, 2), (1, -5)]))
+    np.testing.assert_array_equal(seeded.indices, marked.indices)
+    np.testing.assert_allclose(seeded.pixels, marked.pixels, atol=1e-3)  # marks' centroids move
+    assert seeded.marks == {}
+
+
+@pytest.mark.parametrize(
+    ("nodes", "shift", "message"),
+    [
+        ([(0, 0), (1, 1), (2, 2)], (0.3, -0.4), "not on one line"),
+        ([(0, 0), (3, 0), (0, 3)], (0.3, -80.0), r"seed dot \(0, 0\) .*no dot within"),
+    ],
+)
+def test_seed_dots_that_miss_or_line_up_are_named(stereo, nodes, shift, message):
+    shot = stereo[0, 6]
+    with pytest.raises(SeedDotsError, match=message):
+        find_dots(shot.noisy, UNMARKED, seeds=_seeds(shot.truth, nodes, shift), source="p.tif")
+
+
+def test_seed_dots_that_contradict_each_other_are_named(stereo):
+    shot = stereo[0, 6]
+    seeds = _seeds(shot.truth, [(0, 0), (3, 0), (0, 3), (3, 3)])
+    seeds[5, 3] = seeds.pop((3, 3))  # the fourth seed with the wrong index
+    with pytest.raises(SeedDotsError, match=r"p\.tif contradict each other: no grid holds .*\(5, 3\) at"):
+        find_dots(shot.noisy, UNMARKED, seeds=seeds, source="p.tif")
 
 
 # -- detection and indexing against truth ---------------------------------------------------
