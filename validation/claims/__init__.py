@@ -20,6 +20,7 @@ from validation.claims.base import Claim, ClaimResult
 from validation.claims.calibration import CALIBRATION_CLAIMS
 from validation.claims.context import CORRELATION_LENGTH, SIZES, ClaimContext, Sizes
 from validation.claims.optics import OPTICS_CLAIMS
+from validation.claims.spectrum import SPECTRUM_CLAIMS
 from validation.claims.statistics import FLOW_CLAIMS, STATISTICS_CLAIMS, dt3_gamma
 
 __all__ = [
@@ -34,7 +35,9 @@ __all__ = [
     "run_claims",
 ]
 
-CLAIMS: tuple[Claim, ...] = FLOW_CLAIMS + CALIBRATION_CLAIMS + OPTICS_CLAIMS + STATISTICS_CLAIMS
+CLAIMS: tuple[Claim, ...] = (
+    FLOW_CLAIMS + SPECTRUM_CLAIMS + CALIBRATION_CLAIMS + OPTICS_CLAIMS + STATISTICS_CLAIMS
+)
 
 
 def run_claims(

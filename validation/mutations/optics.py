@@ -3,7 +3,8 @@
 The calibration claims cannot see these: the dots, the true cameras of the noise floor
 and the truth all come from the same (mutated) cameras. The ``optics`` claims check the
 simulator's rays against Snell's law with the indices the rig states, recomputed in plain
-NumPy (:mod:`validation.truth.refraction`).
+NumPy (:mod:`validation.truth.refraction`) and the focus of the sheet on Scheimpflug
+mounts against the diffraction spot.
 """
 
 import numpy as np
@@ -61,7 +62,7 @@ OPTICS_MUTATIONS: tuple[Mutation, ...] = (
                 edited('tilt=table["scheimpflug"]', "tilt=False"),
             ),
         ),
-        ("calib.model_free_beats_tsai_scheimpflug",),
+        ("optics.sheet_in_focus",),
         ("optics", "calib"),
         _projected,
     ),

@@ -107,13 +107,16 @@ def _python_function(obj: Any) -> Any:
 def edited(old: str, new: str) -> Make:
     """A replacement compiled from the original function's source with ``old`` → ``new``.
 
-    ``old`` must occur exactly once in the function's source (decorators included, so a
+    The original may be a function, a Numba dispatcher or a property (its getter is
+    edited). ``old`` must occur exactly once in the function's source (decorators included, so a
     Numba kernel is recompiled; its on-disk cache is switched off). The new function is
     compiled in the original module's namespace, so every name it uses is looked up there
     at call time, as the original's are.
     """
 
     def make(original: Any) -> Any:
+        if isinstance(original, property):  # the getter's source carries @property
+            return make(original.fget)
         function = _python_function(original)
         source = textwrap.dedent(inspect.getsource(function))
         count = source.count(old)

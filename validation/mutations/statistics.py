@@ -56,10 +56,10 @@ def _line_fit():
     return np.concatenate([fit.c1, fit.c2])
 
 
-def _structure_function():
+def _structure_function(field: str = "s2"):
     from ptv.stats import structure
 
-    return structure.structure_function(_snapshot_sums(), _DT, n_boot=20, rng=2).s2
+    return getattr(structure.structure_function(_snapshot_sums(), _DT, n_boot=20, rng=2), field)
 
 
 def _mean_displacement():
@@ -76,6 +76,22 @@ def _epsilon():
     from ptv.stats import dissipation
 
     return dissipation.epsilon_estimate(np.array([1e-3]), np.array([5e-3]))
+
+
+def _plateau():
+    from ptv.stats import dissipation
+
+    r = np.geomspace(2e-3, 2e-2, 5)
+    profile = dissipation.dissipation_profile(r, 2.0 * (0.1 * r) ** (2 / 3) * (1 + r / 0.1))
+    return dissipation.plateau_epsilon(profile, r_min=2e-3, r_max=2e-2, method="max").epsilon
+
+
+def _spectrum():
+    from simulator import spectra
+    from simulator.presets import flow_preset
+
+    spectrum = spectra.PopeSpectrum(flow_preset("lem-10hz").parameters)
+    return spectrum.energy(np.geomspace(spectrum.k_min, spectrum.k_max, 5))
 
 
 def _scales():
@@ -141,7 +157,7 @@ STATISTICS_MUTATIONS: tuple[Mutation, ...] = (
                 ),
             ),
         ),
-        ("stats.c1_matches_truth", "stats.epsilon_recovered"),
+        ("stats.c1_matches_truth", "stats.correlated_noise_removed", "stats.raw_s2_biased"),
         ("stats",),
         lambda: _pair_sums().count,
     ),
@@ -196,6 +212,19 @@ STATISTICS_MUTATIONS: tuple[Mutation, ...] = (
         _structure_function,
     ),
     Mutation(
+        "raw-s2-over-dt",
+        "the raw (single-Δt) S2 is ⟨q⟩/Δt instead of ⟨q⟩/Δt²",
+        (
+            Patch(
+                "ptv.stats.structure:structure_function",
+                edited("raw_s2=y / dt2,", "raw_s2=y / dt,"),
+            ),
+        ),
+        ("stats.raw_s2_biased", "stats.noisy_estimates_higher"),
+        ("stats",),
+        lambda: _structure_function("raw_s2"),
+    ),
+    Mutation(
         "bootstrap-too-narrow",
         "the bootstrap draws four times as many snapshots as each run holds (σ of every "
         "⟨q⟩ halved, as when correlated pairs are resampled as if independent)",
@@ -205,7 +234,7 @@ STATISTICS_MUTATIONS: tuple[Mutation, ...] = (
                 edited("gen.multinomial(members.size, p", "gen.multinomial(4 * members.size, p"),
             ),
         ),
-        ("stats.linear_in_dt2",),
+        ("stats.c1_matches_truth", "stats.raw_s2_biased"),
         ("stats",),
         lambda: _snapshot_sums().bootstrap_weights(5, rng=0),
     ),
@@ -226,6 +255,33 @@ STATISTICS_MUTATIONS: tuple[Mutation, ...] = (
         ("stats.mean_linear_in_dt",),
         ("stats",),
         _mean_displacement,
+    ),
+    Mutation(
+        "plateau-always-mean",
+        "the ε plateau is the mean of ε(r) over the range even when its maximum is asked for",
+        (
+            Patch(
+                "ptv.stats.dissipation:plateau_epsilon",
+                edited('if method == "mean":', "if True:"),
+            ),
+        ),
+        ("stats.epsilon_recovered",),
+        ("stats",),
+        _plateau,
+    ),
+    Mutation(
+        "kolmogorov-constant-1.3",
+        "the simulator's Pope spectrum takes C_K = 1.3 instead of 1.5 (c_L, c_η re-solved, "
+        "so u′ and ε still hold; the exact D_LL and the ε deficit move with the flow)",
+        (
+            Patch(
+                "simulator.spectra:PopeSpectrum._shape",
+                edited("return self.C * p.epsilon", "return 1.3 * p.epsilon"),
+            ),
+        ),
+        ("flow.pope_spectrum",),
+        ("flow", "stats"),
+        _spectrum,
     ),
     Mutation(
         "taylor-factor-10",
