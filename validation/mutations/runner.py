@@ -14,6 +14,9 @@ from contextlib import nullcontext
 from dataclasses import dataclass
 from multiprocessing import get_context
 
+import numba
+
+from validation.claims import CLAIMS, ClaimContext
 from validation.mutations import MUTATIONS, Mutation, mutation
 
 
@@ -50,27 +53,27 @@ class ClaimFailures:
 def failing_claims(name: str | None, size: str, seed: int, threads: int) -> ClaimFailures:
     """Run the claims of the groups ``name`` can affect (all without a mutation) on a
     fresh :class:`~validation.claims.ClaimContext` with the mutation applied."""
-    import numba
-
-    from validation.claims import CLAIMS, ClaimContext
-
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     start = time.perf_counter()
     chosen = mutation(name) if name is not None else None
     claims = [c for c in CLAIMS if chosen is None or claim_group(c.id) in chosen.groups]
-    failed, errors = [], {}
+    errors: dict[str, str] = {}
+    passed: set[str] = set()
     with chosen.applied() if chosen is not None else nullcontext():
-        ctx = ClaimContext(size, seed=seed)
-        for claim in claims:
-            try:
-                passed = claim.check(claim, ctx).passed
-            except Exception as err:  # a claim the mutation makes crash has caught it
-                errors[claim.id] = f"{type(err).__name__}: {err}"
-                passed = False
-            if not passed:
-                failed.append(claim.id)
+        try:
+            ctx = ClaimContext(size, seed=seed)
+        except Exception as err:  # no claim can be checked: every one has caught it
+            errors = {c.id: f"{type(err).__name__}: {err}" for c in claims}
+        else:
+            for claim in claims:
+                try:
+                    if claim.check(claim, ctx).passed:
+                        passed.add(claim.id)
+                except Exception as err:  # a claim the mutation makes crash has caught it
+                    errors[claim.id] = f"{type(err).__name__}: {err}"
+    failed = tuple(c.id for c in claims if c.id not in passed)
     return ClaimFailures(
-        name, tuple(failed), errors, tuple(c.id for c in claims), time.perf_counter() - start
+        name, failed, errors, tuple(c.id for c in claims), time.perf_counter() - start
     )
 
 
