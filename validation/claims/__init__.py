@@ -6,9 +6,11 @@ expensive runs through a :class:`ClaimContext` (one calibration comparison per r
 KS multi-Δt experiment on the Pope spectrum with and without a calibration scale error,
 one on a band-limited K41 spectrum with and without an injected Δt³ term) and compare
 every estimate with a reference it shares no code with
-(:mod:`validation.truth.independent`, :mod:`validation.truth.noise_floor`). ``quick``
-sizes run in CI in 1–2 minutes; ``full`` sizes take the sample sizes the
-tolerances were designed for.
+(:mod:`validation.truth.independent`, :mod:`validation.truth.noise_floor`). Three
+claims check the simulator itself against closed forms written apart from it: Snell's
+law at the windows and the sheet's focus on Scheimpflug mounts (``optics.*``), Pope's
+spectrum (``flow.pope_spectrum``). ``quick`` sizes run in CI in 1–2 minutes; ``full``
+sizes take the sample sizes the tolerances were designed for.
 
 Not regressed yet: the calibration claims on rendered images
 (``synptv calibrate`` measures those; here dots are exact projections plus noise).

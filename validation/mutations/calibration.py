@@ -1,18 +1,23 @@
 """Mutations of the calibration and triangulation (``ptv.calibration``, ``ptv.triangulate``)
 and of the synthetic dots they are fitted on, caught by the ``calib`` claims."""
 
+from dataclasses import replace
+
 import numpy as np
 
+from ptv import triangulate
+from ptv.calibration import model_free, tsai
+from ptv.calibration.observations import PlaneObservation
+from simulator.rigs import load_rig
+from simulator.target import Imperfections, PlateDesign, build_plate, traverse_positions
 from validation.mutations.base import Mutation
 from validation.mutations.patching import Patch, edited
 from validation.mutations.probes import POINTS, PinholeProbe, stereo_pair
+from validation.truth import calibration_errors
 
 
 def _model_free_calibration():
     """A model-free calibration of a probe camera whose dots are bent by a cubic term."""
-    from ptv.calibration import model_free
-    from ptv.calibration.observations import PlaneObservation
-
     camera = PinholeProbe([0.0, 0.0, -0.5], focal_px=2000.0)
     u = np.linspace(-0.05, 0.05, 9)
     xy = np.stack(np.meshgrid(u, u), axis=-1).reshape(-1, 2)
@@ -38,15 +43,11 @@ def _model_free_rays():
 
 
 def _triangulated():
-    from ptv import triangulate
-
     cameras = stereo_pair()
     return triangulate.triangulate(cameras, [c.project(POINTS) for c in cameras]).points
 
 
 def _tsai_rays():
-    from ptv.calibration import tsai
-
     camera = tsai.TsaiCalibration(
         rotation=np.eye(3),
         translation=np.array([0.0, 0.0, 0.5]),
@@ -60,10 +61,6 @@ def _tsai_rays():
 
 
 def _dots():
-    from simulator.rigs import load_rig
-    from simulator.target import Imperfections, PlateDesign, build_plate, traverse_positions
-    from validation.truth import calibration_errors
-
     plate = build_plate(PlateDesign(), traverse_positions(), imperfections=Imperfections(), rng=0)
     cameras = load_rig("conventional").cameras
     return calibration_errors.synthetic_plane_dots(cameras, plate, noise_px=0.05, rng=1)[0][
@@ -72,18 +69,16 @@ def _dots():
 
 
 def _table1():
-    from validation.truth.calibration_errors import PositionErrors
-
     delta = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 1.0]])
-    return np.array([PositionErrors(np.zeros((2, 3)), delta, np.zeros(2, dtype=int)).d])
+    return np.array(
+        [calibration_errors.PositionErrors(np.zeros((2, 3)), delta, np.zeros(2, dtype=int)).d]
+    )
 
 
 def _shifted(offset: tuple[float, float, float]):
     """A ``triangulate`` whose points are moved by ``offset``, m."""
 
     def make(original):
-        from dataclasses import replace
-
         def triangulate(cameras, pixels):
             result = original(cameras, pixels)
             return replace(result, points=result.points + np.asarray(offset))

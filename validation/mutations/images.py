@@ -9,6 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ptv import detect, match, track
 from validation.mutations.base import Mutation
 from validation.mutations.patching import Patch, edited
 from validation.mutations.probes import POINTS, stereo_pair
@@ -21,8 +22,6 @@ LINKING = ("image.linking",)
 
 def _detected():
     """Centres detected on a 32 × 32 image of one Gaussian spot at (15.3, 16.7) px."""
-    from ptv import detect
-
     rows, cols = np.mgrid[:32, :32]
     spot = 2000.0 * np.exp(-((cols - 15.3) ** 2 + (rows - 16.7) ** 2) / (2 * 0.6**2))
     image = (100.0 + spot + np.random.default_rng(0).normal(0.0, 3.0, (32, 32))).astype(np.uint16)
@@ -30,8 +29,6 @@ def _detected():
 
 
 def _matched():
-    from ptv import match
-
     cameras = stereo_pair()
     volume = (np.array([-0.1, -0.1, 0.2]), np.array([0.1, 0.1, 0.4]))
     found = match.match(cameras, [c.project(POINTS) for c in cameras], volume)
@@ -39,8 +36,6 @@ def _matched():
 
 
 def _linked():
-    from ptv import track
-
     shift = np.array([5e-4, 0.0, 0.0])
     return np.array([len(track.link(POINTS, POINTS + shift, radius=1e-3))])
 

@@ -9,6 +9,7 @@ mounts against the diffraction spot.
 
 import numpy as np
 
+from simulator.rigs import load_rig
 from validation.mutations.base import Mutation
 from validation.mutations.patching import Patch, edited
 
@@ -17,8 +18,6 @@ _POINT = np.array([[0.01, 0.015, 0.002]])
 
 
 def _projected():
-    from simulator.rigs import load_rig
-
     return np.concatenate([c.project(_POINT) for c in load_rig("paper-stereo").cameras])
 
 

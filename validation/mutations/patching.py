@@ -59,9 +59,9 @@ class Patch:
 
 
 def _shared(obj: Any) -> bool:
-    """Whether other modules may hold ``obj`` by identity (functions, classes, objects
-    with their own code), as opposed to plain values that identity cannot attribute."""
-    return callable(obj) or inspect.isclass(obj)
+    """Whether other modules may hold ``obj`` by identity (functions, classes, Numba
+    dispatchers: callables), as opposed to plain values that identity cannot attribute."""
+    return callable(obj)
 
 
 def _references(obj: Any) -> list[tuple[Any, str]]:

@@ -4,51 +4,49 @@ Each probe runs the patched routine on a few synthetic snapshots (40 particles, 
 looked up through its module at call time, as the claims' computation looks it up.
 """
 
+from dataclasses import replace
+
 import numpy as np
 
+from ptv.stats import dissipation, mean_displacement, multidt, pairs, structure
+from simulator import spectra
+from simulator.presets import flow_preset
 from validation.mutations.base import Mutation
 from validation.mutations.patching import Patch, edited
+from validation.studies.multi_dt_experiment import run_particles
 
 #: The Δt of the probes, s, and their separation bins.
 _DT = np.array([1e-3, 2e-3, 3e-3])
 _R_RANGE = (1e-3, 5e-2)
 
 
-def _snapshots(seed: int = 0) -> list[list[tuple[np.ndarray, np.ndarray]]]:
+def _snapshots() -> list[list[tuple[np.ndarray, np.ndarray]]]:
     """Per Δt, four snapshots of 40 positions (m) and displacements (m)."""
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(0)
     return [
         [
             (rng.uniform(0.0, 0.05, (40, 3)), rng.normal(0.0, 1e-4 * (1 + k), (40, 3)))
-            for _ in "abcd"
+            for _ in range(4)
         ]
         for k in range(_DT.size)
     ]
 
 
 def _bins():
-    from ptv.stats.pairs import LogBins
-
-    return LogBins(*_R_RANGE, 6)
+    return pairs.LogBins(*_R_RANGE, 6)
 
 
 def _pair_sums():
-    from ptv.stats import pairs
-
     x, d = _snapshots()[0][0]
     return pairs.pair_sums(x, d, _bins())
 
 
 def _snapshot_sums():
-    from ptv.stats import structure
-
     return structure.double_frame_sums(_snapshots(), _bins())
 
 
 def _line_fit():
     """c₁, c₂ of the bootstrap fit of ⟨q⟩ = 2Δt² + 3e-6 with replicates scattered by 1 %."""
-    from ptv.stats import multidt
-
     rng = np.random.default_rng(1)
     y = np.array([2.0 * _DT**2 + 3e-6])
     replicates = y * (1 + 0.01 * rng.standard_normal((50, *y.shape)))
@@ -57,15 +55,10 @@ def _line_fit():
 
 
 def _structure_function(field: str = "s2"):
-    from ptv.stats import structure
-
     return getattr(structure.structure_function(_snapshot_sums(), _DT, n_boot=20, rng=2), field)
 
 
 def _mean_displacement():
-    from ptv.stats import mean_displacement
-    from validation.studies.multi_dt_experiment import run_particles
-
     runs = [
         run_particles(k, dt, run) for k, (dt, run) in enumerate(zip(_DT, _snapshots(), strict=True))
     ]
@@ -73,30 +66,21 @@ def _mean_displacement():
 
 
 def _epsilon():
-    from ptv.stats import dissipation
-
     return dissipation.epsilon_estimate(np.array([1e-3]), np.array([5e-3]))
 
 
 def _plateau():
-    from ptv.stats import dissipation
-
     r = np.geomspace(2e-3, 2e-2, 5)
     profile = dissipation.dissipation_profile(r, 2.0 * (0.1 * r) ** (2 / 3) * (1 + r / 0.1))
     return dissipation.plateau_epsilon(profile, r_min=2e-3, r_max=2e-2, method="max").epsilon
 
 
 def _spectrum():
-    from simulator import spectra
-    from simulator.presets import flow_preset
-
     spectrum = spectra.PopeSpectrum(flow_preset("lem-10hz").parameters)
     return spectrum.energy(np.geomspace(spectrum.k_min, spectrum.k_max, 5))
 
 
 def _scales():
-    from ptv.stats import dissipation
-
     s = dissipation.turbulence_scales(0.19, 0.1, nu=1e-6)
     return np.array([s.eta, s.tau_eta, s.re_lambda])
 
@@ -105,8 +89,6 @@ def _biased_pair_sums(factor: float):
     """A ``pair_sums`` whose Σq is ``factor`` times the true one (Σq² factor² times)."""
 
     def make(original):
-        from dataclasses import replace
-
         def pair_sums(positions, increments, bins):
             sums = original(positions, increments, bins)
             return replace(sums, sum_q=factor * sums.sum_q, sum_q2=factor**2 * sums.sum_q2)
