@@ -270,9 +270,42 @@ def _run_experiment(args: argparse.Namespace) -> int:
     return 0 if all(check["passed"] for check in results["must_hold"]) else 1
 
 
+def _run_mutations(args: argparse.Namespace) -> int:
+    from validation.mutations.report import kill_table
+    from validation.mutations.runner import run_mutations
+
+    def progress(done) -> None:
+        if not args.quiet:
+            what = done.name or "control (no mutation)"
+            print(
+                f"mutations: {what} done in {done.seconds:.0f} s, {len(done.failed)} of "
+                f"{len(done.checked)} claims failed",
+                file=sys.stderr,
+            )
+
+    control, outcomes = run_mutations(
+        "full" if args.full else "quick",
+        seed=args.seed,
+        names=args.mutation or None,
+        workers=args.workers,
+        progress=progress,
+    )
+    if control.failed:
+        print(f"claims failing without any mutation: {', '.join(control.failed)}", file=sys.stderr)
+    if args.json:
+        json.dump([o.as_dict() for o in outcomes], sys.stdout, indent=2, allow_nan=False)
+        print()
+    else:
+        for line in kill_table(outcomes):
+            print(line)
+    return 0 if not control.failed and all(o.ok for o in outcomes) else 1
+
+
 def _run_claims(args: argparse.Namespace) -> int:
     from validation.claims import ClaimContext, run_claims
 
+    if args.mutations or args.mutation:
+        return _run_mutations(args)
     ctx = ClaimContext("full" if args.full else "quick", seed=args.seed)
     bar = ProgressBar("claims", enabled=not args.quiet)
     results = run_claims(ctx, progress=bar)
@@ -559,6 +592,21 @@ def _add_claims_parser(sub) -> None:
     claims.add_argument("--json", action="store_true", help="print a JSON list of claims")
     claims.add_argument("--seed", type=SEED, default=0)
     claims.add_argument("--quiet", action="store_true", help="no progress bar")
+    claims.add_argument(
+        "--mutations",
+        action="store_true",
+        help="break the code one named way at a time (docs/claims.md §5) and report which "
+        "claims catch each; exit status 1 if one is not caught as expected",
+    )
+    claims.add_argument(
+        "--mutation",
+        action="append",
+        metavar="NAME",
+        help="run only this mutation (repeatable; implies --mutations)",
+    )
+    claims.add_argument(
+        "--workers", type=COUNT, default=2, help="mutations run at once (default 2)"
+    )
     claims.set_defaults(run=_run_claims)
 
 

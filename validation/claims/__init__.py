@@ -7,9 +7,11 @@ KS multi-Δt experiment on the Pope spectrum with and without a calibration scal
 one on a band-limited K41 spectrum with and without an injected Δt³ term, one small
 rendered case that the image stack measures) and compare
 every estimate with a reference it shares no code with
-(:mod:`validation.truth.independent`, :mod:`validation.truth.noise_floor`). ``quick``
-sizes run in CI in 1–2 minutes; ``full`` sizes take the sample sizes the
-tolerances were designed for.
+(:mod:`validation.truth.independent`, :mod:`validation.truth.noise_floor`). Three
+claims check the simulator itself against closed forms written apart from it: Snell's
+law at the windows and the sheet's focus on Scheimpflug mounts (``optics.*``), Pope's
+spectrum (``flow.pope_spectrum``). ``quick`` sizes run in CI in 1–2 minutes; ``full``
+sizes take the sample sizes the tolerances were designed for.
 
 Not regressed here: the calibration claims on rendered plate images
 (``synptv calibrate`` and ``synptv run`` measure those; here dots are exact
@@ -22,6 +24,8 @@ from validation.claims.base import Claim, ClaimResult
 from validation.claims.calibration import CALIBRATION_CLAIMS
 from validation.claims.context import CORRELATION_LENGTH, SIZES, ClaimContext, Sizes
 from validation.claims.images import IMAGE_CLAIMS
+from validation.claims.optics import OPTICS_CLAIMS
+from validation.claims.spectrum import SPECTRUM_CLAIMS
 from validation.claims.statistics import FLOW_CLAIMS, STATISTICS_CLAIMS, dt3_gamma
 
 __all__ = [
@@ -36,7 +40,14 @@ __all__ = [
     "run_claims",
 ]
 
-CLAIMS: tuple[Claim, ...] = FLOW_CLAIMS + CALIBRATION_CLAIMS + STATISTICS_CLAIMS + IMAGE_CLAIMS
+CLAIMS: tuple[Claim, ...] = (
+    FLOW_CLAIMS
+    + SPECTRUM_CLAIMS
+    + CALIBRATION_CLAIMS
+    + OPTICS_CLAIMS
+    + STATISTICS_CLAIMS
+    + IMAGE_CLAIMS
+)
 
 
 def run_claims(

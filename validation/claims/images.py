@@ -1,4 +1,4 @@
-"""The image-stack claims (docs/claims.md #26–#31): detection, matching and linking on a
+"""The image-stack claims (docs/claims.md #29–#34): detection, matching and linking on a
 small rendered case, against the simulator's truth.
 
 The case (:mod:`validation.claims.rendered_case`) is the default scenario's rig, flow,

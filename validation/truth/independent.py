@@ -12,7 +12,10 @@ in a shared routine cannot cancel between estimate and reference:
   (not ``simulator.truth``'s trapezoid rule and Taylor series);
 - :func:`plateau_epsilon_reference`: the input ε times the finite-Reynolds plateau
   deficit of the ε estimator, (D_LL/C₂)^{3/2}/r maximised or averaged over the plateau
-  range of r, with the estimator and C₂ = 2 written here (not ``ptv.stats.dissipation``).
+  range of r, with the estimator and C₂ = 2 written here (not ``ptv.stats.dissipation``);
+- :func:`intercept_standard_error`: the standard error of the intercept β₀ of the mean
+  displacement's line against Δt from the scatter of the snapshot means, by the closed
+  form of a weighted line (not ``ptv.stats.mean_displacement``).
 """
 
 from dataclasses import dataclass
@@ -281,17 +284,25 @@ def exact_dll(spectrum, r: np.ndarray) -> np.ndarray:
         D_LL, the shape of r.
     """
     r = np.asarray(r, dtype=float)
-    k_lo, k_hi = spectrum.support
+    k, w = log_quadrature(*spectrum.support)
+    x = np.multiply.outer(r.ravel(), k)
+    kernel = 1.0 / 3.0 - spherical_jn(1, x) / x
+    return (4.0 * kernel @ (w * spectrum.energy(k))).reshape(r.shape)
+
+
+def log_quadrature(k_lo: float, k_hi: float) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes k and weights w with Σ w f(k) ≈ ∫ f dk over [k_lo, k_hi].
+
+    Gauss–Legendre in s = ln k (dk = k ds): :data:`_PANELS_PER_DECADE` panels per
+    decade, :data:`_NODES` nodes each.
+    """
     panels = max(1, int(np.ceil(_PANELS_PER_DECADE * np.log10(k_hi / k_lo))))
     nodes, weights = leggauss(_NODES)
     bounds = np.linspace(np.log(k_lo), np.log(k_hi), panels + 1)
     half = 0.5 * np.diff(bounds)
     s = (bounds[:-1, None] + half[:, None] * (nodes[None, :] + 1.0)).ravel()
-    w = (half[:, None] * weights[None, :]).ravel()
     k = np.exp(s)
-    x = np.multiply.outer(r.ravel(), k)
-    kernel = 1.0 / 3.0 - spherical_jn(1, x) / x
-    return (4.0 * kernel @ (w * k * spectrum.energy(k))).reshape(r.shape)
+    return k, (half[:, None] * weights[None, :]).ravel() * k
 
 
 def plateau_epsilon_reference(
@@ -330,3 +341,28 @@ def plateau_epsilon_reference(
         raise ValueError(f"no separation inside the plateau range {r_range}")
     epsilon = (exact_dll(spectrum, r) / kolmogorov_c2) ** 1.5 / r
     return float(epsilon.max() if method == "max" else epsilon.mean())
+
+
+def intercept_standard_error(dt: np.ndarray, snapshot_means) -> np.ndarray:
+    """σ of β₀ of the line ⟨ΔX⟩ = αΔt + β₀ through the K run means, per component, m.
+
+    Each run's mean has the standard error s_k = std(snapshot means)/√M_k (snapshots
+    are the independent units); with weights w = 1/s_k² the intercept of the weighted
+    line has Var β₀ = Σwx²/(Σw Σwx² − (Σwx)²), x = Δt.
+
+    Parameters
+    ----------
+    dt : ndarray, shape (K,)
+        Δt of the runs, s.
+    snapshot_means : sequence of K ndarray, shape (M_k, 3)
+        Mean displacement of each snapshot of each run, m.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+    """
+    se = np.array([np.std(m, axis=0, ddof=1) / np.sqrt(len(m)) for m in snapshot_means])
+    w = 1.0 / se**2  # (K, 3)
+    x = np.asarray(dt, dtype=float)[:, None]
+    s, sx, sxx = w.sum(axis=0), (w * x).sum(axis=0), (w * x * x).sum(axis=0)
+    return np.sqrt(sxx / (s * sxx - sx**2))

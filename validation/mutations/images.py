@@ -1,0 +1,102 @@
+"""Mutations of detection, matching and linking (``ptv.detect``, ``ptv.match``, ``ptv.track``).
+
+Only the image-stack claims (``image.*``, on a small rendered case: detection against
+the Cramér–Rao bound and peak locking, matching against a brute-force matcher, linking)
+reach this code.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+
+from ptv import detect, match, track
+from validation.mutations.base import Mutation
+from validation.mutations.patching import Patch, edited
+from validation.mutations.probes import POINTS, stereo_pair
+
+#: The claims of the image stack.
+DETECTION = ("image.detection_rms", "image.peak_locking")
+MATCHING = ("image.matching_reference",)
+LINKING = ("image.linking",)
+
+
+def _detected():
+    """Centres detected on a 32 × 32 image of one Gaussian spot at (15.3, 16.7) px."""
+    rows, cols = np.mgrid[:32, :32]
+    spot = 2000.0 * np.exp(-((cols - 15.3) ** 2 + (rows - 16.7) ** 2) / (2 * 0.6**2))
+    image = (100.0 + spot + np.random.default_rng(0).normal(0.0, 3.0, (32, 32))).astype(np.uint16)
+    return detect.detect_particles(image).xy
+
+
+def _matched():
+    cameras = stereo_pair()
+    volume = (np.array([-0.1, -0.1, 0.2]), np.array([0.1, 0.1, 0.4]))
+    found = match.match(cameras, [c.project(POINTS) for c in cameras], volume)
+    return np.array([len(found)])
+
+
+def _linked():
+    shift = np.array([5e-4, 0.0, 0.0])
+    return np.array([len(track.link(POINTS, POINTS + shift, radius=1e-3))])
+
+
+def _rounded(original):
+    def detect_particles(image, **options):
+        found = original(image, **options)
+        return replace(found, xy=np.round(found.xy))
+
+    return detect_particles
+
+
+def _swapped(original):
+    def match(cameras, pixels, volume, **options):
+        return original(cameras, list(pixels)[::-1], volume, **options)
+
+    return match
+
+
+IMAGE_MUTATIONS: tuple[Mutation, ...] = (
+    Mutation(
+        "detections-rounded",
+        "every detected centre rounded to whole pixels",
+        (Patch("ptv.detect.locate:detect_particles", _rounded),),
+        DETECTION,
+        ("image",),
+        _detected,
+    ),
+    Mutation(
+        "detection-centroid",
+        "the detector's default sub-pixel estimator is the thresholded centroid, not the "
+        "Gaussian fit",
+        (
+            Patch(
+                "ptv.detect.locate:detect_particles",
+                edited('estimator: Estimator = "gauss"', 'estimator: Estimator = "centroid"'),
+            ),
+        ),
+        DETECTION,
+        ("image",),
+        _detected,
+    ),
+    Mutation(
+        "cameras-swapped-in-matching",
+        "matching pairs each camera's detections with the other camera's calibration",
+        (Patch("ptv.match:match", _swapped),),
+        MATCHING,
+        ("image",),
+        _matched,
+    ),
+    Mutation(
+        "link-radius-tenth",
+        "linking searches a tenth of the radius it is given",
+        (
+            Patch(
+                "ptv.track:link",
+                edited('r = _radius("radius", radius)', 'r = 0.1 * _radius("radius", radius)'),
+            ),
+        ),
+        LINKING,
+        ("image",),
+        _linked,
+    ),
+)
