@@ -159,7 +159,8 @@ def test_seed_dots_that_contradict_each_other_are_named(stereo):
     shot = stereo[0, 6]
     seeds = _seeds(shot.truth, [(0, 0), (3, 0), (0, 3), (3, 3)])
     seeds[5, 3] = seeds.pop((3, 3))  # the fourth seed with the wrong index
-    with pytest.raises(SeedDotsError, match=r"p\.tif contradict each other: no grid holds .*\(5, 3\) at"):
+    message = r"p\.tif contradict each other: no grid holds .*\(5, 3\) at"
+    with pytest.raises(SeedDotsError, match=message):
         find_dots(shot.noisy, UNMARKED, seeds=seeds, source="p.tif")
 
 
