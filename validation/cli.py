@@ -203,12 +203,16 @@ def _run_calibrate(args: argparse.Namespace) -> int:
             result = calibrate_dataset(dataset, methods=methods, out=out, progress=bar)
         except FileNotFoundError as err:
             raise UsageError(str(err)) from None
+    for line in result.warnings:
+        print(f"synptv calibrate: warning: {line}", file=sys.stderr)
     if args.json:
         json.dump(
             {
                 "table1": result.table1,
+                "leave_one_plane_out": result.leave_one_plane_out,
                 "files": result.files,
                 "max_plane_residual_px": result.max_plane_residual_px,
+                "warnings": result.warnings,
             },
             sys.stdout,
             indent=2,
@@ -226,6 +230,9 @@ def _run_calibrate(args: argparse.Namespace) -> int:
                 f"{method:12s} {ref:9s} {t['d_X_um']:7.2f} {t['d_Y_um']:7.2f} "
                 f"{t['d_Z_um']:7.2f} {t['d_um']:7.2f}"
             )
+    for method, held in result.leave_one_plane_out.items():
+        planes = ", ".join(f"{d:.1f}" for d in held["planes_d_um"])
+        print(f"{method:12s} leave-one-plane-out d {held['d_um']:.2f} um (per plane {planes})")
     for method, path in result.files.items():
         print(f"{method} calibration written to {path}")
     return 0

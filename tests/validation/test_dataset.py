@@ -167,6 +167,8 @@ def test_calibrate_command_finds_every_dot_and_scores_against_nominal_and_truth(
     assert report["table1"]["model-free"]["true"]["d_um"] > nominal["d_um"]
     assert report["table1"]["tsai"]["nominal"]["d_um"] > 3 * nominal["d_um"]
     assert all(v < 2.0 for v in report["max_plane_residual_px"].values())  # paper: < 2 px
+    assert report["leave_one_plane_out"] == {}  # two plate positions
+    assert "only 2 plate positions" in report["warnings"][0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model-free.h5", "tsai.h5"]
 
 

@@ -48,6 +48,12 @@ class DatasetCalibration:
     errors : dict
         ``{method: {"nominal": PositionErrors, "true": PositionErrors}}``, the per-dot
         errors behind ``table1``.
+    leave_one_plane_out : dict
+        ``{method: {"d_um": mean, "planes_d_um": [...]}}``: each plate position's dots
+        triangulated by calibrations fitted on the other positions, mean 3-D distance to
+        their nominal positions, µm (empty with fewer than three positions).
+    warnings : list of str
+        What the user should know about the result (two plate positions: Z unchecked).
     """
 
     dots: list
@@ -55,6 +61,43 @@ class DatasetCalibration:
     table1: dict
     files: dict
     errors: dict
+    leave_one_plane_out: dict
+    warnings: list[str]
+
+
+#: Fewest plate positions for a leave-one-plane-out error (two are needed to calibrate).
+LEAVE_ONE_OUT_PLANES = 3
+
+
+def leave_one_plane_out(setup, dots, method: str, indices, nominal) -> dict:
+    """Each plate position's dots triangulated by the calibrations of the others.
+
+    Parameters
+    ----------
+    setup : PlateSetup
+        The plate, traverse and cameras.
+    dots : dict of str to list of TraverseDots
+        The dots found, per camera.
+    method : str
+        Calibration method.
+    indices, nominal : ndarray
+        The plate's grid indices (D, 2) and their nominal positions (N_Z, D, 3), m.
+
+    Returns
+    -------
+    dict
+        ``d_um``: the mean over the positions of their mean 3-D distance, µm;
+        ``planes_d_um``: per position.
+    """
+    per_plane = []
+    for j in range(len(setup.z)):
+        others = [k for k in range(len(setup.z)) if k != j]
+        models = calibrate_cameras(setup, dots, method, fit_planes=others)
+        errors = table1_errors(
+            list(models.values()), [dots[n] for n in models], indices, nominal, planes=[j]
+        )
+        per_plane.append(errors.d * 1e6)
+    return {"d_um": float(np.mean(per_plane)), "planes_d_um": per_plane}
 
 
 def _true_positions(folder: Path) -> np.ndarray | None:
@@ -148,9 +191,15 @@ def calibrate_dataset(
             progress(done, total)
 
     dots = find_traverse_dots(setup, tick)
+    warnings = []
+    if len(setup.z) < LEAVE_ONE_OUT_PLANES:
+        warnings.append(
+            f"only {len(setup.z)} plate positions: the calibration fits them exactly in Z, "
+            "so nothing checks it in Z (no leave-one-plane-out error; use three or more)"
+        )
     indices, nominal = nominal_grid(setup, dots)
     references = {"nominal": nominal, "true": true}
-    table1, fitted_models, residuals, errors = {}, {}, {}, {}
+    table1, fitted_models, residuals, errors, held_out = {}, {}, {}, {}, {}
     for method in methods:
         calibrations = calibrate_cameras(setup, dots, method, fit_planes=fit_planes)
         for _ in calibrations:
@@ -169,6 +218,8 @@ def calibrate_dataset(
         }
         table1[method] = {name: e.summary() for name, e in errors[method].items()}
         fitted_models[method] = calibrations
+        if len(setup.z) >= LEAVE_ONE_OUT_PLANES:
+            held_out[method] = leave_one_plane_out(setup, dots, method, indices, nominal)
     # Written only once every method has calibrated: a method that fails leaves no file.
     out = Path(out) if out is not None else folder / "calibrations"
     metadata = {"dataset": str(folder)}
@@ -176,4 +227,6 @@ def calibrate_dataset(
         for method, calibrations in fitted_models.items():
             save_calibrations(staging / f"{method}.h5", calibrations, metadata=metadata)
     files = {method: str(out / f"{method}.h5") for method in fitted_models}
-    return DatasetCalibration(list(dots.values()), residuals, table1, files, errors)
+    return DatasetCalibration(
+        list(dots.values()), residuals, table1, files, errors, held_out, warnings
+    )
