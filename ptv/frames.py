@@ -380,11 +380,11 @@ class ImageDetector:
                 shared_first_frame=self.shared_first_frame,
             )
             picks = np.unique(np.linspace(0, len(order) - 1, self.settings.median_frames).round())
+            dark = self.settings.particles == "dark"
             frames = []
             for i in picks.astype(int):
                 k, m, frame = order[i]
                 image = self.dataset.read_frame(max(k, 0), camera, m, frame)
-                dark = self.settings.particles == "dark"
                 frames.append(invert(image, self.settings.saturation) if dark else image)
             self._medians[camera] = median_background(frames)
         return self._medians[camera]

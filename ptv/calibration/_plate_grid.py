@@ -225,7 +225,16 @@ def _predict(nodes: np.ndarray, pix: np.ndarray, targets: np.ndarray) -> np.ndar
     return out
 
 
-def _marks(pts, tree, usable, relative_area, description, pitch_px, image_size, source):
+def _marks(
+    pts: np.ndarray,
+    tree: cKDTree,
+    usable: np.ndarray,
+    relative_area: np.ndarray,
+    description: PlateDescription,
+    pitch_px: float,
+    image_size: tuple[int, int],
+    source: str,
+) -> dict[str, int]:
     """The row in ``pts`` of each mark, among the usable blobs larger than their
     neighbours (by ``relative_area``, largest first)."""
     if not description.marks:

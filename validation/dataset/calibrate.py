@@ -16,12 +16,13 @@ import h5py
 import numpy as np
 
 from ptv.calibration.experiment import (
+    PlateSetup,
     calibrate_cameras,
     find_traverse_dots,
     nominal_grid,
     plate_setup,
 )
-from ptv.calibration.grid_errors import table1_errors
+from ptv.calibration.grid_errors import TraverseDots, table1_errors
 from ptv.calibration.io import save_calibrations
 from ptv.calibration.methods import CALIBRATION_METHODS
 from ptv.dataset import DatasetError
@@ -69,7 +70,13 @@ class DatasetCalibration:
 LEAVE_ONE_OUT_PLANES = 3
 
 
-def leave_one_plane_out(setup, dots, method: str, indices, nominal) -> dict:
+def leave_one_plane_out(
+    setup: PlateSetup,
+    dots: dict[str, list[TraverseDots]],
+    method: str,
+    indices: np.ndarray,
+    nominal: np.ndarray,
+) -> dict:
     """Each plate position's dots triangulated by the calibrations of the others.
 
     Parameters
