@@ -3,8 +3,10 @@
 - :mod:`ptv.detect.background`: robust background level and noise (median, MAD),
   globally or per tile; threshold = level + k · noise.
 - :mod:`ptv.detect.locate`: local maxima above threshold, connected regions split
-  between resolved maxima, sub-pixel centres (3-point Gaussian or threshold-subtracted
-  centroid), intensity, peak, size and flags.
+  between resolved maxima, sub-pixel centres (least-squares Gaussian refined by joint
+  fits of pixel-integrated spots, 3-point Gaussian or threshold-subtracted centroid),
+  blends of unresolved particles split by a model test, intensity, peak, size and
+  flags.
 - :mod:`ptv.detect.detections`: the :class:`Detections` result and its flags.
 - :mod:`ptv.detect.peaklocking`: histogram of the fractional positions and a test of
   its uniformity (peak-locking diagnostic).

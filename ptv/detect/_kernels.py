@@ -418,7 +418,8 @@ def measure(
     """Split regions between their resolved maxima and measure every particle.
 
     ``order`` lists the maxima grouped by region (``comp``) and, within a region, by
-    decreasing peak. Returns x, y, intensity, peak, size, flags (one row per particle).
+    decreasing peak. Returns x, y, intensity, peak, size, flags and crowded (one row per
+    particle; crowded: the region had too many maxima to split).
     """
     rows, cols = img.shape
     n = order.size
@@ -428,6 +429,7 @@ def measure(
     out_peak = np.empty(n)
     out_size = np.empty(n, np.int64)
     out_flags = np.empty(n, np.uint8)
+    out_crowded = np.empty(n, np.bool_)
     kept = np.empty(n, np.int64)
     sw = np.empty(n)
     swx = np.empty(n)
@@ -587,6 +589,7 @@ def measure(
             out_peak[n_out] = float(img[r0, c0]) - bg
             out_size[n_out] = size[a]
             out_flags[n_out] = f
+            out_crowded[n_out] = crowded
             n_out += 1
         i = j
     return (
@@ -596,5 +599,5 @@ def measure(
         out_peak[:n_out],
         out_size[:n_out],
         out_flags[:n_out],
+        out_crowded[:n_out],
     )
-

@@ -11,13 +11,16 @@ class DetectionFlag(enum.IntFlag):
 
     OVERLAP
         The particle shared its connected region above threshold with other resolved
-        maxima and was split from them (each pixel goes to the nearest maximum).
+        maxima and was split from them (each pixel goes to the nearest maximum), or it
+        is one of the particles of a blend split by the model test of the "gauss"
+        estimator (one maximum, two or three spots fitted; see :mod:`ptv.detect.locate`).
     ELONGATED
-        One detection standing for what is probably several particles: a single maximum
-        whose spot is elongated beyond ``max_elongation`` (two unresolved overlapping
-        particles, or a streak), or a region with too many maxima to split (more than
-        64: a blob such as a reflection, or a threshold set inside the noise), reported
-        at its brightest maximum.
+        A single maximum whose spot is elongated beyond ``max_elongation``, that the
+        model test (estimator "gauss") did not split: one particle, most likely, seen
+        elongated through noise (or a streak); with the other estimators, probably two
+        unresolved overlapping particles. Also a region with too many maxima to split
+        (more than 64: a blob such as a reflection, or a threshold set inside the
+        noise), reported at its brightest maximum.
     SATURATED
         At least one of its pixels is at or above the saturation level.
     EDGE
@@ -47,6 +50,8 @@ class Detections:
     intensity : ndarray, shape (N,), float64
         Integrated intensity above background, Σ (I − background) over the particle's
         pixels above threshold, DN (the spot's tails below threshold are not counted).
+        The particles of a blend split by the model test share the blend's intensity,
+        peak and size in proportion to their fitted amplitudes.
     peak : ndarray, shape (N,), float64
         Brightest pixel above background, I_max − background, DN.
     size : ndarray, shape (N,), int64

@@ -5,12 +5,17 @@ from functools import reduce
 import numpy as np
 import pytest
 
+from ptv.stats.pairs import LogBins
 from validation.run.truth_rungs import NoiseSums
+
+BINS = LogBins(1e-4, 2e-2, 6)
 
 
 def _errors(rng, snapshots, n_dt):
-    """errors[k][m] = (particle indices, position errors, ΔX errors), a random subset of
-    40 particles found at each Δt (so the shared-frame intersection has work to do)."""
+    """errors[k][m] = (particle indices, position errors, ΔX errors, true X(t)), a random
+    subset of 40 particles found at each Δt (so the shared-frame intersection has work to
+    do)."""
+    where = rng.uniform(0, 0.01, (60, 3))
     out = []
     for k in range(n_dt):
         run = {}
@@ -18,7 +23,8 @@ def _errors(rng, snapshots, n_dt):
             if k == n_dt - 1 and m % 3 == 0:
                 continue  # some snapshots missing at the last Δt
             ids = np.sort(rng.choice(60, size=40, replace=False))
-            run[m] = (ids, rng.normal(0, 1e-5, (40, 3)), rng.normal(0, (k + 1) * 1e-5, (40, 3)))
+            moves = rng.normal(0, (k + 1) * 1e-5, (40, 3))
+            run[m] = (ids, rng.normal(0, 1e-5, (40, 3)), moves, where[ids])
         out.append(run)
     return out
 
@@ -51,15 +57,18 @@ def test_noise_summed_over_chunks_is_the_noise_of_the_run(shared):
     chunks = [range(0, 10), range(10, 20), range(20, 23)]
     per_chunk = [_errors(rng, list(c), 3) for c in chunks]
     whole = [{m: e for part in per_chunk for m, e in part[k].items()} for k in range(3)]
-    sums = reduce(NoiseSums.merged, (NoiseSums.of(e, shared=shared) for e in per_chunk))
+    sums = reduce(NoiseSums.merged, (NoiseSums.of(e, BINS, shared=shared) for e in per_chunk))
     position, displacement = sums.rms()
     ref_position, ref_displacement = _reference(whole, shared)
     np.testing.assert_allclose(position, ref_position, rtol=1e-12)
     np.testing.assert_allclose(displacement, ref_displacement, rtol=1e-12)
     assert displacement.shape == (3, 3)
+    whole_pairs = NoiseSums.of(whole, BINS, shared=shared).pairs
+    np.testing.assert_allclose(sums.pairs.sum_q, whole_pairs.sum_q, rtol=1e-12)
+    np.testing.assert_array_equal(sums.pairs.pairs, whole_pairs.pairs)
 
 
 def test_no_scored_particle_gives_nan():
-    position, displacement = NoiseSums.of([{}, {}], shared=False).rms()
+    position, displacement = NoiseSums.of([{}, {}], BINS, shared=False).rms()
     assert np.isnan(position).all() and np.isnan(displacement).all()
     assert displacement.shape == (2, 3)

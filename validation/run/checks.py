@@ -21,8 +21,9 @@ Checks on one variant (tolerances from the issue and docs/claims.md):
   bins); the plateau ε within 5 % of the input ε times the plateau deficit from an
   independent quadrature of the spectrum;
 - ``c2``: c2 > 0 in every fitted bin of the check range; and consistent with the noise
-  of the particles the variant's S2 used, measured against the truth (the detection
-  rung's when that is not known; :class:`NoisePrediction`): the median of c2 over the
+  of the particles the variant's S2 used, measured against the truth over their actual
+  pairs (the detection rung's when that is not known; :class:`NoisePrediction`,
+  :mod:`validation.truth.pair_noise`): the median of c2 over the
   prediction lies between the two intercepts the measured noise allows, widened by
   :data:`C2_MARGIN` for the statistical error of c2 and of the noise measurement;
 - ``raw_s2``: raw ⟨q⟩/Δt² at the smallest Δt over the sample truth, the median over the
@@ -114,10 +115,17 @@ class NoisePrediction:
     finds then depends on how it weighs the Δt values, between that of the line through
     the two smallest Δt and that of the least-squares line through all.
 
+    Where the truth gives the errors of the particles themselves, ⟨((Δb_j − Δb_i)·e)²⟩
+    is summed over their actual pairs instead (:mod:`validation.truth.pair_noise`): on
+    dense images the noisier particles (overlapped by a neighbour) and the errors shared
+    by blended neighbours are not spread evenly over the separations. The lines are then
+    fitted per bin.
+
     Attributes
     ----------
     c2 : ndarray, shape (B,)
-        From the least-squares line σ_ΔX² = n0 + n1·Δt² through every Δt, m².
+        From the least-squares line σ_ΔX² = n0 + n1·Δt² through every Δt (or that of the
+        pair noise), m².
     c2_low : ndarray, shape (B,)
         From the line through the two smallest Δt (≤ ``c2``), m².
     c1_noise : ndarray, shape (B,)
@@ -143,22 +151,38 @@ def predicted_noise(detection: dict, bins: LogBins, box_size) -> NoisePrediction
     Parameters
     ----------
     detection : dict
-        ``dt`` (K,), s, and ``displacement_noise_m`` (K, 3), m.
+        ``dt`` (K,), s, and either ``pair_noise_m2`` (K, B), m², the noise term over the
+        actual pairs (:mod:`validation.truth.pair_noise`), used where present, or
+        ``displacement_noise_m`` (K, 3), m, with the direction moments of uniform pairs
+        in the box.
     bins : LogBins
         Separation bins.
     box_size : sequence of 3 floats
         The analysis box, m.
     """
     x = np.asarray(detection["dt"], dtype=float) ** 2
-    variance = np.asarray(detection["displacement_noise_m"], dtype=float) ** 2
-    moments = direction_moments(bins, box_size)
+    if detection.get("pair_noise_m2") is not None:
+        per_pair = np.array([float_array(row) for row in detection["pair_noise_m2"]])
+        c2, c2_low, c1_noise = _noise_lines(x, per_pair)
+    else:
+        variance = np.asarray(detection["displacement_noise_m"], dtype=float) ** 2
+        to_bins = 2.0 * direction_moments(bins, box_size)
+        c2, c2_low, c1_noise = (to_bins @ v for v in _noise_lines(x, variance))
+    return NoisePrediction(c2, np.minimum(c2_low, c2), c1_noise)
+
+
+def _noise_lines(x: np.ndarray, noise: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Intercept, intercept of the line through the two smallest Δt, and slope of the
+    lines through each column of ``noise`` (K, M) against Δt² (``x``, K); NaN where a
+    column holds a NaN. A single Δt gives its value, twice, and slope 0."""
+    finite = np.isfinite(noise).all(axis=0)
+    filled = np.where(np.isfinite(noise), noise, 0.0)
     if x.size < 2:
-        constant = 2.0 * moments @ variance.mean(axis=0)
-        return NoisePrediction(constant, constant, np.zeros(bins.n_bins))
-    n0, n1 = _intercept_and_slope(x, variance)
-    n0_low, _ = _intercept_and_slope(x[:2], variance[:2])
-    c2 = 2.0 * moments @ n0
-    return NoisePrediction(c2, np.minimum(2.0 * moments @ n0_low, c2), 2.0 * moments @ n1)
+        constant = np.where(finite, filled.mean(axis=0), np.nan)
+        return constant, constant, np.zeros_like(constant)
+    n0, n1 = _intercept_and_slope(x, filled)
+    n0_low, _ = _intercept_and_slope(x[:2], filled[:2])
+    return tuple(np.where(finite, v, np.nan) for v in (n0, n0_low, n1))
 
 
 def _in_range(r, fitted, lo, hi) -> np.ndarray:

@@ -560,6 +560,10 @@ def _save_detection(quality, folder: Path) -> None:
             "position_noise_m": quality.position_noise.tolist(),
             "dt": quality.dt.tolist(),
             "displacement_noise_m": quality.displacement_noise.tolist(),
+            "pair_noise_m2": [
+                [None if not np.isfinite(v) else float(v) for v in row]
+                for row in quality.pair_noise
+            ],
             "peak_locking": {
                 name: {
                     "amplitude_px": pl.amplitude.tolist(),

@@ -27,8 +27,10 @@ from ptv.detect import FractionSums
 from ptv.frames import FrameDetections
 from ptv.pipeline import PipelineSettings
 from ptv.stats.links import RunParticles
+from ptv.stats.pairs import LogBins
 from ptv.triangulate import triangulate
 from validation.dataset.truth_file import TruthFile, TruthRun
+from validation.truth.pair_noise import PairNoiseSums
 
 #: Largest distance between a detection and the true image of its particle, px.
 ASSOCIATION_RADIUS = 1.0
@@ -138,6 +140,10 @@ class DetectionQuality:
         position noise when the noise at t and t + Δt is independent; less, and growing
         with Δt, when part of the error, such as a neighbour's overlapping image, is
         common to both frames).
+    pair_noise : ndarray, shape (K, B)
+        ⟨[(δ_j − δ_i)·e]²⟩ over the pairs of those particles per Δt and separation bin,
+        δ their ΔX errors, m² (:mod:`validation.truth.pair_noise`): the noise term of
+        their S2 (NaN where no pair).
     """
 
     cameras: tuple[str, ...]
@@ -148,6 +154,7 @@ class DetectionQuality:
     dt: np.ndarray
     position_noise: np.ndarray
     displacement_noise: np.ndarray
+    pair_noise: np.ndarray
 
 
 def _associate(detected: np.ndarray, exact: np.ndarray, visible: np.ndarray) -> np.ndarray:
@@ -245,17 +252,20 @@ class NoiseSums:
         Σ (ΔX − ΔX_true)² per Δt, m².
     displacements : ndarray of int, shape (K,)
         Particles in each row of ``displacement``.
+    pairs : PairNoiseSums
+        The squared longitudinal ΔX-error differences over their pairs.
     """
 
     position: np.ndarray
     positions: int
     displacement: np.ndarray
     displacements: np.ndarray
+    pairs: PairNoiseSums
 
     @classmethod
-    def of(cls, errors: Sequence[dict], *, shared: bool) -> "NoiseSums":
+    def of(cls, errors: Sequence[dict], bins: LogBins, *, shared: bool) -> "NoiseSums":
         """From ``errors[k][m]`` = (particle indices, position errors (N, 3), ΔX errors
-        (N, 3)) of snapshot m at Δt_k."""
+        (N, 3), true X(t) (N, 3)) of snapshot m at Δt_k, and the separation bins."""
         if shared:
             snapshots = sorted(set.intersection(*(set(e) for e in errors)))
             common = {m: reduce(np.intersect1d, [e[m][0] for e in errors]) for m in snapshots}
@@ -270,11 +280,21 @@ class NoiseSums:
 
         position = stacked(errors[0], 1)
         moves = [stacked(run, 2) for run in errors]
+
+        def pair_sums(run: dict) -> PairNoiseSums:
+            per_snapshot = (
+                PairNoiseSums.of_snapshot(x, moved[:, None], bins, seed=m)
+                for m, (_, _, moved, x) in run.items()
+            )
+            return reduce(PairNoiseSums.merged, per_snapshot, PairNoiseSums.empty(1, bins))
+
+        pairs = [pair_sums(run) for run in errors]
         return cls(
             np.sum(position**2, axis=0),
             len(position),
             np.array([np.sum(d**2, axis=0) for d in moves]).reshape(len(errors), 3),
             np.array([len(d) for d in moves], dtype=np.int64),
+            PairNoiseSums.stacked(pairs),
         )
 
     def merged(self, other: "NoiseSums") -> "NoiseSums":
@@ -284,6 +304,7 @@ class NoiseSums:
             self.positions + other.positions,
             self.displacement + other.displacement,
             self.displacements + other.displacements,
+            self.pairs.merged(other.pairs),
         )
 
     def rms(self) -> tuple[np.ndarray, np.ndarray]:
@@ -378,11 +399,12 @@ def detection_chunk(
                 np.flatnonzero(both)[inside],
                 pair[0][inside] - true_ends[0][inside],
                 (pair[1] - pair[0])[inside] - (true_ends[1] - true_ends[0])[inside],
+                true_ends[0][inside],
             )
             run_ends.append(in_volume(*pair, settings))
         ends.append(run_ends)
         errors.append(run_errors)
-    noise = NoiseSums.of(errors, shared=frames.shared_first_frame)
+    noise = NoiseSums.of(errors, settings.statistics.bins, shared=frames.shared_first_frame)
     return DetectionChunk(ends, [list(e) for e in errors], noise, tally)
 
 
@@ -410,7 +432,8 @@ def detected_runs(
         ends = [pair for c in chunks for pair in c.ends[k]]
         snapshots = [m for c in chunks for m in c.snapshots[k]]
         runs.append(reference_run(k, float(step), snapshots, ends, len(cameras)))
-    position_noise, displacement_noise = reduce(NoiseSums.merged, (c.noise for c in chunks)).rms()
+    noise = reduce(NoiseSums.merged, (c.noise for c in chunks))
+    position_noise, displacement_noise = noise.rms()
     quality = DetectionQuality(
         cameras=tuple(cameras),
         rms_error_px=np.sqrt(tally.sq_err / np.maximum(tally.found, 1)[:, None]),
@@ -420,5 +443,6 @@ def detected_runs(
         dt=np.asarray(dt),
         position_noise=position_noise,
         displacement_noise=displacement_noise,
+        pair_noise=noise.pairs.mean(),
     )
     return runs, quality

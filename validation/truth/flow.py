@@ -36,6 +36,7 @@ from validation.truth.independent import (
     plateau_epsilon_reference,
     subsample_sums,
 )
+from validation.truth.pair_noise import PairNoiseSums
 from validation.truth.sample import sample_structure_function
 
 #: The brute-force reference: particles per group, groups per snapshot, seed.
@@ -157,7 +158,11 @@ class PopulationTruth:
         The time separations, s.
     displacement_noise : ndarray, shape (K, 3)
         RMS of measured − true ΔX per Δt and component over the associated particles,
-        m (in the world frame): the noise this S2's c2 should show.
+        m (in the world frame).
+    pair_noise : ndarray, shape (K, B)
+        ⟨[(δ_j − δ_i)·e]²⟩ over the pairs of the associated particles per Δt and
+        separation bin, δ their ΔX errors, m² (:mod:`validation.truth.pair_noise`): the
+        noise term this S2's c2 should show (NaN where no pair).
     particles : int
         Measured particles of the population.
     associated : int
@@ -169,6 +174,7 @@ class PopulationTruth:
     se_s2_sample: np.ndarray
     dt: np.ndarray
     displacement_noise: np.ndarray
+    pair_noise: np.ndarray
     particles: int
     associated: int
 
@@ -184,6 +190,7 @@ class PopulationTruth:
             "se_s2_sample": listed(self.se_s2_sample),
             "dt": self.dt.tolist(),
             "displacement_noise_m": [listed(row) for row in self.displacement_noise],
+            "pair_noise_m2": [listed(row) for row in self.pair_noise],
             "particles": self.particles,
             "associated": self.associated,
         }
@@ -229,6 +236,7 @@ def population_truth(
         )
     )
     per_snapshot, errors, associated = [], [], 0
+    pairs = PairNoiseSums.empty(len(truth.dt), settings.bins)
     for m0, m1 in chunks:
         wanted = [m for m in range(m0, m1) if m in measured]
         if not wanted:
@@ -248,6 +256,9 @@ def population_truth(
             per_snapshot.append(pair_sums(true_x[found], true_u[found], settings.bins))
             true_moves = np.stack([r.positions[i, 1, partner] - true_x[partner] for r in runs], 1)
             errors.append(moved[hit] @ rotation.T - true_moves)  # (N, K, 3)
+            pairs = pairs.merged(
+                PairNoiseSums.of_snapshot(true_x[partner], errors[-1], settings.bins, seed=m)
+            )
     _, s2, se = _pooled(per_snapshot)
     k = len(truth.dt)
     error = np.concatenate(errors) if errors else np.empty((0, k, 3))
@@ -257,6 +268,7 @@ def population_truth(
         se_s2_sample=se,
         dt=truth.dt,
         displacement_noise=noise,
+        pair_noise=pairs.mean(),
         particles=population.count,
         associated=associated,
     )

@@ -274,7 +274,11 @@ def test_the_refinement_fits_faint_bright_and_wide_spots(sigma, electrons):
     truth = np.array([[20.37, 19.71]])
     image = render_particles(truth, sigma, electrons, shape=(40, 40)).image + 5.0
     x, y = np.array([20.0]), np.array([20.0])  # a start 0.4 px off
-    one = np.array([0])
-    refined = _refine.refine_groups(image, x, y, 0.8, np.array([5.0]), one, np.array([0, 1]))
+    level = np.array([5.0])
+    spots = _refine.start_spots(image, x, y, level, 0.8)
+    one, no_neighbours = np.array([0]), np.zeros(0, np.int64)
+    group = (one, np.array([0, 1]), no_neighbours, np.zeros(2, np.int64))
+    refined, _ = _refine.refine_groups(image, spots, level, *group, spots.copy())
     assert refined[0]
-    assert np.hypot(x[0] - truth[0, 0], y[0] - truth[0, 1]) < _refine._TOLERANCE / 10
+    centre = spots[0, 1:3]
+    assert np.hypot(*(centre - truth[0])) < _refine._TOLERANCE / 10

@@ -1,0 +1,286 @@
+"""Detection on dense images, 0.002–0.05 particles per pixel, beside ``trackpy.locate``.
+
+The images are made here, independently of :mod:`simulator` and of :mod:`ptv`: each
+particle is a pixel-integrated Gaussian spot (the light of a Gaussian of width σ falling
+on each pixel, erf differences), σ uniform in 0.7–1.0 px, with photo-electrons
+log-uniform over a decade, 800–8000 e⁻ (peak SNR ≈ 10–110 over the read noise); then
+Poisson shot noise on signal plus 5 e⁻ of background, 8 e⁻ rms of Gaussian read noise,
+gain 0.4 DN/e⁻, an offset of 10 DN, rounding to a 12-bit uint16. Centres are uniform
+over the image (3 px from the border), so close pairs occur as often as chance makes
+them: at 0.05 ppp, 30 % of the particles have a neighbour within 1.5 px.
+
+Both detectors get the same images. Scoring: detections and true centres are matched
+one to one within 1 px (per connected cluster of candidates, the assignment with the
+most matches, then the least summed distance); ``found`` is the fraction of true
+particles matched, ``false`` the fraction of detections left unmatched, ``rms_px`` the
+2-D rms error of the matched pairs. Times are per image after a warm-up call (numba
+compilation is not counted), the best of the passes.
+
+trackpy is tuned as a careful user with synthetic truth would tune it: on separate
+tuning images of the same density (other seeds), a grid of ``diameter`` 3, 5, 7 and
+``separation`` 2, 3 and the default (diameter + 1), with ``minmass`` set from a
+noise-only frame of the same sensor (1.5 × the largest mass trackpy finds there, so
+that it reports no noise features, as synptv's 6σ threshold does); the setting with the
+most found minus false detections is then used on the measured images. That favours
+trackpy (synptv runs with its defaults, untuned).
+"""
+
+import itertools
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+from scipy.special import erf
+
+from benchmarks.machine import machine
+from ptv.detect import detect_particles
+
+DENSITIES = (0.002, 0.005, 0.01, 0.02, 0.03, 0.05)
+SHAPE = (512, 512)
+#: The targets: (largest density, rms px at most, found at least).
+TARGETS = ((0.01, 0.08, 0.95), (0.03, 0.1, 0.85))
+#: trackpy's grid (``separation`` None: its default, diameter + 1).
+TRACKPY_DIAMETERS = (3, 5, 7)
+TRACKPY_SEPARATIONS = (2, 3)
+GAIN, READ_NOISE, BACKGROUND, OFFSET, MAX_DN = 0.4, 8.0, 5.0, 10.0, 4095
+SIGMA_RANGE = (0.7, 1.0)
+ELECTRON_RANGE = (800.0, 8000.0)
+FIGURE = Path(__file__).resolve().parents[1] / "docs" / "figures" / "dense_detection.png"
+
+
+def render(xy: np.ndarray, sigma: np.ndarray, electrons: np.ndarray, shape: tuple) -> np.ndarray:
+    """Expected photo-electrons per pixel of pixel-integrated Gaussian spots.
+
+    Parameters
+    ----------
+    xy : ndarray, shape (N, 2)
+        Centres (x = column, y = row), px; pixel (r, c) covers [c − ½, c + ½] × [r − ½, r + ½].
+    sigma, electrons : ndarray, shape (N,)
+        Gaussian widths, px, and photo-electrons of each spot.
+    shape : (H, W)
+        Image rows and columns.
+
+    Returns
+    -------
+    ndarray, shape (H, W), float64
+        e⁻ per pixel (each spot drawn over ±4σ; the light beyond is < 10⁻⁴ of it).
+    """
+    image = np.zeros(shape)
+    half = int(np.ceil(4.0 * sigma.max()))
+    offsets = np.arange(-half, half + 1)
+    cols = np.rint(xy[:, :1]).astype(np.int64) + offsets
+    rows = np.rint(xy[:, 1:]).astype(np.int64) + offsets
+    root2s = np.sqrt(2.0) * sigma[:, None]
+
+    def mass(edge_pixels: np.ndarray, centre: np.ndarray) -> np.ndarray:
+        hi = erf((edge_pixels + 0.5 - centre) / root2s)
+        return 0.5 * (hi - erf((edge_pixels - 0.5 - centre) / root2s))
+
+    light = electrons[:, None, None] * mass(rows, xy[:, 1:])[:, :, None]
+    light = light * mass(cols, xy[:, :1])[:, None, :]
+    rr = np.broadcast_to(rows[:, :, None], light.shape)
+    cc = np.broadcast_to(cols[:, None, :], light.shape)
+    inside = (rr >= 0) & (rr < shape[0]) & (cc >= 0) & (cc < shape[1])
+    np.add.at(image, (rr[inside], cc[inside]), light[inside])
+    return image
+
+
+def record(electrons: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A 12-bit camera frame, uint16 DN: shot noise, read noise, gain, offset, rounding."""
+    counts = rng.poisson(electrons + BACKGROUND) + rng.normal(0.0, READ_NOISE, electrons.shape)
+    return np.clip(np.rint(GAIN * counts + OFFSET), 0, MAX_DN).astype(np.uint16)
+
+
+def scene(ppp: float, shape: tuple, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Random particles at ``ppp`` per pixel: true centres (N, 2), px, and the frame."""
+    rows, cols = shape
+    n = round(ppp * rows * cols)
+    xy = rng.uniform([3.0, 3.0], [cols - 4.0, rows - 4.0], size=(n, 2))
+    sigma = rng.uniform(*SIGMA_RANGE, n)
+    electrons = np.exp(rng.uniform(*np.log(ELECTRON_RANGE), n))
+    return xy, record(render(xy, sigma, electrons, shape), rng)
+
+
+def match(truth: np.ndarray, found: np.ndarray, radius: float = 1.0) -> tuple:
+    """One-to-one matching within ``radius`` px: indices into truth and into found.
+
+    Candidate pairs (closer than ``radius``) form clusters; in each, the assignment with
+    the most pairs and then the least summed distance is taken.
+    """
+    if len(truth) == 0 or len(found) == 0:
+        return np.empty(0, np.int64), np.empty(0, np.int64)
+    pairs = cKDTree(truth).sparse_distance_matrix(cKDTree(found), radius, output_type="ndarray")
+    t, f, d = pairs["i"], pairs["j"], pairs["v"]
+    if len(t) == 0:
+        return np.empty(0, np.int64), np.empty(0, np.int64)
+    n_t = len(truth)
+    graph = coo_matrix((np.ones(len(t)), (t, n_t + f)), shape=(n_t + len(found),) * 2)
+    _, label = connected_components(graph, directed=False)
+    ti, fi = [], []
+    order = np.argsort(label[t], kind="stable")
+    bounds = np.flatnonzero(np.diff(label[t][order], prepend=-1, append=-2))
+    for a, b in itertools.pairwise(bounds):
+        sel = order[a:b]
+        rows, r_idx = np.unique(t[sel], return_inverse=True)
+        cols, c_idx = np.unique(f[sel], return_inverse=True)
+        cost = np.zeros((len(rows), len(cols)))
+        cost[r_idx, c_idx] = d[sel] - 2.0 * radius  # every pair beats none
+        r, c = linear_sum_assignment(cost)
+        ok = cost[r, c] < 0.0
+        ti.append(rows[r[ok]])
+        fi.append(cols[c[ok]])
+    return np.concatenate(ti), np.concatenate(fi)
+
+
+def score(truths: list, founds: list) -> dict:
+    """Found and false fractions and rms error over images, and the error arrays."""
+    err, n_true, n_found = [], 0, 0
+    for truth, found in zip(truths, founds, strict=True):
+        ti, fi = match(truth, found)
+        err.append(found[fi] - truth[ti])
+        n_true += len(truth)
+        n_found += len(found)
+    e = np.concatenate(err)
+    return {
+        "found": round(len(e) / n_true, 4),
+        "false": round(1.0 - len(e) / max(n_found, 1), 4),
+        "rms_px": round(float(np.sqrt((e**2).sum(axis=1).mean())), 4) if len(e) else None,
+    }
+
+
+def timed(fn, images: list, passes: int) -> tuple[float, list]:
+    """Best time per image, ms, over ``passes`` passes after a warm-up, and the results."""
+    out = [fn(images[0])]
+    best = np.inf
+    for _ in range(passes):
+        t0 = time.perf_counter()
+        out = [fn(im) for im in images]
+        best = min(best, (time.perf_counter() - t0) / len(images))
+    return best * 1e3, out
+
+
+def ours(image: np.ndarray) -> np.ndarray:
+    """synptv's centres, (N, 2) px."""
+    return detect_particles(image).xy
+
+
+def trackpy_locator(shape: tuple, rng: np.random.Generator):
+    """``trackpy.locate`` as a function of (image, diameter, separation) → (N, 2) px, with
+    ``minmass`` from a noise-only frame per diameter, and those minmass values."""
+    import trackpy
+
+    noise_only = record(np.zeros(shape), rng)
+    minmass = {}
+    for diameter in TRACKPY_DIAMETERS:
+        masses = trackpy.locate(noise_only, diameter, minmass=0)["mass"]
+        minmass[diameter] = 1.5 * float(masses.max()) if len(masses) else 0.0
+
+    def locate(image, diameter, separation):
+        found = trackpy.locate(image, diameter, minmass=minmass[diameter], separation=separation)
+        return found[["x", "y"]].to_numpy()
+
+    return locate, minmass
+
+
+def tune_trackpy(locate, ppp: float, shape: tuple, seed: int) -> tuple[int, float | None]:
+    """(diameter, separation) of the grid with the most found minus false detections on a
+    tuning image of density ``ppp`` (not one of the measured images)."""
+    truth, image = scene(ppp, shape, np.random.default_rng(seed))
+    best, best_score = None, -np.inf
+    for diameter in TRACKPY_DIAMETERS:
+        for separation in (*TRACKPY_SEPARATIONS, None):
+            found = locate(image, diameter, separation)
+            got = score([truth], [found]) if len(found) else {"found": 0.0, "false": 0.0}
+            if got["found"] - got["false"] > best_score:
+                best, best_score = (diameter, separation), got["found"] - got["false"]
+    return best
+
+
+def figure(rows: list, path: Path) -> None:
+    """Found fraction, false fraction and rms error against density, both detectors."""
+    import matplotlib
+    import matplotlib.ticker
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ppp = [r["ppp"] for r in rows]
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), constrained_layout=True)
+    panels = (("found", "found fraction"), ("false", "false-detection fraction"))
+    panels += (("rms_px", "rms error of the found, px"),)
+    for ax, (key, label) in zip(axes, panels, strict=True):
+        for name, style in (("synptv", "o-"), ("trackpy", "s--")):
+            ax.plot(ppp, [r[name][key] for r in rows], style, label=name)
+        ax.set_xscale("log")
+        ax.set_xticks(ppp, [f"{v:g}" for v in ppp], minor=False)
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set_xlabel("particles per pixel")
+        ax.set_title(label)
+        ax.grid(True, which="both", alpha=0.3)
+    for ppp_max, rms_max, found_min in TARGETS:
+        axes[0].plot([min(ppp), ppp_max], [found_min] * 2, "k:", lw=1)
+        axes[2].plot([min(ppp), ppp_max], [rms_max] * 2, "k:", lw=1)
+    axes[0].legend()
+    fig.suptitle(
+        "Dense images: pixel-integrated Gaussian spots, σ 0.7–1.0 px, 800–8000 e⁻ "
+        "(dotted: the targets)",
+        fontsize=10,
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _measure(ppp: float, n_images: int, passes: int, locate, setting: tuple) -> dict:
+    """Both detectors on the same ``n_images`` images of density ``ppp``."""
+    scenes = [scene(ppp, SHAPE, np.random.default_rng(1000 * i + 7)) for i in range(n_images)]
+    truths, images = [s[0] for s in scenes], [s[1] for s in scenes]
+    ms_ours, found_ours = timed(ours, images, passes)
+    diameter, separation = setting
+    ms_tp, found_tp = timed(lambda im: locate(im, diameter, separation), images, passes)
+    return {
+        "ppp": ppp,
+        "particles": int(sum(len(t) for t in truths)),
+        "synptv": {**score(truths, found_ours), "ms_per_image": round(ms_ours, 2)},
+        "trackpy": {
+            "diameter": diameter,
+            "separation": separation,
+            **score(truths, found_tp),
+            "ms_per_image": round(ms_tp, 2),
+        },
+        "speed_ratio": round(ms_tp / ms_ours, 2),
+    }
+
+
+def run(quick: bool) -> dict:
+    import trackpy
+
+    trackpy.quiet()
+    n_images, passes = (1, 2) if quick else (3, 5)
+    locate, minmass = trackpy_locator(SHAPE, np.random.default_rng(3))
+    rows = []
+    for ppp in DENSITIES:
+        setting = tune_trackpy(locate, ppp, SHAPE, seed=99)
+        rows.append(_measure(ppp, n_images, passes, locate, setting))
+    checks = {}
+    for ppp_max, rms_max, found_min in TARGETS:
+        at = [r["synptv"] for r in rows if r["ppp"] <= ppp_max]
+        checks[f"up to {ppp_max} ppp: rms <= {rms_max} px and found >= {found_min}"] = bool(
+            all(r["rms_px"] <= rms_max and r["found"] >= found_min for r in at)
+        )
+    if not quick:
+        figure(rows, FIGURE)
+    return {
+        "machine": machine(),
+        "image": f"{SHAPE[1]}x{SHAPE[0]} uint16 (12-bit)",
+        "images_per_density": n_images,
+        "trackpy_minmass": {str(d): round(m, 1) for d, m in minmass.items()},
+        "densities": rows,
+        "targets": checks,
+        "figure": str(FIGURE.relative_to(FIGURE.parents[2])) if not quick else None,
+        "trackpy_version": trackpy.__version__,
+    }
