@@ -27,6 +27,7 @@ from validation.workflow.files import (
     hold_new_folder,
     hold_output_folder,
     staged_output,
+    write_json_atomic,
 )
 from validation.workflow.progress import ProgressBar, say_interrupted
 
@@ -190,6 +191,8 @@ def _say_took_over(command: str, note: str | None) -> None:
 
 def _run_calibrate(args: argparse.Namespace) -> int:
     from validation.dataset.calibrate import calibrate_dataset
+    from validation.report.calibration_figures import plate_offsets_figure
+    from validation.report.png import save_figure
 
     dataset = Path(args.dataset)
     if not dataset.is_dir():
@@ -200,9 +203,19 @@ def _run_calibrate(args: argparse.Namespace) -> int:
     with hold_output_folder(out, "synptv calibrate") as took_over:
         _say_took_over("calibrate", took_over)
         try:
-            result = calibrate_dataset(dataset, methods=methods, out=out, progress=bar)
+            result = calibrate_dataset(
+                dataset,
+                methods=methods,
+                out=out,
+                plate_offsets=args.plate_offsets,
+                progress=bar,
+            )
         except FileNotFoundError as err:
             raise UsageError(str(err)) from None
+        if result.plate_offsets is not None:
+            summary = result.plate_offsets.summary()
+            offsets_json = write_json_atomic(out / "plate_offsets.json", summary)
+            save_figure(plate_offsets_figure(result.plate_offsets), out / "plate_offsets.png")
     for line in result.warnings:
         print(f"synptv calibrate: warning: {line}", file=sys.stderr)
     if args.json:
@@ -212,6 +225,9 @@ def _run_calibrate(args: argparse.Namespace) -> int:
                 "leave_one_plane_out": result.leave_one_plane_out,
                 "files": result.files,
                 "max_plane_residual_px": result.max_plane_residual_px,
+                "plate_offsets": (
+                    None if result.plate_offsets is None else result.plate_offsets.summary()
+                ),
                 "warnings": result.warnings,
             },
             sys.stdout,
@@ -233,9 +249,24 @@ def _run_calibrate(args: argparse.Namespace) -> int:
     for method, held in result.leave_one_plane_out.items():
         planes = ", ".join(f"{d:.1f}" for d in held["planes_d_um"])
         print(f"{method:12s} leave-one-plane-out d {held['d_um']:.2f} um (per plane {planes})")
+    if result.plate_offsets is not None:
+        _print_plate_offsets(result.plate_offsets, offsets_json)
     for method, path in result.files.items():
         print(f"{method} calibration written to {path}")
     return 0
+
+
+def _print_plate_offsets(offsets, path: Path) -> None:
+    """The self-calibrated plate's figures, one line each."""
+    summary = offsets.summary()
+    rms, largest = summary["rms_offset_um"], summary["max_abs_offset_um"]
+    residual = summary["map_residual_rms_um"]
+    print(
+        f"plate offsets ({offsets.mode}): dX rms {rms[0]:.1f} um (max {largest[0]:.1f}), "
+        f"dY rms {rms[1]:.1f} um (max {largest[1]:.1f}); plane-map residual "
+        f"{residual['nominal']:.1f} -> {residual['corrected']:.1f} um; in {path} "
+        "and plate_offsets.png"
+    )
 
 
 def _run_experiment(args: argparse.Namespace) -> int:
@@ -577,6 +608,13 @@ def _add_calibrate_parser(sub) -> None:
     )
     cal.add_argument(
         "--out", help="folder for the calibration files (default DATASET/calibrations)"
+    )
+    cal.add_argument(
+        "--plate-offsets",
+        choices=("rows-columns", "dots"),
+        help="self-calibrate the plate: estimate each column's and row's (or each dot's) "
+        "offset from the nominal grid with the calibration, fit every method on the "
+        "corrected grid and add Table 1 against it (plate_offsets.json and .png in OUT)",
     )
     cal.add_argument("--json", action="store_true", help="print one JSON object")
     cal.add_argument("--quiet", action="store_true", help="no progress bar")

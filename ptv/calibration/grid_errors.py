@@ -34,16 +34,23 @@ class TraverseDots:
         Their image positions, px.
     pitch : float
         Grid pitch, m (world X, Y = indices × pitch).
+    offsets : ndarray, shape (N, 2), optional
+        The dots' offsets from the nominal grid, m, when the plate was self-calibrated
+        (:mod:`ptv.calibration.plate_offsets`); world X, Y = indices × pitch + offsets.
     """
 
     z: float
     indices: np.ndarray
     pixels: np.ndarray
     pitch: float
+    offsets: np.ndarray | None = None
 
     def observation(self) -> PlaneObservation:
         """The correspondences a calibration is built from."""
-        return PlaneObservation(self.z, self.pixels, self.indices * self.pitch)
+        xy = self.indices * self.pitch
+        if self.offsets is not None:
+            xy = xy + self.offsets
+        return PlaneObservation(self.z, self.pixels, xy)
 
 
 @dataclass(frozen=True)

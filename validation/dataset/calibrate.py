@@ -25,6 +25,8 @@ from ptv.calibration.experiment import (
 from ptv.calibration.grid_errors import TraverseDots, table1_errors
 from ptv.calibration.io import save_calibrations
 from ptv.calibration.methods import CALIBRATION_METHODS
+from ptv.calibration.plate_offsets import MODES as PLATE_OFFSET_MODES
+from ptv.calibration.plate_offsets import PlateOffsets, estimate_plate_offsets
 from ptv.dataset import DatasetError
 from validation.workflow.files import staged_output
 
@@ -42,8 +44,9 @@ class DatasetCalibration:
     max_plane_residual_px : dict
         Largest |T_j⁻¹(X, Y) − pixel| per camera over all planes, px (model-free).
     table1 : dict
-        ``{method: {"nominal": {...}, "true": {...}}}`` with d_X_um, d_Y_um, d_Z_um,
-        d_um, coverage ("true" only when truth.h5 exists).
+        ``{method: {"nominal": {...}, "true": {...}, "corrected": {...}}}`` with d_X_um,
+        d_Y_um, d_Z_um, d_um, coverage ("true" only when truth.h5 exists, "corrected"
+        only with a self-calibrated plate).
     files : dict
         ``{method: path}`` of the written calibration files.
     errors : dict
@@ -52,9 +55,12 @@ class DatasetCalibration:
     leave_one_plane_out : dict
         ``{method: {"d_um": mean, "planes_d_um": [...]}}``: each plate position's dots
         triangulated by calibrations fitted on the other positions, mean 3-D distance to
-        their nominal positions, µm (empty with fewer than three positions).
+        their nominal positions (or to the corrected grid of the plate self-calibrated
+        on the other positions), µm (empty with fewer than three positions).
     warnings : list of str
         What the user should know about the result (two plate positions: Z unchecked).
+    plate_offsets : PlateOffsets or None
+        The plate's estimated offsets from its nominal grid, when self-calibrated.
     """
 
     dots: list
@@ -64,6 +70,7 @@ class DatasetCalibration:
     errors: dict
     leave_one_plane_out: dict
     warnings: list[str]
+    plate_offsets: PlateOffsets | None = None
 
 
 #: Fewest plate positions for a leave-one-plane-out error (two are needed to calibrate).
@@ -76,6 +83,8 @@ def leave_one_plane_out(
     method: str,
     indices: np.ndarray,
     nominal: np.ndarray,
+    *,
+    plate_offsets: str | None = None,
 ) -> dict:
     """Each plate position's dots triangulated by the calibrations of the others.
 
@@ -89,6 +98,10 @@ def leave_one_plane_out(
         Calibration method.
     indices, nominal : ndarray
         The plate's grid indices (D, 2) and their nominal positions (N_Z, D, 3), m.
+    plate_offsets : str, optional
+        A mode of :func:`ptv.calibration.plate_offsets.estimate_plate_offsets`: the
+        plate is self-calibrated on the other positions too, and the held-out dots are
+        compared with that corrected grid.
 
     Returns
     -------
@@ -99,9 +112,14 @@ def leave_one_plane_out(
     per_plane = []
     for j in range(len(setup.z)):
         others = [k for k in range(len(setup.z)) if k != j]
-        models = calibrate_cameras(setup, dots, method, fit_planes=others)
+        fitted, expected = dots, nominal
+        if plate_offsets is not None:
+            kept = {name: [planes[k] for k in others] for name, planes in dots.items()}
+            offsets = estimate_plate_offsets(kept, mode=plate_offsets)
+            fitted, expected = offsets.corrected(dots), offsets.positions(indices, setup.z)
+        models = calibrate_cameras(setup, fitted, method, fit_planes=others)
         errors = table1_errors(
-            list(models.values()), [dots[n] for n in models], indices, nominal, planes=[j]
+            list(models.values()), [dots[n] for n in models], indices, expected, planes=[j]
         )
         per_plane.append(errors.d * 1e6)
     return {"d_um": float(np.mean(per_plane)), "planes_d_um": per_plane}
@@ -142,6 +160,7 @@ def calibrate_dataset(
     methods: Sequence[str] = ("model-free", "tsai", "pinhole", "soloff"),
     out: Path | None = None,
     fit_planes: Sequence[int] | None = None,
+    plate_offsets: str | None = None,
     progress: Progress | None = None,
 ) -> DatasetCalibration:
     """Find the dots, calibrate every camera with each method, save, and score.
@@ -157,6 +176,11 @@ def calibrate_dataset(
     fit_planes : sequence of int, optional
         Traverse positions the calibrations are fitted on (default: all); the Table 1
         metric is measured on every plane.
+    plate_offsets : str, optional
+        Self-calibrate the plate (``"rows-columns"`` or ``"dots"``,
+        :mod:`ptv.calibration.plate_offsets`) on the fitted positions: every method is
+        fitted on the corrected grid, and Table 1 is also taken against it
+        (``"corrected"``).
     progress : callable(done, total), optional
         Called after each plate image and each calibration.
 
@@ -179,6 +203,10 @@ def calibrate_dataset(
         raise ValueError(
             f"calibration methods must be some of {', '.join(CALIBRATION_METHODS)}; got "
             f"{', '.join(map(repr, methods)) or 'none'}"
+        )
+    if plate_offsets is not None and plate_offsets not in PLATE_OFFSET_MODES:
+        raise ValueError(
+            f"plate offsets must be one of {', '.join(PLATE_OFFSET_MODES)}; got {plate_offsets!r}"
         )
     folder = Path(folder)
     setup = plate_setup(folder)
@@ -206,9 +234,17 @@ def calibrate_dataset(
         )
     indices, nominal = nominal_grid(setup, dots)
     references = {"nominal": nominal, "true": true}
+    offsets, fitted_dots = None, dots
+    if plate_offsets is not None:
+        fitted = dots
+        if fit_planes is not None:
+            fitted = {name: [p[j] for j in fit_planes] for name, p in dots.items()}
+        offsets = estimate_plate_offsets(fitted, mode=plate_offsets)
+        fitted_dots = offsets.corrected(dots)
+        references["corrected"] = offsets.positions(indices, setup.z)
     table1, fitted_models, residuals, errors, held_out = {}, {}, {}, {}, {}
     for method in methods:
-        calibrations = calibrate_cameras(setup, dots, method, fit_planes=fit_planes)
+        calibrations = calibrate_cameras(setup, fitted_dots, method, fit_planes=fit_planes)
         for _ in calibrations:
             tick()
         if method == "model-free":
@@ -226,7 +262,9 @@ def calibrate_dataset(
         table1[method] = {name: e.summary() for name, e in errors[method].items()}
         fitted_models[method] = calibrations
         if len(setup.z) >= LEAVE_ONE_OUT_PLANES:
-            held_out[method] = leave_one_plane_out(setup, dots, method, indices, nominal)
+            held_out[method] = leave_one_plane_out(
+                setup, dots, method, indices, nominal, plate_offsets=plate_offsets
+            )
     # Written only once every method has calibrated: a method that fails leaves no file.
     out = Path(out) if out is not None else folder / "calibrations"
     metadata = {"dataset": str(folder)}
@@ -235,5 +273,5 @@ def calibrate_dataset(
             save_calibrations(staging / f"{method}.h5", calibrations, metadata=metadata)
     files = {method: str(out / f"{method}.h5") for method in fitted_models}
     return DatasetCalibration(
-        list(dots.values()), residuals, table1, files, errors, held_out, warnings
+        list(dots.values()), residuals, table1, files, errors, held_out, warnings, offsets
     )

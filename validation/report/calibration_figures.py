@@ -15,6 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ptv.calibration.grid_errors import PositionErrors
+from ptv.calibration.plate_offsets import PlateOffsets
 
 
 def _site_means(errors: PositionErrors) -> tuple[np.ndarray, np.ndarray]:
@@ -142,3 +143,47 @@ def plane_count_curves(rows: Sequence[Mapping[str, float]]) -> Figure:
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
     return figure
+
+
+def plate_offsets_figure(offsets: PlateOffsets) -> Figure:
+    """The self-calibrated plate's offsets from its nominal grid.
+
+    Rows-columns mode: δX per column and δY per row, µm, against the grid index. Dots
+    mode: the offsets as arrows at the dots' nominal places (grid units), with a scale.
+    """
+    if offsets.mode == "rows-columns":
+        fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+        for ax, c, name in ((axes[0], 0, "column i"), (axes[1], 1, "row j")):
+            index, first = np.unique(offsets.indices[:, c], return_index=True)
+            ax.bar(index, offsets.offsets[first, c] * 1e6, color=f"C{c}")
+            ax.axhline(0, color="k", lw=0.6)
+            ax.set_xlabel(name)
+            ax.set_ylabel(f"δ{'XY'[c]}, µm")
+            ax.set_title(f"offset of each {name.split()[0]} from the nominal grid")
+    else:
+        fig, ax = plt.subplots(figsize=(6.5, 5.5))
+        largest = float(np.abs(offsets.offsets).max()) or 1.0
+        ax.quiver(
+            offsets.indices[:, 0],
+            offsets.indices[:, 1],
+            offsets.offsets[:, 0] * 1e6,
+            offsets.offsets[:, 1] * 1e6,
+            angles="xy",
+            scale_units="xy",
+            scale=largest * 1e6 / 0.8,
+        )
+        ax.set_aspect("equal")
+        ax.set_xlabel("column i")
+        ax.set_ylabel("row j")
+        ax.set_title(
+            "offset of each dot from the nominal grid\n"
+            f"(0.8 grid spacing = {largest * 1e6:.1f} µm)",
+            fontsize=10,
+        )
+    fig.suptitle(
+        f"plate self-calibration ({offsets.mode}): plane-map residual "
+        f"{offsets.rms_before_m * 1e6:.1f} → {offsets.rms_after_m * 1e6:.1f} µm rms",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    return fig
