@@ -20,7 +20,8 @@ pairs; the statistics then follow the same particles over every Δt) and
 ``particles/dt{k}/{camera}/{m:06d}_{a|b}.tif``; null for a dataset without particle
 images, which cannot be processed here). A time-resolved recording gives instead
 ``time_resolved`` (frame rate, frame-number pattern, steps; :mod:`ptv.sequence`), from
-which the Δt values, the frame pairs and the shared first frame follow. Images are
+which the Δt values, the frame pairs and the shared first frame follow; every frame of
+it is read by its number (:meth:`Dataset.read_recorded`) for tracking. Images are
 8- or 16-bit TIFF or PNG
 (:mod:`ptv.images`); a camera's mask (pixels at 0 are not used) must have its image
 size. Nothing else of the folder (plate images, a ground truth) is read.
@@ -32,7 +33,7 @@ shape against the declared size. Bad input raises :class:`DatasetError` (a
 """
 
 import logging
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -166,6 +167,12 @@ class Dataset:
         name = self.pattern.replace("{a|b}", "{frame}")
         return self.folder / name.format(k=k, camera=camera, m=m, frame=frame)
 
+    def recorded_path(self, camera: str, n: int) -> Path:
+        """File of frame number n of a time-resolved recording, camera ``camera``."""
+        if self.sequence is None:
+            raise DatasetError(f"{self.folder}: frame pairs, not a time-resolved recording")
+        return self.folder / self.pattern.format(camera=camera, n=n)
+
     def read_frame(self, k: int, camera: str, m: int, frame: str) -> np.ndarray:
         """Read one image and check its shape, (H, W) as declared in experiment.json.
 
@@ -177,7 +184,23 @@ class Dataset:
             Not readable as an image (:class:`ptv.images.ImageError`), not 2-D, of the
             wrong size, not grey levels, or with NaN or infinite pixels.
         """
-        path = self.frame_path(k, camera, m, frame)
+        return self._read(self.frame_path(k, camera, m, frame), camera)
+
+    def read_recorded(self, camera: str, n: int) -> np.ndarray:
+        """Frame number n of a time-resolved recording, checked as :meth:`read_frame`."""
+        return self._read(self.recorded_path(camera, n), camera)
+
+    def missing_recorded(self, numbers: Iterable[int]) -> list[Path]:
+        """The files of the recorded frames ``numbers`` (every camera) that do not exist."""
+        return [
+            self.recorded_path(c, n)
+            for n in numbers
+            for c in self.cameras
+            if not self.recorded_path(c, n).is_file()
+        ]
+
+    def _read(self, path: Path, camera: str) -> np.ndarray:
+        """The image at ``path`` of ``camera``, checked (see :meth:`read_frame`)."""
         if not path.is_file():
             raise FileNotFoundError(f"particle image {path} is missing")
         image = read_image(path)

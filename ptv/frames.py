@@ -322,6 +322,10 @@ class ImageDetector:
         """Centres (N_c, 2), px, per camera (see :meth:`detect`)."""
         return [d.xy for d in self.detect(k, m, frame)]
 
+    def detect_recorded(self, n: int) -> list[Detections]:
+        """Detections on frame number n of a time-resolved recording, one per camera."""
+        return [self._detect(self.dataset.read_recorded(c, n), c) for c in self.cameras]
+
     def detect_chunk(self, m0: int, m1: int) -> ChunkDetections:
         """Every exposure of snapshots m0 … m1 − 1 detected (:func:`exposures`)."""
         found = {

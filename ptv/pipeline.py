@@ -41,6 +41,7 @@ results, ``validation`` draws and compares.
 import logging
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -54,6 +55,9 @@ from ptv.match import match
 from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import PtvStatistics, StatisticsSettings, compute_statistics
 from ptv.track import link, search_radius
+
+if TYPE_CHECKING:  # ptv.recording builds on this module
+    from ptv.recording import RecordingTracks
 
 __all__ = [
     "MEASUREMENT_VOLUME",
@@ -95,6 +99,11 @@ class PipelineSettings:
     position_noise : float
         Expected position noise σ_b (one component), m: adds 5σ_b to the link radius
         (default 30 µm).
+    max_acceleration : float
+        Largest particle acceleration expected, m/s²: sets the radius around a track's
+        constant-velocity prediction in a time-resolved recording
+        (:func:`ptv.recording.track_radii`; default 100, about 5 times the rms of one
+        component in the paper's flows).
     outlier_threshold : float or None
         Threshold of the normalised median test on the displacements (default 4; None
         keeps every link).
@@ -111,6 +120,7 @@ class PipelineSettings:
     min_cameras: int = 2
     max_speed: float = 1.5
     position_noise: float = 30e-6
+    max_acceleration: float = 100.0
     outlier_threshold: float | None = 4.0
     outlier_neighbours: int = 8
     snapshots: int | None = None
@@ -118,7 +128,7 @@ class PipelineSettings:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "volume", check_box("volume", self.volume))
-        for name in ("tolerance", "max_speed", "position_noise"):
+        for name in ("tolerance", "max_speed", "position_noise", "max_acceleration"):
             object.__setattr__(self, name, positive(name, getattr(self, name)))
         if self.outlier_threshold is not None:
             object.__setattr__(
@@ -536,6 +546,9 @@ class PtvResult:
     matched : MatchedPoints or None
         The matched points of the frames measured (:func:`run_pipeline`: every frame of
         every Δt, frame a repeated at each Δt that shares it).
+    recording : RecordingTracks or None
+        The tracks through every frame of a time-resolved recording
+        (:func:`ptv.recording.run_recording`; None otherwise).
     """
 
     source: FrameDetections
@@ -544,6 +557,7 @@ class PtvResult:
     runs: list[RunParticles]
     statistics: PtvStatistics | None
     matched: MatchedPoints | None = None
+    recording: "RecordingTracks | None" = None
 
 
 def run_pipeline(

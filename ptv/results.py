@@ -24,6 +24,16 @@ dataset has a ``units`` attribute)::
         dt (N,), snapshot (N,)        Δt index k and snapshot m
         frame (N,) "a" | "b"          frame a (t) or b (t + Δt)
         x, y, z (N,) m                the point, in the calibration's frame
+    /tracks                   the tracks through every frame of a time-resolved recording
+                              (``synptv ptv --tracks``; absent otherwise), one row per
+                              matched point, sorted by track then frame; attrs frame_rate
+                              (Hz), radius and predicted_radius (m, the search radii)
+        track (K,)                    track id, 0 … T − 1 (every point is in one track)
+        frame (K,), time (K,) s       frame number n and n / frame_rate
+        x, y, z (K,) m                the point, in the calibration's frame
+        frames/number (F,)            the frames tracked, consecutive
+        frames/detections (F, C)      particles detected per frame and camera
+        frames/matches (F,)           matched points per frame
     /statistics               attrs: errors, method, kolmogorov_c2, analysis_volume
         dt (K,) s, dt_index (K,)      Δt the statistics use
         r (B,) m, r_edges (B + 1,) m
@@ -51,6 +61,8 @@ dataset has a ``units`` attribute)::
 
 ``summary.json``: :func:`summary` (SI units; NaN written as null). :func:`load_runs`
 reads the links back, so the statistics can be computed again (other bins, other Δt).
+``tracks.csv`` (:func:`save_tracks_csv`): the rows of ``/tracks`` as text, with the
+header ``track,frame,time_s,x,y,z`` (x, y, z in m).
 
 Files are written under a temporary name in the target folder and renamed.
 """
@@ -65,6 +77,7 @@ import h5py
 import numpy as np
 
 from ptv.pipeline import MatchedPoints, PtvResult, link_radius
+from ptv.recording import RecordingTracks
 from ptv.stats.dissipation import Plateau
 from ptv.stats.links import RunParticles
 from ptv.stats.mean_displacement import MeanDisplacement
@@ -75,8 +88,10 @@ __all__ = [
     "FORMAT_VERSION",
     "load_runs",
     "save_results",
+    "save_tracks_csv",
     "statistics_summary",
     "summary",
+    "tracks_summary",
 ]
 
 log = logging.getLogger(__name__)
@@ -119,6 +134,7 @@ def _settings_dict(result: PtvResult) -> dict:
         "min_cameras": s.min_cameras,
         "max_speed": s.max_speed,
         "position_noise": s.position_noise,
+        "max_acceleration": s.max_acceleration,
         "analysis_volume": [list(v) for v in st.analysis_volume],
         "r_min": st.r_min,
         "r_max": st.r_max,
@@ -186,7 +202,8 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     (per Δt: snapshots processed, kept and skipped, detections per camera and frame,
     matches per frame, links, links in the analysis volume, link radius), ``warnings``
     (:func:`thin_data_warnings`), and those of :func:`statistics_summary` (only
-    ``statistics_dt`` and ``errors``, both None, for a run of positions and links only).
+    ``statistics_dt`` and ``errors``, both None, for a run of positions and links only);
+    ``tracks`` (:func:`tracks_summary`) for the tracks of a recording.
     """
     counts = [_run_counts(run, result) for run in result.runs]
     statistics = (
@@ -194,6 +211,7 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
         if result.statistics is None
         else statistics_summary(result.statistics)
     )
+    tracks = {} if result.recording is None else {"tracks": tracks_summary(result.recording)}
     return {
         "format": FORMAT_NAME,
         "format_version": FORMAT_VERSION,
@@ -206,7 +224,36 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
         "errors": statistics.pop("errors"),
         "counts": counts,
         "warnings": thin_data_warnings(counts),
+        **tracks,
         **statistics,
+    }
+
+
+def tracks_summary(recording: RecordingTracks) -> dict:
+    """The tracks of a recording in numbers (JSON-ready).
+
+    Keys: ``frames`` (first and last frame number tracked), ``frame_rate`` (Hz),
+    ``radius`` and ``predicted_radius`` (m), ``points`` (matched points, all frames),
+    ``points_per_frame`` (their mean), ``tracks``, ``links``, ``mean_length`` (points
+    per track; None without tracks), ``length_histogram``: ``edges`` 1, 2, 4, … and the
+    ``count`` of tracks whose length L has edges[i] <= L < edges[i + 1].
+    """
+    tracks = recording.tracks
+    lengths = tracks.lengths
+    top = int(lengths.max()) if lengths.size else 1
+    edges = 2 ** np.arange(int(np.log2(top)) + 2)
+    count, _ = np.histogram(lengths, bins=edges)
+    return {
+        "frames": [int(recording.numbers[0]), int(recording.numbers[-1])],
+        "frame_rate": recording.frame_rate,
+        "radius": recording.radius,
+        "predicted_radius": recording.predicted_radius,
+        "points": len(tracks),
+        "points_per_frame": len(tracks) / len(recording.numbers),
+        "tracks": tracks.n_tracks,
+        "links": tracks.links,
+        "mean_length": len(tracks) / tracks.n_tracks if tracks.n_tracks else None,
+        "length_histogram": {"edges": edges.tolist(), "count": count.tolist()},
     }
 
 
@@ -342,6 +389,23 @@ def _put_matched(group: h5py.Group, matched: MatchedPoints) -> None:
         _put(group, axis, column, "m")
 
 
+def _put_tracks(group: h5py.Group, recording: RecordingTracks) -> None:
+    """The tracks of a recording in ``/tracks`` (module docstring)."""
+    group.attrs["frame_rate"] = recording.frame_rate
+    group.attrs["radius"] = recording.radius
+    group.attrs["predicted_radius"] = recording.predicted_radius
+    group.attrs["units"] = "frame_rate: Hz; radius, predicted_radius: m"
+    _put(group, "track", recording.tracks.track, "track id")
+    _put(group, "frame", recording.frame_number, "frame number")
+    _put(group, "time", recording.time, "s")
+    for axis, column in zip("xyz", recording.tracks.positions.T, strict=True):
+        _put(group, axis, column, "m")
+    frames = group.create_group("frames")
+    _put(frames, "number", recording.numbers, "frame number")
+    _put(frames, "detections", recording.detections, "count (frame, camera)")
+    _put(frames, "matches", recording.matches, "count")
+
+
 def _write_h5(path: Path, result: PtvResult, calibration: str | None, links: bool) -> None:
     with h5py.File(path, "w") as f:
         f.attrs["format"] = FORMAT_NAME
@@ -368,6 +432,8 @@ def _write_h5(path: Path, result: PtvResult, calibration: str | None, links: boo
             _put(g, "links", run.links, "count")
         if result.matched is not None:
             _put_matched(f.create_group("positions"), result.matched)
+        if result.recording is not None:
+            _put_tracks(f.create_group("tracks"), result.recording)
         if result.statistics is not None:
             _put_statistics(f.create_group("statistics"), result)
 
@@ -482,6 +548,41 @@ def save_results(
         tmp_json.unlink(missing_ok=True)
     log.info("results written to %s and %s", h5_path, json_path)
     return h5_path, json_path
+
+
+def save_tracks_csv(result: PtvResult, folder: str | os.PathLike) -> Path:
+    """Write ``tracks.csv`` into ``folder``: the tracks of the result's recording.
+
+    One row per matched point of every frame tracked, sorted by track then frame, under
+    the header ``track,frame,time_s,x,y,z`` (frame number, n / frame_rate in s, the
+    point in m in the calibration's frame).
+
+    Raises
+    ------
+    ValueError
+        The result has no recording.
+    """
+    recording = result.recording
+    if recording is None:
+        raise ValueError("the result holds no tracks (not a time-resolved recording)")
+    path = Path(folder) / "tracks.csv"
+    tracks = recording.tracks
+    columns = [tracks.track, recording.frame_number, recording.time, *tracks.positions.T]
+    tmp = _tmp(path.parent, path.name)
+    try:
+        np.savetxt(
+            tmp,
+            np.column_stack(columns),
+            fmt=["%d", "%d", "%.9g", "%.9g", "%.9g", "%.9g"],
+            delimiter=",",
+            header="track,frame,time_s,x,y,z",
+            comments="",
+        )
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    log.info("tracks written to %s", path)
+    return path
 
 
 def load_runs(path: str | os.PathLike) -> list[RunParticles]:

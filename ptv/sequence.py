@@ -8,6 +8,9 @@ Every Δt starts snapshot m from the same frame a (a shared first frame), so the
 statistics follow the same particles over every Δt (docs/statistics.md). Snapshots are
 the frame pairs that fit in first … last for the largest step; the stride defaults to
 the largest step, so that consecutive snapshots share at most one frame.
+
+Tracking (``synptv ptv --tracks``) uses every frame of the recording instead, first …
+last in steps of one frame (:meth:`TimeResolved.frame_numbers`).
 """
 
 from dataclasses import dataclass
@@ -82,3 +85,11 @@ class TimeResolved:
         """The recorded frame that is frame ``frame`` of snapshot m at Δt_k."""
         start = self.first + m * self.stride
         return start if frame == "a" else start + self.steps[k]
+
+    def frame_numbers(self, snapshots: int | None = None) -> range:
+        """The consecutive frames first … last, or only those the first ``snapshots``
+        frame pairs span (first … frame b of snapshot ``snapshots`` − 1 at the largest
+        step) when they are fewer than all."""
+        if snapshots is None or snapshots >= self.snapshots:
+            return range(self.first, self.last + 1)
+        return range(self.first, self.first + (snapshots - 1) * self.stride + max(self.steps) + 1)

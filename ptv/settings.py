@@ -1,12 +1,12 @@
 """Every option of ``synptv ptv`` in one TOML file (``--settings``; ``--print-settings``).
 
-Sections and the dataclass fields they fill (SI units: m, s, m/s)::
+Sections and the dataclass fields they fill (SI units: m, s, m/s, m/s²)::
 
     [detection]    DetectorSettings: threshold_sigmas, saturation, particles, background,
                    tophat_radius, median_frames, min_peak, min_size
     [matching]     PipelineSettings: volume, tolerance, min_cameras
-    [linking]      PipelineSettings: max_speed, position_noise, outlier_threshold,
-                   outlier_neighbours
+    [linking]      PipelineSettings: max_speed, position_noise, max_acceleration,
+                   outlier_threshold, outlier_neighbours
     [statistics]   StatisticsSettings: analysis_volume, r_min, r_max, n_bins, plateau,
                    plateau_method, kolmogorov_c2, n_boot, eulerian_cells,
                    min_cell_count, trajectory_threshold, seed
@@ -37,7 +37,13 @@ SECTIONS = {
     "matching": (PipelineSettings, ("volume", "tolerance", "min_cameras")),
     "linking": (
         PipelineSettings,
-        ("max_speed", "position_noise", "outlier_threshold", "outlier_neighbours"),
+        (
+            "max_speed",
+            "position_noise",
+            "max_acceleration",
+            "outlier_threshold",
+            "outlier_neighbours",
+        ),
     ),
     "statistics": (
         StatisticsSettings,
@@ -64,6 +70,8 @@ _COMMENTS = {
     "min_cameras": "fewest cameras a match must use",
     "max_speed": "largest particle speed, m/s: link radius max_speed·Δt + 5·position_noise",
     "position_noise": "expected position noise, one component, m",
+    "max_acceleration": "largest particle acceleration, m/s², for --tracks: radius "
+    "max_acceleration·τ² + 5√3·position_noise",
     "outlier_threshold": "normalised median test on the displacements (false: off)",
     "outlier_neighbours": "neighbours of the median test",
     "analysis_volume": "statistics box by X(t): lower and upper corners, m",

@@ -1,4 +1,4 @@
-"""Particle tracking: double-frame links at Δt (docs/ptv.md §4).
+"""Particle tracking: double-frame links at Δt and time-resolved tracks (docs/ptv.md §4).
 
 Double frame (:func:`link`). Each particle at t is predicted at t + Δt (by a mean
 displacement, when given) and linked to a particle at t + Δt within the search radius
@@ -12,6 +12,14 @@ with cost (d/r)² per link, d the distance from the prediction, and cost 1 per p
 left unlinked (exact; see ``ptv._assign``): the Gaussian log-likelihood choice, which
 links as many particles as it can and, among those, minimises the sum of squared
 distances.
+
+Time-resolved (:func:`track_frames`). Frames τ apart are linked one step at a time with
+the same assignment. A track of one point is predicted by the mean displacement over τ
+(or stays where it is) and searched within ``radius``; a longer track by constant
+velocity, X̂_{f+1} = 2 X_f − X_{f−1}, within ``predicted_radius``, which can be much
+smaller: the prediction misses by the acceleration a τ² and the noise of three
+positions, not by the whole displacement. A particle left unlinked starts a track; a
+track that finds no partner ends (no gap closing).
 
 Trajectory test (:func:`trajectory_residuals`). A particle followed from the same X(t)
 to every Δt (a shared first frame) has displacements on a smooth curve in Δt; a large
@@ -190,6 +198,156 @@ def link(frame_a, frame_b, *, radius: float, predictor: Predictor = None) -> Lin
         ambiguous=ambiguous,
         candidates=candidates,
     )
+
+
+@dataclass(frozen=True, eq=False)
+class Tracks:
+    """Tracks through a sequence of frames, one row per tracked point.
+
+    Every point of every frame belongs to exactly one track (a particle never linked is
+    a track of one point). Rows are sorted by track, then frame; the frames of a track
+    are consecutive.
+
+    Attributes
+    ----------
+    track : ndarray of int, shape (K,)
+        Track id, 0 … T − 1, numbered in the order the tracks start (frame, then row).
+    frame : ndarray of int, shape (K,)
+        Index f of the frame in the sequence, 0 … F − 1.
+    index : ndarray of int, shape (K,)
+        Row of the point in its frame's input array.
+    positions : ndarray, shape (K, 3)
+        The points, m, as given.
+    n_frames : int
+        Frames F of the sequence.
+    """
+
+    track: np.ndarray
+    frame: np.ndarray
+    index: np.ndarray
+    positions: np.ndarray
+    n_frames: int
+
+    def __post_init__(self) -> None:
+        k = len(self.track)
+        shapes = [np.shape(a) for a in (self.track, self.frame, self.index, self.positions)]
+        if shapes != [(k,), (k,), (k,), (k, 3)]:
+            raise ValueError(
+                f"track, frame, index (K,) and positions (K, 3) must align, got {shapes}"
+            )
+        same = np.diff(self.track) == 0
+        if k and (self.track[0] != 0 or np.any(np.diff(self.track) > 1)):
+            raise ValueError("track ids must run 0 … T − 1 without gaps")
+        if np.any(np.diff(self.track) < 0) or np.any(np.diff(self.frame)[same] != 1):
+            raise ValueError("rows must be sorted by track, then by consecutive frames")
+
+    def __len__(self) -> int:
+        return len(self.track)
+
+    @property
+    def n_tracks(self) -> int:
+        """Number of tracks T."""
+        return int(self.track[-1]) + 1 if len(self.track) else 0
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """Points per track, shape (T,)."""
+        return np.bincount(self.track, minlength=self.n_tracks)
+
+    @property
+    def links(self) -> int:
+        """Links between consecutive points of a track, K − T."""
+        return len(self.track) - self.n_tracks
+
+
+def _predictions(
+    current: np.ndarray,
+    previous: np.ndarray,
+    predictor: Predictor,
+    radii: tuple[float, float],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where the particles of a frame are expected one frame later, and how far from it
+    their partner is searched, shapes (N, 3) and (N,), m.
+
+    ``previous`` holds, per particle, its track's point one frame earlier (NaN for a
+    track of one point): constant velocity within ``radii[1]`` where it is known, the
+    mean displacement within ``radii[0]`` otherwise.
+    """
+    first = np.isnan(previous[:, 0])
+    predicted = 2 * current - previous
+    predicted[first] = current[first] + _mean_displacement(predictor, current[first])
+    return predicted, np.where(first, *radii)
+
+
+def track_frames(
+    frames: Sequence[np.ndarray],
+    *,
+    radius: float,
+    predicted_radius: float | None = None,
+    predictor: Predictor = None,
+) -> Tracks:
+    """Time-resolved tracking: link the particles of frames τ apart into tracks.
+
+    Parameters
+    ----------
+    frames : sequence of F ndarray, shape (N_f, 3)
+        Particle positions in each frame, m, in any order.
+    radius : float
+        Search radius, m, of the first link of a track, around its point plus the mean
+        displacement (e.g. :func:`search_radius` with Δt = τ).
+    predicted_radius : float, optional
+        Search radius, m, around the constant-velocity prediction of a track of two
+        points or more; ``radius`` by default. About k (a τ² + √6 σ_b) suffices, a the
+        largest acceleration and σ_b the position noise.
+    predictor : callable, array of shape (3,) or None
+        Mean displacement over one frame interval τ, as in :func:`link` (None: none).
+
+    Returns
+    -------
+    Tracks
+    """
+    xs = [_frame(f"frame {f}", x) for f, x in enumerate(frames)]
+    r_first = _radius("radius", radius)
+    r_next = r_first if predicted_radius is None else _radius("predicted_radius", predicted_radius)
+    radii = (r_first, r_next)
+    if not xs:
+        return _sorted_tracks([], xs)
+    labels = [np.arange(len(xs[0]))]  # track id of every particle of every frame so far
+    previous = np.full((len(xs[0]), 3), np.nan)  # its track's point one frame earlier
+    started = len(xs[0])
+    for f in range(1, len(xs)):
+        current, following = xs[f - 1], xs[f]
+        i, j, _, ambiguous, _ = _link_step(
+            *_predictions(current, previous, predictor, radii), following
+        )
+        label = np.full(len(following), -1)
+        label[j] = labels[-1][i]
+        new = label < 0
+        label[new] = started + np.arange(np.count_nonzero(new))
+        started += np.count_nonzero(new)
+        labels.append(label)
+        previous = np.full((len(following), 3), np.nan)
+        previous[j] = current[i]
+        log.debug(
+            "frame %d: %d links, %d tracks started, %d ambiguous",
+            f,
+            len(i),
+            np.count_nonzero(new),
+            ambiguous,
+        )
+    return _sorted_tracks(labels, xs)
+
+
+def _sorted_tracks(labels: list[np.ndarray], xs: list[np.ndarray]) -> Tracks:
+    """:class:`Tracks` from the track id of every row of every frame."""
+    if not labels or not sum(len(x) for x in xs):
+        empty = np.empty(0, dtype=np.int64)
+        return Tracks(empty, empty, empty, np.empty((0, 3)), len(xs))
+    track = np.concatenate(labels).astype(np.int64)
+    frame = np.concatenate([np.full(len(x), f, dtype=np.int64) for f, x in enumerate(xs)])
+    index = np.concatenate([np.arange(len(x), dtype=np.int64) for x in xs])
+    order = np.lexsort((frame, track))
+    return Tracks(track[order], frame[order], index[order], np.concatenate(xs)[order], len(xs))
 
 
 def trajectory_residuals(dt, displacements) -> np.ndarray:

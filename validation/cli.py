@@ -378,9 +378,11 @@ def _run_ptv(args: argparse.Namespace) -> int:
     from ptv.dataset import open_dataset
     from ptv.frames import ImageDetector
     from ptv.pipeline import run_pipeline
-    from ptv.results import save_results, summary
+    from ptv.recording import run_recording
+    from ptv.results import save_results, save_tracks_csv, summary
     from ptv.settings import settings_toml
     from validation.report.ptv_figures import save_ptv_figures
+    from validation.report.track_figure import save_tracks_figure
 
     if args.print_settings:
         print(settings_toml(_ptv_settings(args)), end="")
@@ -395,16 +397,23 @@ def _run_ptv(args: argparse.Namespace) -> int:
         calibrations = load_calibrations(args.calibration)
     except FileNotFoundError as err:
         raise UsageError(str(err)) from None
+    if args.tracks and dataset.sequence is None:
+        raise UsageError(
+            f"--tracks needs a time-resolved recording ('time_resolved' in experiment.json, "
+            f"docs/experiment.md §5), but {args.dataset} holds frame pairs"
+        )
     if settings.pipeline.min_cameras > len(dataset.cameras):
         raise UsageError(
             f"min_cameras is {settings.pipeline.min_cameras} but the dataset has "
             f"{len(dataset.cameras)} cameras"
         )
     bar = ProgressBar("ptv", enabled=not args.quiet)
+    run = run_recording if args.tracks else run_pipeline
+    tracked = []  # tracks.csv and tracks.png, with --tracks
     with hold_output_folder(out, "synptv ptv") as took_over:
         _say_took_over("ptv", took_over)
         try:
-            result = run_pipeline(
+            result = run(
                 ImageDetector(dataset, settings.detection),
                 calibrations,
                 settings.pipeline,
@@ -417,11 +426,20 @@ def _run_ptv(args: argparse.Namespace) -> int:
             written = list(save_results(result, staging, calibration=str(args.calibration)))
             if not args.positions_only:
                 written += save_ptv_figures(result, staging).values()
+            if args.tracks:
+                tracked = [
+                    save_tracks_csv(result, staging),
+                    save_tracks_figure(result.recording, staging),
+                ]
     h5_path, json_path, *figures = (out / path.name for path in written)
     s = summary(result, calibration=str(args.calibration))
     for line in s["warnings"]:
         print(f"synptv ptv: warning: {line}", file=sys.stderr)
     _print_counts(s)
+    if args.tracks:
+        csv_path, png_path = (out / path.name for path in tracked)
+        _print_tracks(s["tracks"])
+        print(f"tracks written to {csv_path} and {h5_path} (/tracks), drawn in {png_path}")
     if args.positions_only:
         print(f"positions and links written to {h5_path} and {json_path}")
         return 0
@@ -429,6 +447,22 @@ def _run_ptv(args: argparse.Namespace) -> int:
     print(f"results written to {h5_path} and {json_path}")
     print(f"figures written to {', '.join(str(p) for p in figures)}")
     return 0
+
+
+def _print_tracks(t: dict) -> None:
+    """The tracks of a ``synptv ptv --tracks`` summary: counts and lengths."""
+    first, last = t["frames"]
+    mean = "-" if t["mean_length"] is None else f"{t['mean_length']:.1f}"
+    print(
+        f"tracks          {t['tracks']} through frames {first} … {last} "
+        f"({t['points_per_frame']:.0f} points per frame), mean length {mean} points"
+    )
+    edges, count = t["length_histogram"]["edges"], t["length_histogram"]["count"]
+    bins = [
+        f"{lo}: {n}" if hi == lo + 1 else f"{lo}-{hi - 1}: {n}"
+        for lo, hi, n in zip(edges[:-1], edges[1:], count, strict=True)
+    ]
+    print(f"                lengths {', '.join(bins)}")
 
 
 def _print_counts(s: dict) -> None:
@@ -664,7 +698,9 @@ def _add_ptv_parser(sub) -> None:
         "between cameras with a calibration file, link frame a to frame b, and compute the "
         "noise-free S2(r) by the multi-dt fit, epsilon(r) and its plateau, the dt subsets, "
         "the mean-displacement linearity check and u'. Writes results.h5, summary.json and "
-        "the paper's Fig. 5a, 5b, 6a and 6b as PNG.",
+        "the paper's Fig. 5a, 5b, 6a and 6b as PNG. On a time-resolved recording, --tracks "
+        "also matches every frame and links the points into tracks: tracks.csv, /tracks in "
+        "results.h5, tracks.png.",
     )
     ptv.add_argument("--dataset", help="folder in the synptv render layout (required)")
     ptv.add_argument("--calibration", help="calibration file, synptv calibrate's (required)")
@@ -692,7 +728,14 @@ def _add_ptv_parser(sub) -> None:
     ptv.add_argument(
         "--positions-only",
         action="store_true",
-        help="write the matched positions and the links only: no statistics, no figures",
+        help="write the matched positions and the links only: no statistics and none of "
+        "their figures",
+    )
+    ptv.add_argument(
+        "--tracks",
+        action="store_true",
+        help="a time-resolved recording only: also match every frame and link the points "
+        "frame to frame into tracks (tracks.csv, /tracks in results.h5, tracks.png)",
     )
     ptv.add_argument("--quiet", action="store_true", help="no progress bar")
     ptv.set_defaults(run=_run_ptv)

@@ -190,6 +190,13 @@ def test_a_time_resolved_recording_is_cut_into_shared_first_frame_pairs(tmp_path
     assert dataset.read_frame(1, "c2", 3, "a")[0, 0] == 11
     assert dataset.read_frame(1, "c2", 3, "b")[0, 0] == 14
     assert dataset.read_frame(0, "c1", 2, "b")[0, 0] == 9
+    # Tracking reads every frame: 2 … 14, or those the first two snapshots span, 2 … 8.
+    assert dataset.sequence.frame_numbers() == range(2, 15)
+    assert dataset.sequence.frame_numbers(2) == range(2, 9)
+    assert dataset.sequence.frame_numbers(100) == range(2, 15)
+    assert dataset.read_recorded("c1", 7)[0, 0] == 7
+    (tmp_path / "seq" / "c2" / "0013.png").unlink()
+    assert dataset.missing_recorded(range(12, 15)) == [tmp_path / "seq" / "c2" / "0013.png"]
 
 
 def test_a_time_resolved_recording_replaces_the_frame_pair_fields(tmp_path):

@@ -1,20 +1,30 @@
-"""``synptv ptv``: results, summary and figures from a dataset folder; bad input."""
+"""``synptv ptv``: results, summary and figures from a dataset folder; tracks through a
+time-resolved recording; bad input."""
 
+import dataclasses
 import json
+import os
+import shutil
 
 import h5py
 import matplotlib.image
+import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from ptv.calibration.io import load_calibrations, save_calibrations
+from simulator.particles import Box
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.cli import main
 from validation.dataset.calibrate import calibrate_dataset
-from validation.dataset.render import RenderSettings, write_dataset
+from validation.dataset.render import RenderSettings, particle_job, write_dataset
 from validation.report.ptv_figures import FIGURE_FILES
+from validation.run.particle_chunks import particle_path, render_chunk
 
 SETTINGS = RenderSettings(frames=2, planes=3, particles=600, n_modes=80, seed=5)
+#: The recording: 8 frames at 2 kHz, cut into frame pairs 1 and 3 frames apart.
+FRAME_RATE, FRAMES, STEPS = 2000.0, 8, (1, 3)
 
 
 @pytest.fixture(scope="module")
@@ -158,3 +168,149 @@ def test_positions_only_writes_the_points_and_links_without_statistics(dataset, 
     summary = json.loads((out / "summary.json").read_text())
     assert summary["statistics_dt"] is None and "epsilon" not in summary
     assert "positions and links written to" in capsys.readouterr().out
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    """A time-resolved recording of the rig of ``dataset`` (whose calibration it uses),
+    and the true particle positions of its frames, (F, P, 3) m.
+
+    Rendered as one shared-first-frame snapshot at Δt = τ … 7τ, whose frames a and b
+    are the frames 0 … 7 of the recording; the seeding covers a 60 × 60 mm sheet, so that
+    every particle images well inside the sensors.
+    """
+    root = tmp_path_factory.mktemp("cli-ptv-recording")
+    rig = dataclasses.replace(load_rig("paper-stereo"), sheet=Box((0.06, 0.06, 0.008)))
+    preset = flow_preset("lem-10hz")
+    job = dataclasses.replace(
+        particle_job(rig, preset, dataclasses.replace(SETTINGS, frames=1), images=root),
+        dt=np.arange(1, FRAMES) / FRAME_RATE,
+    )
+    truth = render_chunk((0, 1), job=job).truth
+    folder = root / "recording"
+    for camera in rig.camera_names:
+        (folder / "seq" / camera).mkdir(parents=True)
+        frames = [particle_path(root, 0, camera, 0, "a")]
+        frames += [particle_path(root, k, camera, 0, "b") for k in range(FRAMES - 1)]
+        for n, path in enumerate(frames):
+            os.link(path, folder / "seq" / camera / f"{n:06d}.tif")
+    spec = {
+        "cameras": {
+            name: {"image_size": list(camera.lens.sensor_size)}
+            for name, camera in zip(rig.camera_names, rig.cameras, strict=True)
+        },
+        "time_resolved": {
+            "frame_rate": FRAME_RATE,
+            "images": "seq/{camera}/{n:06d}.tif",
+            "steps": list(STEPS),
+            "last": FRAMES - 1,
+        },
+        "bit_depth": SETTINGS.sensor.bit_depth,
+    }
+    (folder / "experiment.json").write_text(json.dumps(spec))
+    positions = [truth[0].positions[0, 0]] + [run.positions[0, 1] for run in truth]
+    return folder, np.stack(positions)
+
+
+def read_tracks_csv(path):
+    """The header and the rows (K, 6) of a tracks.csv."""
+    with open(path) as f:
+        header = f.readline().strip()
+    return header, np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+
+
+def by_rows(points):
+    """Points (N, 3) sorted by x, then y, then z."""
+    return points[np.lexsort(points.T[::-1])]
+
+
+def test_tracks_link_every_frame_of_a_recording(dataset, recording, tmp_path, capsys):
+    _, calibration = dataset
+    folder, truth = recording
+    settings = tmp_path / "settings.toml"
+    settings.write_text("[linking]\nmax_acceleration = 400.0\n")
+    out = tmp_path / "tracks"
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration), "--quiet"]
+    argv += ["--settings", str(settings), "--out", str(out)]
+    assert main([*argv, "--positions-only", "--tracks"]) == 0
+    printed = capsys.readouterr().out
+    assert "tracks written to" in printed and "mean length" in printed
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["results.h5", "summary.json", "tracks.csv", "tracks.png"]
+    assert matplotlib.image.imread(out / "tracks.png").ndim == 3
+    header, rows = read_tracks_csv(out / "tracks.csv")
+    assert header == "track,frame,time_s,x,y,z"
+    track, frame = rows[:, 0].astype(int), rows[:, 1].astype(int)
+    with h5py.File(out / "results.h5") as f:
+        g = f["tracks"]
+        points = np.column_stack([g[axis][:] for axis in "xyz"])
+        np.testing.assert_array_equal(g["track"][:], track)
+        np.testing.assert_array_equal(g["frame"][:], frame)
+        np.testing.assert_allclose(rows[:, 3:], points, rtol=1e-8)
+        assert g["frames/number"][:].tolist() == list(range(FRAMES))
+        assert g["frames/matches"][:].tolist() == np.bincount(frame).tolist()
+        pairs = {key: f["positions"][key][:] for key in ("dt", "snapshot", "frame", *"xyz")}
+    # Every frame of the recording, not only the frames of the pairs (0, 1, 3, 4, 6).
+    assert set(frame.tolist()) == set(range(FRAMES))
+    np.testing.assert_allclose(rows[:, 2], frame / FRAME_RATE, rtol=1e-8)
+    same = track[1:] == track[:-1]
+    assert np.all(np.diff(track) >= 0) and np.all(np.diff(frame)[same] == 1)
+    # The points of each frame of a pair are those --positions-only writes for it.
+    pair_points = np.column_stack([pairs[axis] for axis in "xyz"])
+    is_b = pairs["frame"] == b"b"
+    number = pairs["snapshot"] * max(STEPS) + np.where(is_b, np.take(STEPS, pairs["dt"]), 0)
+    keys = np.column_stack([pairs["dt"], pairs["snapshot"], is_b])
+    for key in np.unique(keys, axis=0):
+        sel = np.all(keys == key, axis=1)
+        mine = points[frame == number[sel][0]]
+        np.testing.assert_array_equal(by_rows(mine), by_rows(pair_points[sel]))
+    summary = json.loads((out / "summary.json").read_text())
+    t = summary["tracks"]
+    assert t["tracks"] == len(np.unique(track)) == sum(t["length_histogram"]["count"])
+    assert t["points"] == len(rows) and t["frames"] == [0, FRAMES - 1]
+    assert summary["settings"]["max_acceleration"] == 400.0
+    assert t["predicted_radius"] == pytest.approx(400.0 / FRAME_RATE**2 + 5 * 3**0.5 * 30e-6)
+    # Against the truth: each point's nearest true particle (after the small offset of
+    # the calibration's frame); links between two real particles. The particles move
+    # u'τ ≈ 0.1 mm per component a frame and are 3.6 mm apart: a wrong link is rare.
+    offset = np.median(points - truth[frame, cKDTree(truth[0]).query(points)[1]], axis=0)
+    particle = np.full(len(points), -1)
+    for n in range(FRAMES):
+        sel = frame == n
+        distance, nearest = cKDTree(truth[n]).query(points[sel] - offset)
+        particle[sel] = np.where(distance < 0.2e-3, nearest, -1)
+    real = same & (particle[1:] >= 0) & (particle[:-1] >= 0)
+    assert real.sum() > 0.8 * same.sum()
+    assert np.mean(particle[1:][real] == particle[:-1][real]) >= 0.99
+
+
+def test_tracks_of_the_first_snapshots_stop_at_their_last_frame(
+    dataset, recording, tmp_path, capsys
+):
+    _, calibration = dataset
+    out = tmp_path / "first"
+    argv = ["ptv", "--dataset", str(recording[0]), "--calibration", str(calibration)]
+    assert main([*argv, "--out", str(out), "--tracks", "--snapshots", "1", "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    # Snapshot 0 pairs frame 0 with frames 1 and 3: frames 0 … 3 are tracked.
+    assert summary["tracks"]["frames"] == [0, 3]
+    assert set(read_tracks_csv(out / "tracks.csv")[1][:, 1].astype(int)) == {0, 1, 2, 3}
+    capsys.readouterr()
+
+
+def test_tracks_need_a_whole_time_resolved_recording(dataset, recording, tmp_path, capsys):
+    folder, calibration = dataset
+    out = tmp_path / "out"
+    argv = ["ptv", "--calibration", str(calibration), "--out", str(out), "--tracks", "--quiet"]
+    assert main([*argv, "--dataset", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("synptv ptv: error: --tracks needs a time-resolved recording")
+    assert err.count("\n") == 1 and not out.exists()
+    # Frame 5 is in no frame pair, but tracking needs it.
+    gap = tmp_path / "gap"
+    shutil.copytree(recording[0], gap, copy_function=os.link)
+    (gap / "seq" / "cam1" / "000005.tif").unlink()
+    assert main([*argv, "--dataset", str(gap)]) == 2
+    err = capsys.readouterr().err
+    assert "particle image" in err and "000005.tif is missing" in err and err.count("\n") == 1
+    assert not out.exists()

@@ -1,0 +1,263 @@
+"""Every frame of a time-resolved recording: matched points linked into tracks.
+
+A recording (experiment.json ``time_resolved``, :mod:`ptv.sequence`) holds consecutive
+frames n = first … last, τ = 1 / frame rate apart. :func:`run_recording`
+
+1. detects the particles on every frame of every camera (all of them, or those the
+   first ``snapshots`` frame pairs span) and matches the cameras in each frame
+   (:func:`ptv.pipeline.match_frame`): the 3-D points of every frame;
+2. links them frame to frame into tracks (:func:`ptv.track.track_frames`): the first
+   link of a track within r = max_speed·τ + 5σ_b (the double-frame link radius at
+   Δt = τ), a longer track within r_p = max_acceleration·τ² + 5√3·σ_b of its
+   constant-velocity prediction (:func:`track_radii`);
+3. processes the frame pairs of the multi-Δt method (:func:`ptv.pipeline.run_pipeline`)
+   from the same detections, so that no image is read or detected twice.
+
+Why 5√3·σ_b: the prediction 2X_f − X_{f−1} and the point it meets carry the noise of
+three positions, √6·σ_b per component, √3 times the √2·σ_b of a displacement; the link
+radius allows 5σ_b for the latter, r_p the same multiple of the former. The a τ² term
+is the most a particle of acceleration up to max_acceleration leaves the prediction.
+"""
+
+import logging
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ptv.camera_model import CameraModel
+from ptv.dataset import cameras_in_order
+from ptv.errors import DatasetError
+from ptv.frames import ChunkDetections, DetectedCentres, ImageDetector, exposures
+from ptv.pipeline import PipelineSettings, PtvResult, link_radius, match_frame, run_pipeline
+from ptv.track import Tracks, track_frames
+
+__all__ = [
+    "RecordedFrames",
+    "RecordingTracks",
+    "measure_recording",
+    "pair_detections",
+    "run_recording",
+    "track_radii",
+]
+
+log = logging.getLogger(__name__)
+
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True, eq=False)
+class RecordedFrames:
+    """The detections and matched points of consecutive frames of a recording.
+
+    Attributes
+    ----------
+    numbers : ndarray of int, shape (F,)
+        Frame numbers n, consecutive.
+    centres : tuple of F tuples of C DetectedCentres
+        The particle image centres of each frame on each camera, px.
+    points : tuple of F ndarray, shape (N_f, 3)
+        The matched points of each frame, m, in the calibration's frame.
+    """
+
+    numbers: np.ndarray
+    centres: tuple[tuple[DetectedCentres, ...], ...]
+    points: tuple[np.ndarray, ...]
+
+    @property
+    def detections(self) -> np.ndarray:
+        """Particles detected per frame and camera, shape (F, C)."""
+        counts = [[len(c.xy) for c in frame] for frame in self.centres]
+        return np.asarray(counts, dtype=np.int64).reshape(len(self.numbers), -1)
+
+
+def measure_recording(
+    detector: ImageDetector,
+    cameras: Sequence[CameraModel],
+    settings: PipelineSettings,
+    numbers: Sequence[int],
+    *,
+    tick: Callable[[], None] | None = None,
+) -> RecordedFrames:
+    """Detect and match the particles of the recorded frames ``numbers``.
+
+    Parameters
+    ----------
+    detector : ImageDetector
+        Of a time-resolved dataset.
+    cameras : sequence of CameraModel
+        Calibrations in the order of ``detector.cameras``.
+    settings : PipelineSettings
+        Matching volume, tolerance and fewest cameras per match.
+    numbers : sequence of int
+        Frame numbers, consecutive.
+    tick : callable, optional
+        Called after each frame.
+
+    Returns
+    -------
+    RecordedFrames
+    """
+    centres, points = [], []
+    for n in numbers:
+        found = detector.detect_recorded(n)
+        centres.append(tuple(DetectedCentres.of(d) for d in found))
+        points.append(match_frame([d.xy for d in found], cameras, settings))
+        if tick is not None:
+            tick()
+    return RecordedFrames(np.asarray(numbers, dtype=np.int64), tuple(centres), tuple(points))
+
+
+def pair_detections(
+    detector: ImageDetector, recorded: RecordedFrames, snapshots: int
+) -> ChunkDetections:
+    """The frame pairs of the first ``snapshots`` snapshots, from the detections of the
+    recorded frames (which must include every frame they use)."""
+    sequence = detector.dataset.sequence
+    row = {int(n): i for i, n in enumerate(recorded.numbers)}
+    found = {
+        (k, m, frame): recorded.centres[row[sequence.frame_number(max(k, 0), m, frame)]]
+        for k, m, frame in exposures(detector.frames, range(snapshots), shared_first_frame=True)
+    }
+    return ChunkDetections.of(detector, (0, snapshots), found)
+
+
+def track_radii(frame_rate: float, settings: PipelineSettings) -> tuple[float, float]:
+    """The search radii of :func:`ptv.track.track_frames` at a frame rate, m.
+
+    Returns
+    -------
+    (float, float)
+        The first link's r = max_speed·τ + 5σ_b and the constant-velocity prediction's
+        r_p = max_acceleration·τ² + 5√3·σ_b, τ = 1 / frame_rate (module docstring).
+    """
+    tau = 1.0 / frame_rate
+    predicted = settings.max_acceleration * tau**2 + 5 * np.sqrt(3) * settings.position_noise
+    return link_radius(tau, settings), float(predicted)
+
+
+@dataclass(frozen=True, eq=False)
+class RecordingTracks:
+    """The tracks through consecutive frames of a recording.
+
+    Attributes
+    ----------
+    numbers : ndarray of int, shape (F,)
+        Frame numbers n of the frames tracked (``tracks.frame`` indexes them).
+    frame_rate : float
+        Frames per second, Hz; frame n was taken at n / frame_rate.
+    detections : ndarray of int, shape (F, C)
+        Particles detected per frame and camera.
+    tracks : Tracks
+        Every matched point of every frame, with its track.
+    radius, predicted_radius : float
+        The search radii used (:func:`track_radii`), m.
+    """
+
+    numbers: np.ndarray
+    frame_rate: float
+    detections: np.ndarray
+    tracks: Tracks
+    radius: float
+    predicted_radius: float
+
+    @property
+    def frame_number(self) -> np.ndarray:
+        """Frame number n of every tracked point, shape (K,)."""
+        return self.numbers[self.tracks.frame]
+
+    @property
+    def time(self) -> np.ndarray:
+        """Time n / frame_rate of every tracked point, s, shape (K,)."""
+        return self.frame_number / self.frame_rate
+
+    @property
+    def matches(self) -> np.ndarray:
+        """Matched points per frame, shape (F,)."""
+        return np.bincount(self.tracks.frame, minlength=len(self.numbers))
+
+
+def run_recording(
+    detector: ImageDetector,
+    calibrations: Mapping[str, CameraModel],
+    settings: PipelineSettings | None = None,
+    *,
+    progress: Progress | None = None,
+    statistics: bool = True,
+) -> PtvResult:
+    """The tracks of a time-resolved recording, and what :func:`run_pipeline` gives of
+    its frame pairs.
+
+    Parameters
+    ----------
+    detector : ImageDetector
+        Of a dataset with a ``time_resolved`` recording.
+    calibrations : mapping of camera name to CameraModel
+        Must name exactly the dataset's cameras.
+    settings : PipelineSettings, optional
+        Options; with ``snapshots``, only the frames of the first snapshots are tracked.
+    progress : callable(done, total), optional
+        Called after each frame and then as :func:`run_pipeline` calls it.
+    statistics : bool
+        Compute the statistics of the frame pairs (False: positions and links only).
+
+    Returns
+    -------
+    PtvResult
+        With ``recording``.
+
+    Raises
+    ------
+    DatasetError
+        Not a time-resolved dataset; cameras that do not match the calibration.
+    FileNotFoundError
+        A frame of the recording is missing.
+    """
+    settings = PipelineSettings() if settings is None else settings
+    sequence = detector.dataset.sequence
+    if sequence is None:
+        raise DatasetError(f"{detector.folder}: frame pairs, not a time-resolved recording")
+    cameras = cameras_in_order(detector, calibrations)
+    numbers = sequence.frame_numbers(settings.snapshots)
+    missing = detector.dataset.missing_recorded(numbers)
+    if missing:
+        more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+        raise FileNotFoundError(f"particle image {missing[0]} is missing{more}")
+    # One count for all: the frames, then the steps of run_pipeline (its snapshots + 1).
+    steps = len(numbers) + sum(settings.snapshot_count(n) for n in detector.frames) + 1
+    done = [0]
+
+    def tick() -> None:
+        done[0] += 1
+        if progress is not None:
+            progress(done[0], steps)
+
+    recorded = measure_recording(detector, cameras, settings, numbers, tick=tick)
+    radius, predicted_radius = track_radii(sequence.frame_rate, settings)
+    tracks = track_frames(recorded.points, radius=radius, predicted_radius=predicted_radius)
+    log.info(
+        "frames %d … %d: %d points in %d tracks (%d links)",
+        numbers[0],
+        numbers[-1],
+        len(tracks),
+        tracks.n_tracks,
+        tracks.links,
+    )
+    pairs = pair_detections(detector, recorded, settings.snapshot_count(sequence.snapshots))
+
+    def pairs_progress(done_pairs: int, total: int) -> None:
+        if progress is not None:
+            progress(len(numbers) + done_pairs, len(numbers) + total)
+
+    result = run_pipeline(
+        pairs, calibrations, settings, progress=pairs_progress, statistics=statistics
+    )
+    recording = RecordingTracks(
+        numbers=recorded.numbers,
+        frame_rate=sequence.frame_rate,
+        detections=recorded.detections,
+        tracks=tracks,
+        radius=radius,
+        predicted_radius=predicted_radius,
+    )
+    return replace(result, recording=recording)
