@@ -149,11 +149,12 @@ def shared_mean_displacement(
     Returns
     -------
     MeanDisplacement or None
-        None when there are too few snapshots (M ≤ K) for Σ to be positive definite.
+        None when there are too few snapshots for Σ to be positive definite (M ≤ K) or
+        for Hotelling's test of β0 to have degrees of freedom (M ≤ 3).
     """
     groups = [d for _, d in joined if len(d)]
     k = len(dt)
-    if len(groups) <= k:
+    if len(groups) <= max(k, 3):
         return None
     n = np.array([len(d) for d in groups], dtype=np.float64)
     mean, cov = cluster_mean(n, np.array([d.mean(axis=0) for d in groups]), full=True)

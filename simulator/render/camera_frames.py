@@ -77,6 +77,9 @@ class ParticleFrame:
 def local_magnification(camera: Camera, points: np.ndarray, *, step: float = 1e-4) -> np.ndarray:
     """Lateral magnification at world points, from the image of a small step along Y.
 
+    A central difference; at a point whose step on one side leaves the sensor (its image
+    within a pixel of the edge), the one-sided difference on the other side.
+
     Parameters
     ----------
     camera : Camera
@@ -89,11 +92,17 @@ def local_magnification(camera: Camera, points: np.ndarray, *, step: float = 1e-
     Returns
     -------
     ndarray, shape (P,)
-        M = (image displacement on the sensor) / (object displacement).
+        M = (image displacement on the sensor) / (object displacement); NaN where the
+        point itself is outside the view.
     """
     offset = np.array([0.0, step, 0.0])
-    shift = camera.project(points + offset) - camera.project(points - offset)
-    return np.linalg.norm(shift, axis=1) * camera.lens.pixel_pitch / (2 * step)
+    centre = camera.project(points)
+    ahead, behind = camera.project(points + offset), camera.project(points - offset)
+    derivative = (ahead - behind) / (2 * step)
+    for one_sided in ((ahead - centre) / step, (centre - behind) / step):
+        missing = ~np.isfinite(derivative).all(axis=1)
+        derivative[missing] = one_sided[missing]
+    return np.linalg.norm(derivative, axis=1) * camera.lens.pixel_pitch
 
 
 def record_particles(

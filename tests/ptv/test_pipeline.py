@@ -531,3 +531,19 @@ def test_the_mean_displacement_offset_of_shared_frames_has_calibrated_errors():
     statistic, limit = md.offset_test()
     assert statistic > 10 * limit
     assert np.allclose(md.fit.c2, 1e-6, rtol=0.3)
+
+
+@pytest.mark.parametrize(
+    ("k", "snapshots", "defined"), [(2, 3, False), (2, 4, True), (5, 5, False)]
+)
+def test_shared_mean_displacement_needs_more_snapshots_than_its_test_has_parameters(
+    k, snapshots, defined
+):
+    """Hotelling's T² of β0 needs M > 3 (its F has M − 3 degrees of freedom) and Σ needs
+    M > K: below either, the line falls back to the per-Δt means (None here)."""
+    dt = np.arange(1, k + 1) * 1e-4
+    joined = _joined_experiment(np.random.default_rng(1), dt, snapshots=snapshots)
+    md = shared_mean_displacement(joined, dt)
+    assert (md is not None) == defined
+    if defined:
+        assert np.isfinite(md.offset_test()).all()

@@ -71,3 +71,17 @@ def test_a_lit_particle_outside_the_view_is_invisible_and_the_others_are_drawn(c
     assert frame.visible.tolist() == [True, False]
     assert np.isnan(frame.xy[1]).all() and np.isnan(frame.sigma[1])
     assert np.isfinite(frame.sigma[0])
+
+
+def test_magnification_is_defined_up_to_the_sensor_edge(camera):
+    """A particle imaged within a pixel of the edge (its step along Y leaves the sensor on
+    one side) gets the one-sided difference: finite, and within 0.1 % of its neighbour's
+    a millimetre inside (the magnification varies smoothly over the view)."""
+    inside, outside = 0.0, 0.2
+    for _ in range(60):  # the largest Y still imaged, by bisection
+        middle = 0.5 * (inside + outside)
+        seen = np.isfinite(camera.project(np.array([[0.0, middle, 0.0]]))).all()
+        inside, outside = (middle, outside) if seen else (inside, middle)
+    points = np.array([[0.0, inside, 0.0], [0.0, inside - 1e-3, 0.0]])
+    edge, near = local_magnification(camera, points)
+    assert np.isfinite(edge) and abs(edge / near - 1) < 1e-3
