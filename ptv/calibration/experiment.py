@@ -70,6 +70,9 @@ class PlateSetup:
     listed : dict of str to list of TraverseDots
         The dots of ``calibration_dots``' lists, per camera and traverse position
         (empty with plate images).
+    threshold : {"global", "local"}
+        How the dot threshold is set on the plate images (``target.threshold``,
+        :func:`ptv.calibration.targets.find_dots`).
     """
 
     folder: Path
@@ -80,6 +83,7 @@ class PlateSetup:
     masks: Mapping[str, np.ndarray]
     seeds: Mapping[tuple[str, int], dict] = field(default_factory=dict)
     listed: Mapping[str, list[TraverseDots]] = field(default_factory=dict)
+    threshold: str = "global"
 
     @property
     def cameras(self) -> list[str]:
@@ -136,7 +140,8 @@ def plate_setup(folder: str | Path) -> PlateSetup:
             "the dots cannot be indexed"
         )
     masks = camera_masks(folder, spec, shapes)
-    return PlateSetup(folder, plate, z, sheets, images, masks, seeds)
+    threshold = spec["target"].get("threshold", "global")
+    return PlateSetup(folder, plate, z, sheets, images, masks, seeds, threshold=threshold)
 
 
 #: Columns of a seed-dot file.
@@ -307,7 +312,9 @@ def find_traverse_dots(
         for j, (z, path) in enumerate(zip(setup.z, paths, strict=True)):
             image = _masked(read_image(path), setup.masks.get(name))
             seeds = setup.seeds.get((name, j))
-            dots = find_dots(image, setup.plate, source=str(path), seeds=seeds)
+            dots = find_dots(
+                image, setup.plate, source=str(path), seeds=seeds, threshold=setup.threshold
+            )
             planes.append(TraverseDots(z, dots.indices, dots.pixels, setup.plate.pitch))
             if progress is not None:
                 progress()

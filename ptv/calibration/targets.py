@@ -16,6 +16,12 @@ Steps
    than background + max(k·σ, f·signal) (k = ``threshold_sigmas``, f = ``threshold_fraction``)
    form the dot mask: a low fraction of the signal keeps dimly back-lit dots (uneven
    lighting) whole. Dark dots on a bright plate are handled by inverting the image.
+   With ``threshold="local"`` both terms are local instead: the background is a
+   morphological opening (a minimum then a maximum filter over ``background_tile`` px)
+   of the lightly smoothed image, which follows any structure wider than a dot, a
+   saturated window included, and the signal is the largest value above it within
+   ``background_tile`` px, saturated pixels left out. A saturated region then raises
+   neither the background nor the threshold of the dots beside it.
 2. **Blobs.** 8-connected components (OpenCV). Specks smaller than ``min_area`` px are
    dropped. A blob is rejected when its measurement window (the blob grown by
    ``margin`` px) leaves the image (a dot cut by the edge), when two windows touch
@@ -80,6 +86,11 @@ _AREA_NEIGHBOURS = 12
 _MIN_AREA_RATIO = 0.4
 #: Above this times the expected mark/dot area ratio → not a dot.
 _MAX_MARK_RATIO = 1.6
+#: Box filter before the local background's opening, px: its minimum filter would
+#: otherwise follow the noise down (by ~4 σ over a 64 px square; by ~σ after the box).
+_LOCAL_SMOOTHING = 5
+#: How the dot mask's threshold is set (:func:`find_dots`).
+THRESHOLDS = ("global", "local")
 
 
 class NoTargetError(ValueError):
@@ -471,11 +482,20 @@ def _relative_area(centroid: np.ndarray, area: np.ndarray) -> np.ndarray:
 
 # -- the detector ---------------------------------------------------------------------------
 def _check_find_options(
-    description, threshold_fraction, threshold_sigmas, min_area, margin, ring, background_tile
+    description,
+    threshold,
+    threshold_fraction,
+    threshold_sigmas,
+    min_area,
+    margin,
+    ring,
+    background_tile,
 ) -> None:
     """Refuse options of :func:`find_dots` it cannot work with."""
     if not isinstance(description, PlateDescription):
         raise TypeError(f"description must be a PlateDescription, got {type(description).__name__}")
+    if threshold not in THRESHOLDS:
+        raise ValueError(f"threshold must be one of {', '.join(THRESHOLDS)}, got {threshold!r}")
     if not 0 < threshold_fraction < 1:
         raise ValueError(f"threshold_fraction must be in (0, 1), got {threshold_fraction!r}")
     if not threshold_sigmas > 0:
@@ -488,6 +508,58 @@ def _check_find_options(
     ):
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
             raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
+
+
+def _local_level(
+    signal: np.ndarray,
+    saturated_px: np.ndarray,
+    noise: float,
+    threshold_sigmas: float,
+    threshold_fraction: float,
+    window: int,
+    source: str,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The local background of every pixel and the dot mask's level above it.
+
+    Parameters
+    ----------
+    signal : ndarray, shape (H, W)
+        The image with the dots bright.
+    saturated_px : ndarray of bool, shape (H, W)
+        Pixels at the saturation level: left out of the local signal.
+    noise : float
+        Pixel noise σ, image units.
+    threshold_sigmas, threshold_fraction : float
+        k and f: the level is max(k σ, f × the local signal).
+    window : int
+        Side of the square of the opening and of the local maximum, px (wider than a dot).
+    source : str
+        The image's name for messages.
+
+    Returns
+    -------
+    background : ndarray, shape (H, W)
+        Opening of the image smoothed over :data:`_LOCAL_SMOOTHING` px, image units.
+    level : ndarray, shape (H, W)
+        max(k σ, f × the largest unsaturated value above the background within
+        ``window`` px), image units.
+
+    Raises
+    ------
+    NoTargetError
+        Nothing stands out of the noise anywhere.
+    """
+    square = cv2.getStructuringElement(cv2.MORPH_RECT, (window, window))
+    smooth = cv2.blur(signal.astype(np.float32), (_LOCAL_SMOOTHING, _LOCAL_SMOOTHING))
+    background = cv2.morphologyEx(smooth, cv2.MORPH_OPEN, square).astype(np.float64)
+    above = np.where(saturated_px, 0.0, signal - background).astype(np.float32)
+    peak = cv2.dilate(above, square).astype(np.float64)
+    if not peak.max() > threshold_sigmas * noise:
+        raise NoTargetError(
+            f"no target in {source}: nothing stands out of the noise (largest local signal "
+            f"{peak.max():.3g} above the background, noise σ {noise:.3g})"
+        )
+    return background, np.maximum(threshold_sigmas * noise, threshold_fraction * peak)
 
 
 def _mask_level(
@@ -588,7 +660,7 @@ def _plane_dots(
         image_size=(int(image_size[0]), int(image_size[1])),
         background=float(np.median(background)),
         noise=float(noise),
-        threshold=float(np.median(background) + level),
+        threshold=float(np.median(background + level)),
         source=source,
     )
 
@@ -606,6 +678,7 @@ def find_dots(
     background_tile: int = 64,
     saturation: float | None = None,
     seeds: Mapping[tuple[int, int], tuple[float, float]] | None = None,
+    threshold: str = "global",
 ) -> PlaneDots:
     """Detect, centre and index the dots of one plate image.
 
@@ -638,6 +711,11 @@ def find_dots(
         Seed dots: grid index (i, j) → approximate pixel (x, y) of three or more dots,
         not on a line (what OpenPTV's manual orientation asks for). They replace the
         marks: the grid grows from the dots nearest to them.
+    threshold : {"global", "local"}
+        "global": the background from tile medians and the signal the image's 99.9th
+        percentile above it; "local": both from the pixel's surroundings (an opening
+        and a local maximum over ``background_tile`` px, saturated pixels left out), so
+        that a saturated region does not raise the threshold of the dots elsewhere.
 
     Returns
     -------
@@ -658,13 +736,33 @@ def find_dots(
     raw = np.asarray(image)
     img = _check_image(raw, source)
     _check_find_options(
-        description, threshold_fraction, threshold_sigmas, min_area, margin, ring, background_tile
+        description,
+        threshold,
+        threshold_fraction,
+        threshold_sigmas,
+        min_area,
+        margin,
+        ring,
+        background_tile,
     )
     signal, saturated_px = _dot_signal(img, raw.dtype, description.dots, saturation)
     h, w = signal.shape
 
     background, noise = _background_and_noise(signal, background_tile)
-    level = _mask_level(signal - background, noise, threshold_sigmas, threshold_fraction, source)
+    if threshold == "local":
+        background, level = _local_level(
+            signal,
+            saturated_px,
+            noise,
+            threshold_sigmas,
+            threshold_fraction,
+            background_tile,
+            source,
+        )
+    else:
+        level = _mask_level(
+            signal - background, noise, threshold_sigmas, threshold_fraction, source
+        )
     blobs = _measure_blobs(
         signal,
         signal - background > level,
@@ -675,7 +773,7 @@ def find_dots(
         saturated_px=saturated_px,
     )
     reason = blobs.reason.copy()
-    mask = f"threshold {level:.3g} above background, noise σ {noise:.3g}"
+    mask = f"{threshold} threshold {np.median(level):.3g} above background, noise σ {noise:.3g}"
     rel = _sizes_against_neighbours(blobs, reason, description.mark_area_ratio, source, mask)
     usable = reason == ""
     pts = blobs.centroid

@@ -43,6 +43,7 @@ def test_a_complete_description_has_no_problem():
             "marks": {"origin": [0, 0], "x_axis": [2, 0], "y_axis": [0, 3]},
             "extent": [[-10, 10], [-10, 10]],
             "dots": "dark",
+            "threshold": "local",
         },
         "traverse_z": [-1e-3, 0.0, 1e-3],
         "calibration_images": "plates/{camera}_{j:02d}.png",

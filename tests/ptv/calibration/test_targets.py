@@ -292,13 +292,41 @@ def test_a_stray_blob_is_not_a_dot(stereo):
     assert "area" in dots.rejected_reasons
 
 
+def test_a_saturated_region_beside_the_plate_drives_the_global_threshold_not_the_local_one(
+    stereo,
+):
+    # The back-light fades to 20 % across the plate, and a bright window frame and a
+    # reflection beside it saturate the sensor (a quarter of the image).
+    shot = stereo[0, 6]
+    x = np.arange(shot.noisy.shape[1])
+    light = np.clip(1.0 - 0.8 * (x - 600) / 850, 0.2, 1.0)
+    image = (shot.noisy - SENSOR.offset) * light + SENSOR.offset
+    image[:, 1500:1560] = SENSOR.max_dn
+    image[100:700, 1650:] = SENSOR.max_dn
+    image = np.round(image).astype(np.uint16)
+    assert np.nanmax(shot.truth.centroid[:, 0]) < 1450  # the saturated pixels: off the plate
+    # The global threshold is a fifth of the saturated pixels' height: the dim dots fall
+    # below it.
+    globally = find_dots(image, DESCRIPTION)
+    _, wrong = errors(globally, shot.truth.centroid, shot.truth.indices)
+    assert wrong == 0 and len(globally) < 0.8 * 441
+    # The local one sees each dot against its own surroundings: every dot, well centred
+    # (noise on a fifth of the light: ~0.03 px RMS).
+    locally = find_dots(image, DESCRIPTION, threshold="local")
+    err, wrong = errors(locally, shot.truth.centroid, shot.truth.indices)
+    assert wrong == 0 and len(locally) == 441 and len(locally.missing) == 0
+    assert rms(err) < 0.05
+    assert locally.threshold < globally.threshold
+
+
 # -- errors ----------------------------------------------------------------------------------
 def test_noise_only_image_has_no_target():
     noise = SENSOR.record(np.zeros((1088, 2048)), np.random.default_rng(3))
-    with pytest.raises(NoTargetError, match=r"no target in dark\.tif"):
-        find_dots(noise, DESCRIPTION, source="dark.tif")
-    with pytest.raises(NoTargetError, match="no target"):
-        find_dots(np.zeros((200, 300)), DESCRIPTION)
+    for threshold in ("global", "local"):
+        with pytest.raises(NoTargetError, match=r"no target in dark\.tif"):
+            find_dots(noise, DESCRIPTION, source="dark.tif", threshold=threshold)
+        with pytest.raises(NoTargetError, match="no target"):
+            find_dots(np.zeros((200, 300)), DESCRIPTION, threshold=threshold)
 
 
 def test_few_blobs_are_no_target(stereo):
@@ -353,6 +381,8 @@ def test_bad_options(stereo):
         find_dots(image, DESCRIPTION, threshold_fraction=1.5)
     with pytest.raises(ValueError, match="margin"):
         find_dots(image, DESCRIPTION, margin=0)
+    with pytest.raises(ValueError, match="threshold must be one of global, local"):
+        find_dots(image, DESCRIPTION, threshold="median")
     with pytest.raises(TypeError, match="PlateDescription"):
         find_dots(image, DESIGN.as_dict())
 
