@@ -38,7 +38,10 @@ Steps
    grid index → pixel; the right one predicts the neighbouring dots (a wrong one
    predicts a lattice of the wrong spacing or orientation), so the assignment that
    matches the most detections near the marks wins. Mirrored or rotated images are
-   handled alike.
+   handled alike. A plate with a single mark (the one blob clearly larger than its
+   neighbours) takes its axes from the grid instead: of the two lattice directions at
+   the mark (its nearest neighbours), +i is the one pointing closest to the image
+   direction the description's ``axes`` names for it (within 40°), +j likewise.
 5. **Indexing.** From the marks the grid grows ring by ring: each unassigned
    neighbour of an indexed node is predicted by an affine map fitted to the indexed
    nodes within two grid steps (nearest indexed nodes if too few), and takes the
@@ -53,7 +56,7 @@ Steps
 
 Errors (``ValueError`` subclasses, naming ``source``): a non-2-D or non-real image,
 NaNs; :class:`NoTargetError` when too few dot-like blobs are seen;
-:class:`MarkersNotFoundError` when the three marks cannot be found or placed.
+:class:`MarkersNotFoundError` when the marks cannot be found or placed.
 """
 
 import logging
@@ -113,15 +116,19 @@ class PlateDescription:
         plate without marks.
     marks : dict of str to (int, int)
         Grid indices (i, j) of the three marks, e.g. ``{"origin": (0, 0),
-        "x_axis": (2, 0), "y_axis": (0, 3)}``; not collinear; empty for a plate without
-        marks (then every image needs seed dots, :func:`find_dots`). Plate coordinates
-        are (X, Y) = pitch·(i, j).
+        "x_axis": (2, 0), "y_axis": (0, 3)}``, not collinear; or of a single mark, with
+        ``axes``; empty for a plate without marks (then every image needs seed dots,
+        :func:`find_dots`). Plate coordinates are (X, Y) = pitch·(i, j).
     dots : str
         ``"bright"`` (back-lit dots on a dark plate) or ``"dark"`` (dark dots on a
         bright plate).
     extent : ((int, int), (int, int)) or None
         ((i_min, i_max), (j_min, j_max)), inclusive: the grid nodes the plate has.
         None when unknown (then only holes inside the found grid count as missing).
+    axes : (str, str) or None
+        With a single mark: the image directions of +i and +j, one of "right" and
+        "left" and one of "up" and "down" (e.g. ``("right", "up")``: i grows to the
+        right, j upwards), each within 40° of the grid's own directions on the images.
     """
 
     pitch: float
@@ -130,6 +137,7 @@ class PlateDescription:
     marks: Mapping[str, tuple[int, int]] = field(default_factory=dict)
     dots: str = "bright"
     extent: tuple[tuple[int, int], tuple[int, int]] | None = None
+    axes: tuple[str, str] | None = None
 
     def __post_init__(self) -> None:
         sizes = ("pitch", "dot_diameter") + (
@@ -156,15 +164,17 @@ class PlateDescription:
             )
         if self.dots not in ("bright", "dark"):
             raise ValueError(f"dots must be 'bright' or 'dark', got {self.dots!r}")
-        if not isinstance(self.marks, Mapping) or len(self.marks) not in (0, 3):
+        if not isinstance(self.marks, Mapping) or len(self.marks) not in (0, 1, 3):
             raise ValueError(
-                f"the plate needs three marks {{name: (i, j)}} or none, got {self.marks!r}"
+                f"the plate needs three marks {{name: (i, j)}}, one with its axes, or none, "
+                f"got {self.marks!r}"
             )
         marks = {str(k): _grid_pair(v, f"mark {k!r}") for k, v in self.marks.items()}
         g = np.array(list(marks.values()), dtype=float).reshape(-1, 2)
-        if marks and abs(np.linalg.det(np.column_stack([g, np.ones(3)]))) < 0.5:
+        if len(marks) == 3 and abs(np.linalg.det(np.column_stack([g, np.ones(3)]))) < 0.5:
             raise ValueError(f"the three marks must not be collinear, got {marks}")
         object.__setattr__(self, "marks", marks)
+        object.__setattr__(self, "axes", _axes(self.axes, len(marks)))
         if self.extent is not None:
             ext = np.asarray(self.extent)
             if ext.shape != (2, 2) or not np.issubdtype(ext.dtype, np.integer):
@@ -199,7 +209,8 @@ class PlateDescription:
         """Read the ``"target"`` entry of ``experiment.json`` (SI units).
 
         Required: ``pitch`` and ``dot_diameter`` (m). Optional: ``marks`` ({name: [i, j]},
-        three of them) with ``mark_diameter`` (m), absent for a plate without marks;
+        three of them, or one with ``axes``) with ``mark_diameter`` (m), absent for a
+        plate without marks;
         ``extent``
         ([[i_min, i_max], [j_min, j_max]]), or ``columns`` and ``rows``, which give
         the extent of synptv's layout with the origin mark in the middle of the grid
@@ -254,9 +265,29 @@ class PlateDescription:
                 },
                 dots=word,
                 extent=None if extent is None else tuple(tuple(e) for e in extent),
+                axes=spec.get("axes"),
             )
         except (ValueError, TypeError) as err:
             raise ValueError(f"{source}: {err}") from None
+
+
+def _axes(axes: object, marks: int) -> tuple[str, str] | None:
+    """``axes`` checked against the number of marks: a pair of image directions, one
+    horizontal and one vertical, for a single mark; None otherwise."""
+    if marks != 1:
+        if axes is not None:
+            raise ValueError(f"axes go with a single mark, the plate has {marks}")
+        return None
+    if axes is None:
+        raise ValueError("a single mark needs the axes: the image directions of +i and +j")
+    pair = tuple(axes) if isinstance(axes, list | tuple) else ()
+    horizontal = sum(word in ("right", "left") for word in pair)
+    vertical = sum(word in ("up", "down") for word in pair)
+    if not (len(pair) == 2 and horizontal == 1 and vertical == 1):
+        raise ValueError(
+            f"axes must name one of right and left and one of up and down, got {axes!r}"
+        )
+    return pair
 
 
 def _grid_pair(value: object, what: str) -> tuple[int, int]:
@@ -285,7 +316,7 @@ class PlaneDots:
     area : ndarray, shape (N,), int64
         Pixels of each dot above the threshold, px.
     flags : ndarray, shape (N,), uint8
-        Bit flags: :data:`FLAG_MARK` (one of the three marks), :data:`FLAG_SATURATED`
+        Bit flags: :data:`FLAG_MARK` (a mark), :data:`FLAG_SATURATED`
         (a pixel at the saturation level: the centroid may be biased).
     marks : dict of str to int
         Row of each mark (by its name in the description).

@@ -71,7 +71,7 @@ def test_every_problem_is_named_in_one_line(tmp_path):
         "cameras.cam1.pixel_pitch: required to calibrate",
         "dt: [0.0001]: the multi-Δt method needs at least two Δt values",
         "frames_per_dt: required to process particle images",
-        "target.marks: {} does not have enough properties",
+        "target.marks: {} should be non-empty",
         "target.pitch: -1.0 is less than or equal to the minimum of 0",
         "traverse_z: required to calibrate",
         "calibration_images: required to calibrate",
