@@ -9,7 +9,8 @@ fixes them all in one go, before any image is read.
 What a command needs beyond the schema's few required fields is asked for by name
 (:data:`NEEDS`): processing particles needs ``dt``, ``frames_per_dt`` and
 ``particle_images``; calibrating needs ``target``, ``traverse_z``,
-``calibration_images`` and every camera's ``pixel_pitch`` and ``focal_length``.
+``calibration_images`` (or dot lists instead, ``calibration_dots``) and every camera's
+``pixel_pitch`` and ``focal_length``.
 """
 
 import json
@@ -36,13 +37,18 @@ class DescriptionError(DatasetError):
     """A description that breaks the schema or lacks what a command needs (one line)."""
 
 
-#: Fields each use of a dataset needs, beyond the schema's required ones.
+#: Fields each use of a dataset needs, beyond the schema's required ones; a tuple is a
+#: choice (any one of them does).
 NEEDS = {
     "particles": ("dt", "frames_per_dt"),
-    "calibration": ("target", "traverse_z", "calibration_images"),
+    "calibration": ("target", "traverse_z", ("calibration_images", "calibration_dots")),
 }
 #: Fields a time-resolved description replaces.
 TIME_RESOLVED_REPLACES = ("dt", "frames_per_dt", "particle_images", "shared_first_frame")
+#: Fields dot lists (``calibration_dots``) replace.
+CALIBRATION_DOTS_REPLACES = ("calibration_images", "calibration_seeds")
+#: The file patterns each format of ``calibration_dots`` takes.
+DOTS_FORMAT_FIELDS = {"csv": ("files",), "openptv": ("crd", "fix")}
 #: What each need is for, as the messages say it.
 _VERB = {"particles": "process particle images", "calibration": "calibrate"}
 #: Camera fields calibrating needs.
@@ -77,11 +83,24 @@ def _message(error) -> str:
         return f"3-D PTV needs at least two cameras, got {list(error.instance)!r}"
     if path == ["cameras"] and error.validator == "pattern":  # from propertyNames
         return f"camera name: expected {FILE_NAME_RULE}, got {error.instance!r}"
-    if error.validator == "not" and path == []:  # the fields time_resolved replaces
+    if error.validator == "not" and path == []:  # the fields a dependentSchema refuses
+        owner = error.relative_schema_path[1]
+        if owner == "calibration_dots":
+            given = [f for f in CALIBRATION_DOTS_REPLACES if f in error.instance]
+            return f"calibration_dots gives the dots: leave out {', '.join(given)}"
         given = [f for f in TIME_RESOLVED_REPLACES if f in error.instance]
         return (
             f"time_resolved gives the Δt values and the frame pairs: leave out {', '.join(given)}"
         )
+    if error.validator == "not" and path == ["calibration_dots"]:  # another format's files
+        chosen = error.instance["format"]
+        alien = [
+            f
+            for fields in DOTS_FORMAT_FIELDS.values()
+            for f in fields
+            if f in error.instance and f not in DOTS_FORMAT_FIELDS[chosen]
+        ]
+        return f"format {chosen!r} takes {' and '.join(DOTS_FORMAT_FIELDS[chosen])}, not {alien[0]}"
     known = error.schema.get("properties", {})
     if error.validator == "additionalProperties" and known:
         unknown = ", ".join(repr(k) for k in error.instance if k not in known)
@@ -113,11 +132,12 @@ def description_problems(spec: object, needs: Iterable[str] = ()) -> list[str]:
         for need in needs:
             if need == "particles" and "time_resolved" in spec:
                 continue  # it gives the Δt values and the frame pairs
-            problems += [
-                ([field], f"{field}: required to {_VERB[need]}")
-                for field in NEEDS[need]
-                if field not in spec
-            ]
+            for field in NEEDS[need]:
+                choice = (field,) if isinstance(field, str) else field
+                if not any(f in spec for f in choice):
+                    text = f"{choice[0]}: required to {_VERB[need]}"
+                    text += f" (or {', '.join(choice[1:])})" if len(choice) > 1 else ""
+                    problems.append(([choice[0]], text))
             if need == "particles" and spec.get("particle_images", "") is None:
                 problems.append((["particle_images"], "particle_images: null, no particle images"))
         cameras = spec.get("cameras")

@@ -628,8 +628,10 @@ def _add_calibrate_parser(sub) -> None:
     """The ``synptv calibrate`` subcommand."""
     cal = sub.add_parser(
         "calibrate",
-        help="calibrate a dataset's cameras from its plate images; print the Table 1 metric",
-        description="Find and index the dots on every plate image of a dataset folder, "
+        help="calibrate a dataset's cameras from its plate images (or dot lists); print the "
+        "Table 1 metric",
+        description="Find and index the dots on every plate image of a dataset folder (or "
+        "read the dot lists its experiment.json names instead), "
         "calibrate each camera with each method, write one calibration file per method "
         "and print the paper's Table 1 metric (against the nominal dot positions, and "
         "against the true centres when the folder holds truth.h5).",

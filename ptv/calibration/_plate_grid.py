@@ -1,5 +1,6 @@
 """Steps 4 to 6 of finding a plate's dots (:mod:`ptv.calibration.targets`): placing the
-three marks, indexing the dots on the grid from them, and the grid nodes missed."""
+three marks (or the single mark and the axes), indexing the dots on the grid from them,
+and the grid nodes missed."""
 
 from __future__ import annotations
 
@@ -31,6 +32,13 @@ _MAX_MARK_CANDIDATES = 6
 _OUTLIER_TOL = 0.25
 #: Index support radius (Chebyshev, grid steps) of the local affine predictions.
 _SUPPORT_RADIUS = 2
+#: Image direction of each word a single mark's axes are given in (x right, y down).
+AXIS_DIRECTIONS = {"right": (1.0, 0.0), "left": (-1.0, 0.0), "up": (0.0, -1.0), "down": (0.0, 1.0)}
+#: Largest angle between a given axis direction and the grid direction taken for it,
+#: deg: below 45°, so a grid turned by 45° on the image is refused, not guessed.
+_AXIS_TOLERANCE_DEG = 40.0
+#: Neighbours of the single mark searched for the two lattice directions.
+_AXIS_NEIGHBOURS = 8
 
 
 class MarkersNotFoundError(ValueError):
@@ -154,6 +162,78 @@ def _locate_marks(
     return best[1]
 
 
+def _single_mark(
+    usable: np.ndarray, relative_area: np.ndarray, description: PlateDescription, source: str
+) -> dict[str, int]:
+    """The row of a plate's single mark: the one usable blob clearly larger than its
+    neighbours (more than √((D_mark/D_dot)²) times their median area)."""
+    ratio = description.mark_area_ratio
+    mark_like = np.flatnonzero(usable & (relative_area > np.sqrt(ratio)))
+    if len(mark_like) != 1:
+        raise MarkersNotFoundError(
+            f"markers not found in {source}: {len(mark_like)} blob(s) are more than "
+            f"{np.sqrt(ratio):.2f}× the area of their neighbours, need the one mark "
+            f"(area ratio {ratio:.2f} expected)"
+        )
+    name = next(iter(description.marks))
+    return {name: int(mark_like[0])}
+
+
+def _axes_start(
+    pts: np.ndarray,
+    tree: cKDTree,
+    usable: np.ndarray,
+    mark: int,
+    description: PlateDescription,
+    source: str,
+) -> dict[tuple[int, int], int]:
+    """The single mark and one neighbour along each axis, grid index → row in ``pts``.
+
+    The two lattice directions at the mark are its nearest usable neighbour and the
+    nearest one at more than 60° from it; +i (+j) is the one of ±either closest to the
+    image direction ``description.axes`` names, which must lie within
+    :data:`_AXIS_TOLERANCE_DEG`. The neighbour taken is the dot one step along it, or
+    one step back where the mark sits on the plate's edge.
+    """
+    centre = pts[mark]
+    k = min(_AXIS_NEIGHBOURS + 1, int(usable.sum()))
+    _, rows = tree.query(centre, k=k)
+    steps = pts[rows[1:]] - centre
+    steps = steps[np.argsort(np.linalg.norm(steps, axis=1), kind="stable")]
+    unit = steps / np.linalg.norm(steps, axis=1)[:, None]
+    across = np.flatnonzero(np.abs(unit @ unit[0]) < 0.5)
+    if len(across) == 0:
+        raise MarkersNotFoundError(
+            f"markers not found in {source}: the dots around the mark do not form a grid"
+        )
+    lattice = np.array([steps[0], -steps[0], steps[across[0]], -steps[across[0]]])
+    cosine = np.cos(np.radians(_AXIS_TOLERANCE_DEG))
+    node = np.array(next(iter(description.marks.values())))
+    start = {tuple(int(v) for v in node): mark}
+    for axis, word, unit_step in zip("ij", description.axes, ((1, 0), (0, 1)), strict=True):
+        direction = np.array(AXIS_DIRECTIONS[word])
+        along = lattice @ direction / np.linalg.norm(lattice, axis=1)
+        best = int(np.argmax(along))
+        if along[best] < cosine:
+            angle = np.degrees(np.arccos(np.clip(along[best], -1.0, 1.0)))
+            raise MarkersNotFoundError(
+                f"markers not found in {source}: no grid direction at the mark points "
+                f"{word} (the nearest is {angle:.0f}° off, more than "
+                f"{_AXIS_TOLERANCE_DEG:.0f}°): check the target's axes"
+            )
+        step = lattice[best]
+        for sign in (1, -1):
+            dist, row = tree.query(centre + sign * step)
+            if dist < _MATCH_TOL * np.linalg.norm(step):
+                start[tuple(int(v) for v in node + sign * np.array(unit_step))] = int(row)
+                break
+        else:
+            raise MarkersNotFoundError(
+                f"markers not found in {source}: no dot next to the mark along axis {axis}"
+            )
+    return start
+
+
 # -- indexing ------------------------------------------------------------------------------
 def _local_affine(nodes: np.ndarray, pix: np.ndarray, target: np.ndarray) -> np.ndarray | None:
     """Affine (3, 2) index → pixel fitted to indexed nodes near ``target`` (2,)."""
@@ -266,9 +346,10 @@ def index_grid(
     seeds: dict[tuple[int, int], tuple[float, float]] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, int], np.ndarray]:
     """Place the marks among the ``usable`` blobs larger than their neighbours (by
-    ``relative_area``, largest first), or take the dots the ``seeds`` name (grid index →
-    pixel, given by the user), grow the grid from them over the usable blobs and drop
-    the gross outliers of a cubic grid fit. ``dot_area`` is a dot's area, px.
+    ``relative_area``, largest first), the single mark and its axes, or take the dots
+    the ``seeds`` name (grid index → pixel, given by the user), grow the grid from them
+    over the usable blobs and drop the gross outliers of a cubic grid fit.
+    ``dot_area`` is a dot's area, px.
 
     Returns
     -------
@@ -285,6 +366,9 @@ def index_grid(
     pitch_px = 2.0 * np.sqrt(dot_area / np.pi) * description.pitch / description.dot_diameter
     if seeds:
         start, mark_rows = _seed_rows(pts, tree, seeds, pitch_px, source), {}
+    elif len(description.marks) == 1:
+        mark_rows = _single_mark(usable, relative_area, description, source)
+        start = _axes_start(pts, tree, usable, *mark_rows.values(), description, source)
     else:
         mark_rows = _marks(
             pts, tree, usable, relative_area, description, pitch_px, image_size, source

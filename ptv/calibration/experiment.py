@@ -4,12 +4,14 @@ What a real experiment provides is enough: experiment.json (checked against its 
 up front, :mod:`ptv.experiment`) with the plate (``target``), the traverse readings
 (``traverse_z``), the plate images' pattern (``calibration_images``) and each camera's
 pixel pitch and focal length, optionally a mask per camera and seed dots (a CSV file,
-``calibration_seeds``, :func:`read_seed_dots`) for plates without marks. :func:`plate_setup` reads
-and checks all of it, and every plate image (present, readable, of the declared size,
-no two alike), before any dot is searched; :func:`find_traverse_dots` finds and indexes
-the dots; :func:`calibrate_cameras` fits one calibration per camera; Table 1 against the
-nominal grid is :func:`ptv.calibration.grid_errors.table1_errors` with
-:func:`nominal_grid`.
+``calibration_seeds``, :func:`read_seed_dots`) for plates without marks. Instead of
+images, ``calibration_dots`` may name lists of dots another program found and indexed
+(:mod:`ptv.calibration.dot_lists`). :func:`plate_setup` reads and checks all of it, and
+every plate image (present, readable, of the declared size, no two alike) or dot list,
+before any dot is searched; :func:`find_traverse_dots` finds and indexes the dots (or
+hands over the listed ones); :func:`calibrate_cameras` fits one calibration per camera;
+Table 1 against the nominal grid is :func:`ptv.calibration.grid_errors.table1_errors`
+with :func:`nominal_grid`.
 """
 
 import csv
@@ -21,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ptv.calibration.dot_lists import read_csv_dots, read_openptv_dots
 from ptv.calibration.grid_errors import TraverseDots, nominal_positions
 from ptv.calibration.methods import CameraSheet, calibrate
 from ptv.calibration.targets import PlateDescription, find_dots
@@ -59,11 +62,17 @@ class PlateSetup:
     sheets : dict of str to CameraSheet
         Each camera's image size, pixel pitch and focal length, in experiment.json's order.
     images : dict of str to list of Path
-        Each camera's plate image per traverse position.
+        Each camera's plate image per traverse position (empty with dot lists).
     masks : dict of str to ndarray of bool, shape (H, W)
         The masks of the cameras that have one (True where the image is used).
     seeds : dict of (str, int) to dict of (int, int) to (float, float)
         Seed dots of (camera, plate position): grid index → pixel (empty: the marks).
+    listed : dict of str to list of TraverseDots
+        The dots of ``calibration_dots``' lists, per camera and traverse position
+        (empty with plate images).
+    threshold : {"global", "local"}
+        How the dot threshold is set on the plate images (``target.threshold``,
+        :func:`ptv.calibration.targets.find_dots`).
     """
 
     folder: Path
@@ -73,6 +82,8 @@ class PlateSetup:
     images: dict[str, list[Path]]
     masks: Mapping[str, np.ndarray]
     seeds: Mapping[tuple[str, int], dict] = field(default_factory=dict)
+    listed: Mapping[str, list[TraverseDots]] = field(default_factory=dict)
+    threshold: str = "global"
 
     @property
     def cameras(self) -> list[str]:
@@ -86,13 +97,15 @@ def plate_setup(folder: str | Path) -> PlateSetup:
     Raises
     ------
     FileNotFoundError
-        No experiment.json, or a plate image missing.
+        No experiment.json, or a plate image or dot list missing.
     ptv.experiment.DescriptionError
         experiment.json breaks its schema or lacks a field calibrating needs (all the
         problems in one line).
     DatasetError
-        A bad plate description, a bad ``calibration_images`` pattern, a plate image of
-        the wrong size, or two plate images alike (a stuck traverse).
+        A bad plate description, a bad ``calibration_images`` or ``calibration_dots``
+        pattern, a plate image of the wrong size, two plate images alike or two dot
+        lists at the same pixels (a stuck traverse), or a bad dot list
+        (:class:`ptv.calibration.dot_lists.DotListError`).
     ptv.images.ImageError
         A plate image or a mask that cannot be read, or a mask of the wrong size.
     """
@@ -108,8 +121,12 @@ def plate_setup(folder: str | Path) -> PlateSetup:
         for name, info in spec["cameras"].items()
     }
     z = [float(v) for v in spec["traverse_z"]]
+    if "calibration_dots" in spec:
+        listed = _listed_dots(folder, spec["calibration_dots"], plate, sheets, z)
+        return PlateSetup(folder, plate, z, sheets, {}, {}, listed=listed)
     images = {
-        name: _plate_paths(folder, spec["calibration_images"], name, len(z)) for name in sheets
+        name: _file_paths(folder, spec["calibration_images"], "calibration_images", name, len(z))
+        for name in sheets
     }
     shapes = {name: (sheet.image_size[1], sheet.image_size[0]) for name, sheet in sheets.items()}
     for name, paths in images.items():
@@ -123,7 +140,8 @@ def plate_setup(folder: str | Path) -> PlateSetup:
             "the dots cannot be indexed"
         )
     masks = camera_masks(folder, spec, shapes)
-    return PlateSetup(folder, plate, z, sheets, images, masks, seeds)
+    threshold = spec["target"].get("threshold", "global")
+    return PlateSetup(folder, plate, z, sheets, images, masks, seeds, threshold=threshold)
 
 
 #: Columns of a seed-dot file.
@@ -177,19 +195,56 @@ def read_seed_dots(
     return seeds
 
 
-def _plate_paths(folder: Path, pattern: str, camera: str, planes: int) -> list[Path]:
-    """The plate images of ``camera`` from experiment.json's pattern, each present."""
+def _file_paths(
+    folder: Path, pattern: str, field: str, camera: str, planes: int, first_j: int = 0
+) -> list[Path]:
+    """The files of ``camera`` experiment.json's ``field`` names by ``pattern``, one per
+    traverse position ({j} from ``first_j``), each present."""
     try:
-        paths = [folder / pattern.format(camera=camera, j=j) for j in range(planes)]
+        paths = [folder / pattern.format(camera=camera, j=first_j + j) for j in range(planes)]
     except (KeyError, IndexError, ValueError) as err:
         raise DatasetError(
-            f"{folder / 'experiment.json'}: bad 'calibration_images' pattern {pattern!r} "
+            f"{folder / 'experiment.json'}: bad '{field}' pattern {pattern!r} "
             f"(use {{camera}} and {{j}}: {err})"
         ) from None
     missing = [path for path in paths if not path.is_file()]
     if missing:
-        raise FileNotFoundError(f"{missing[0]}: plate image missing ({len(missing)} of {planes})")
+        what = "plate image" if field == "calibration_images" else "dot list"
+        raise FileNotFoundError(f"{missing[0]}: {what} missing ({len(missing)} of {planes})")
     return paths
+
+
+def _listed_dots(
+    folder: Path,
+    dots: Mapping,
+    plate: PlateDescription,
+    sheets: Mapping[str, CameraSheet],
+    z: Sequence[float],
+) -> dict[str, list[TraverseDots]]:
+    """The dots of experiment.json's ``calibration_dots`` lists, per camera and traverse
+    position, every list checked (:mod:`ptv.calibration.dot_lists`)."""
+    first_j = dots.get("first_j", 0)
+    listed = {}
+    for name, sheet in sheets.items():
+        if dots["format"] == "csv":
+            paths = _file_paths(
+                folder, dots["files"], "calibration_dots.files", name, len(z), first_j
+            )
+            read = [read_csv_dots(path, plate, sheet.image_size) for path in paths]
+        else:
+            paths = _file_paths(folder, dots["crd"], "calibration_dots.crd", name, len(z), first_j)
+            fixes = _file_paths(folder, dots["fix"], "calibration_dots.fix", name, len(z), first_j)
+            read = [
+                read_openptv_dots(crd, fix, plate, zj, sheet.image_size)
+                for crd, fix, zj in zip(paths, fixes, z, strict=True)
+            ]
+        planes = [
+            TraverseDots(zj, indices, pixels, plate.pitch)
+            for zj, (indices, pixels) in zip(z, read, strict=True)
+        ]
+        _check_traverse_moved(planes, paths)
+        listed[name] = planes
+    return listed
 
 
 def _check_plate_images(paths: list[Path], shape: tuple[int, int]) -> None:
@@ -234,7 +289,8 @@ def find_traverse_dots(
     Returns
     -------
     dict of str to list of TraverseDots
-        Per camera (experiment.json's order), one entry per traverse position.
+        Per camera (experiment.json's order), one entry per traverse position; with dot
+        lists, the listed dots (``setup.listed``; ``progress`` is called once per list).
 
     Raises
     ------
@@ -245,13 +301,20 @@ def find_traverse_dots(
     DatasetError
         Two traverse positions whose dots sit at the same pixels (a stuck traverse).
     """
+    if setup.listed:
+        if progress is not None:
+            for _ in itertools.chain.from_iterable(setup.listed.values()):
+                progress()
+        return dict(setup.listed)
     found = {}
     for name, paths in setup.images.items():
         planes = []
         for j, (z, path) in enumerate(zip(setup.z, paths, strict=True)):
             image = _masked(read_image(path), setup.masks.get(name))
             seeds = setup.seeds.get((name, j))
-            dots = find_dots(image, setup.plate, source=str(path), seeds=seeds)
+            dots = find_dots(
+                image, setup.plate, source=str(path), seeds=seeds, threshold=setup.threshold
+            )
             planes.append(TraverseDots(z, dots.indices, dots.pixels, setup.plate.pitch))
             if progress is not None:
                 progress()

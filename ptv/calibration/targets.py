@@ -16,6 +16,12 @@ Steps
    than background + max(k·σ, f·signal) (k = ``threshold_sigmas``, f = ``threshold_fraction``)
    form the dot mask: a low fraction of the signal keeps dimly back-lit dots (uneven
    lighting) whole. Dark dots on a bright plate are handled by inverting the image.
+   With ``threshold="local"`` both terms are local instead: the background is a
+   morphological opening (a minimum then a maximum filter over ``background_tile`` px)
+   of the lightly smoothed image, which follows any structure wider than a dot, a
+   saturated window included, and the signal is the largest value above it within
+   ``background_tile`` px, saturated pixels left out. A saturated region then raises
+   neither the background nor the threshold of the dots beside it.
 2. **Blobs.** 8-connected components (OpenCV). Specks smaller than ``min_area`` px are
    dropped. A blob is rejected when its measurement window (the blob grown by
    ``margin`` px) leaves the image (a dot cut by the edge), when two windows touch
@@ -32,7 +38,10 @@ Steps
    grid index → pixel; the right one predicts the neighbouring dots (a wrong one
    predicts a lattice of the wrong spacing or orientation), so the assignment that
    matches the most detections near the marks wins. Mirrored or rotated images are
-   handled alike.
+   handled alike. A plate with a single mark (the one blob clearly larger than its
+   neighbours) takes its axes from the grid instead: of the two lattice directions at
+   the mark (its nearest neighbours), +i is the one pointing closest to the image
+   direction the description's ``axes`` names for it (within 40°), +j likewise.
 5. **Indexing.** From the marks the grid grows ring by ring: each unassigned
    neighbour of an indexed node is predicted by an affine map fitted to the indexed
    nodes within two grid steps (nearest indexed nodes if too few), and takes the
@@ -47,7 +56,7 @@ Steps
 
 Errors (``ValueError`` subclasses, naming ``source``): a non-2-D or non-real image,
 NaNs; :class:`NoTargetError` when too few dot-like blobs are seen;
-:class:`MarkersNotFoundError` when the three marks cannot be found or placed.
+:class:`MarkersNotFoundError` when the marks cannot be found or placed.
 """
 
 import logging
@@ -80,6 +89,11 @@ _AREA_NEIGHBOURS = 12
 _MIN_AREA_RATIO = 0.4
 #: Above this times the expected mark/dot area ratio → not a dot.
 _MAX_MARK_RATIO = 1.6
+#: Box filter before the local background's opening, px: its minimum filter would
+#: otherwise follow the noise down (by ~4 σ over a 64 px square; by ~σ after the box).
+_LOCAL_SMOOTHING = 5
+#: How the dot mask's threshold is set (:func:`find_dots`).
+THRESHOLDS = ("global", "local")
 
 
 class NoTargetError(ValueError):
@@ -102,15 +116,19 @@ class PlateDescription:
         plate without marks.
     marks : dict of str to (int, int)
         Grid indices (i, j) of the three marks, e.g. ``{"origin": (0, 0),
-        "x_axis": (2, 0), "y_axis": (0, 3)}``; not collinear; empty for a plate without
-        marks (then every image needs seed dots, :func:`find_dots`). Plate coordinates
-        are (X, Y) = pitch·(i, j).
+        "x_axis": (2, 0), "y_axis": (0, 3)}``, not collinear; or of a single mark, with
+        ``axes``; empty for a plate without marks (then every image needs seed dots,
+        :func:`find_dots`). Plate coordinates are (X, Y) = pitch·(i, j).
     dots : str
         ``"bright"`` (back-lit dots on a dark plate) or ``"dark"`` (dark dots on a
         bright plate).
     extent : ((int, int), (int, int)) or None
         ((i_min, i_max), (j_min, j_max)), inclusive: the grid nodes the plate has.
         None when unknown (then only holes inside the found grid count as missing).
+    axes : (str, str) or None
+        With a single mark: the image directions of +i and +j, one of "right" and
+        "left" and one of "up" and "down" (e.g. ``("right", "up")``: i grows to the
+        right, j upwards), each within 40° of the grid's own directions on the images.
     """
 
     pitch: float
@@ -119,6 +137,7 @@ class PlateDescription:
     marks: Mapping[str, tuple[int, int]] = field(default_factory=dict)
     dots: str = "bright"
     extent: tuple[tuple[int, int], tuple[int, int]] | None = None
+    axes: tuple[str, str] | None = None
 
     def __post_init__(self) -> None:
         sizes = ("pitch", "dot_diameter") + (
@@ -145,15 +164,17 @@ class PlateDescription:
             )
         if self.dots not in ("bright", "dark"):
             raise ValueError(f"dots must be 'bright' or 'dark', got {self.dots!r}")
-        if not isinstance(self.marks, Mapping) or len(self.marks) not in (0, 3):
+        if not isinstance(self.marks, Mapping) or len(self.marks) not in (0, 1, 3):
             raise ValueError(
-                f"the plate needs three marks {{name: (i, j)}} or none, got {self.marks!r}"
+                f"the plate needs three marks {{name: (i, j)}}, one with its axes, or none, "
+                f"got {self.marks!r}"
             )
         marks = {str(k): _grid_pair(v, f"mark {k!r}") for k, v in self.marks.items()}
         g = np.array(list(marks.values()), dtype=float).reshape(-1, 2)
-        if marks and abs(np.linalg.det(np.column_stack([g, np.ones(3)]))) < 0.5:
+        if len(marks) == 3 and abs(np.linalg.det(np.column_stack([g, np.ones(3)]))) < 0.5:
             raise ValueError(f"the three marks must not be collinear, got {marks}")
         object.__setattr__(self, "marks", marks)
+        object.__setattr__(self, "axes", _axes(self.axes, len(marks)))
         if self.extent is not None:
             ext = np.asarray(self.extent)
             if ext.shape != (2, 2) or not np.issubdtype(ext.dtype, np.integer):
@@ -188,7 +209,8 @@ class PlateDescription:
         """Read the ``"target"`` entry of ``experiment.json`` (SI units).
 
         Required: ``pitch`` and ``dot_diameter`` (m). Optional: ``marks`` ({name: [i, j]},
-        three of them) with ``mark_diameter`` (m), absent for a plate without marks;
+        three of them, or one with ``axes``) with ``mark_diameter`` (m), absent for a
+        plate without marks;
         ``extent``
         ([[i_min, i_max], [j_min, j_max]]), or ``columns`` and ``rows``, which give
         the extent of synptv's layout with the origin mark in the middle of the grid
@@ -243,9 +265,29 @@ class PlateDescription:
                 },
                 dots=word,
                 extent=None if extent is None else tuple(tuple(e) for e in extent),
+                axes=spec.get("axes"),
             )
         except (ValueError, TypeError) as err:
             raise ValueError(f"{source}: {err}") from None
+
+
+def _axes(axes: object, marks: int) -> tuple[str, str] | None:
+    """``axes`` checked against the number of marks: a pair of image directions, one
+    horizontal and one vertical, for a single mark; None otherwise."""
+    if marks != 1:
+        if axes is not None:
+            raise ValueError(f"axes go with a single mark, the plate has {marks}")
+        return None
+    if axes is None:
+        raise ValueError("a single mark needs the axes: the image directions of +i and +j")
+    pair = tuple(axes) if isinstance(axes, list | tuple) else ()
+    horizontal = sum(word in ("right", "left") for word in pair)
+    vertical = sum(word in ("up", "down") for word in pair)
+    if not (len(pair) == 2 and horizontal == 1 and vertical == 1):
+        raise ValueError(
+            f"axes must name one of right and left and one of up and down, got {axes!r}"
+        )
+    return pair
 
 
 def _grid_pair(value: object, what: str) -> tuple[int, int]:
@@ -274,7 +316,7 @@ class PlaneDots:
     area : ndarray, shape (N,), int64
         Pixels of each dot above the threshold, px.
     flags : ndarray, shape (N,), uint8
-        Bit flags: :data:`FLAG_MARK` (one of the three marks), :data:`FLAG_SATURATED`
+        Bit flags: :data:`FLAG_MARK` (a mark), :data:`FLAG_SATURATED`
         (a pixel at the saturation level: the centroid may be biased).
     marks : dict of str to int
         Row of each mark (by its name in the description).
@@ -471,11 +513,20 @@ def _relative_area(centroid: np.ndarray, area: np.ndarray) -> np.ndarray:
 
 # -- the detector ---------------------------------------------------------------------------
 def _check_find_options(
-    description, threshold_fraction, threshold_sigmas, min_area, margin, ring, background_tile
+    description,
+    threshold,
+    threshold_fraction,
+    threshold_sigmas,
+    min_area,
+    margin,
+    ring,
+    background_tile,
 ) -> None:
     """Refuse options of :func:`find_dots` it cannot work with."""
     if not isinstance(description, PlateDescription):
         raise TypeError(f"description must be a PlateDescription, got {type(description).__name__}")
+    if threshold not in THRESHOLDS:
+        raise ValueError(f"threshold must be one of {', '.join(THRESHOLDS)}, got {threshold!r}")
     if not 0 < threshold_fraction < 1:
         raise ValueError(f"threshold_fraction must be in (0, 1), got {threshold_fraction!r}")
     if not threshold_sigmas > 0:
@@ -488,6 +539,58 @@ def _check_find_options(
     ):
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
             raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
+
+
+def _local_level(
+    signal: np.ndarray,
+    saturated_px: np.ndarray,
+    noise: float,
+    threshold_sigmas: float,
+    threshold_fraction: float,
+    window: int,
+    source: str,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The local background of every pixel and the dot mask's level above it.
+
+    Parameters
+    ----------
+    signal : ndarray, shape (H, W)
+        The image with the dots bright.
+    saturated_px : ndarray of bool, shape (H, W)
+        Pixels at the saturation level: left out of the local signal.
+    noise : float
+        Pixel noise σ, image units.
+    threshold_sigmas, threshold_fraction : float
+        k and f: the level is max(k σ, f × the local signal).
+    window : int
+        Side of the square of the opening and of the local maximum, px (wider than a dot).
+    source : str
+        The image's name for messages.
+
+    Returns
+    -------
+    background : ndarray, shape (H, W)
+        Opening of the image smoothed over :data:`_LOCAL_SMOOTHING` px, image units.
+    level : ndarray, shape (H, W)
+        max(k σ, f × the largest unsaturated value above the background within
+        ``window`` px), image units.
+
+    Raises
+    ------
+    NoTargetError
+        Nothing stands out of the noise anywhere.
+    """
+    square = cv2.getStructuringElement(cv2.MORPH_RECT, (window, window))
+    smooth = cv2.blur(signal.astype(np.float32), (_LOCAL_SMOOTHING, _LOCAL_SMOOTHING))
+    background = cv2.morphologyEx(smooth, cv2.MORPH_OPEN, square).astype(np.float64)
+    above = np.where(saturated_px, 0.0, signal - background).astype(np.float32)
+    peak = cv2.dilate(above, square).astype(np.float64)
+    if not peak.max() > threshold_sigmas * noise:
+        raise NoTargetError(
+            f"no target in {source}: nothing stands out of the noise (largest local signal "
+            f"{peak.max():.3g} above the background, noise σ {noise:.3g})"
+        )
+    return background, np.maximum(threshold_sigmas * noise, threshold_fraction * peak)
 
 
 def _mask_level(
@@ -588,7 +691,7 @@ def _plane_dots(
         image_size=(int(image_size[0]), int(image_size[1])),
         background=float(np.median(background)),
         noise=float(noise),
-        threshold=float(np.median(background) + level),
+        threshold=float(np.median(background + level)),
         source=source,
     )
 
@@ -606,6 +709,7 @@ def find_dots(
     background_tile: int = 64,
     saturation: float | None = None,
     seeds: Mapping[tuple[int, int], tuple[float, float]] | None = None,
+    threshold: str = "global",
 ) -> PlaneDots:
     """Detect, centre and index the dots of one plate image.
 
@@ -638,6 +742,11 @@ def find_dots(
         Seed dots: grid index (i, j) → approximate pixel (x, y) of three or more dots,
         not on a line (what OpenPTV's manual orientation asks for). They replace the
         marks: the grid grows from the dots nearest to them.
+    threshold : {"global", "local"}
+        "global": the background from tile medians and the signal the image's 99.9th
+        percentile above it; "local": both from the pixel's surroundings (an opening
+        and a local maximum over ``background_tile`` px, saturated pixels left out), so
+        that a saturated region does not raise the threshold of the dots elsewhere.
 
     Returns
     -------
@@ -658,13 +767,33 @@ def find_dots(
     raw = np.asarray(image)
     img = _check_image(raw, source)
     _check_find_options(
-        description, threshold_fraction, threshold_sigmas, min_area, margin, ring, background_tile
+        description,
+        threshold,
+        threshold_fraction,
+        threshold_sigmas,
+        min_area,
+        margin,
+        ring,
+        background_tile,
     )
     signal, saturated_px = _dot_signal(img, raw.dtype, description.dots, saturation)
     h, w = signal.shape
 
     background, noise = _background_and_noise(signal, background_tile)
-    level = _mask_level(signal - background, noise, threshold_sigmas, threshold_fraction, source)
+    if threshold == "local":
+        background, level = _local_level(
+            signal,
+            saturated_px,
+            noise,
+            threshold_sigmas,
+            threshold_fraction,
+            background_tile,
+            source,
+        )
+    else:
+        level = _mask_level(
+            signal - background, noise, threshold_sigmas, threshold_fraction, source
+        )
     blobs = _measure_blobs(
         signal,
         signal - background > level,
@@ -675,7 +804,7 @@ def find_dots(
         saturated_px=saturated_px,
     )
     reason = blobs.reason.copy()
-    mask = f"threshold {level:.3g} above background, noise σ {noise:.3g}"
+    mask = f"{threshold} threshold {np.median(level):.3g} above background, noise σ {noise:.3g}"
     rel = _sizes_against_neighbours(blobs, reason, description.mark_area_ratio, source, mask)
     usable = reason == ""
     pts = blobs.centroid

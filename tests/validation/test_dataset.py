@@ -193,6 +193,24 @@ def test_png_plates_under_their_own_pattern_calibrate_as_the_tiff_ones(dataset, 
             np.testing.assert_array_equal(a.pixels, b.pixels)
 
 
+def test_a_local_threshold_finds_the_same_dots_as_the_global_one(dataset, tmp_path):
+    from ptv.calibration.experiment import find_traverse_dots, plate_setup
+
+    out, _ = dataset
+    local = tmp_path / "local"
+    shutil.copytree(out, local, copy_function=os.symlink)
+    spec = json.loads((out / "experiment.json").read_text())
+    spec["target"]["threshold"] = "local"
+    (local / "experiment.json").unlink()
+    (local / "experiment.json").write_text(json.dumps(spec))
+    found = {folder: find_traverse_dots(plate_setup(folder)) for folder in (out, local)}
+    for name in spec["cameras"]:
+        for a, b in zip(found[out][name], found[local][name], strict=True):
+            np.testing.assert_array_equal(a.indices, b.indices)
+            # The centroid window grows from a slightly different mask: ~0.001 px apart.
+            np.testing.assert_allclose(a.pixels, b.pixels, atol=0.01)
+
+
 def test_calibrate_command_on_a_folder_that_is_no_dataset(capsys, tmp_path):
     assert main(["calibrate", "--dataset", str(tmp_path), "--quiet"]) == 2
     assert "is not a dataset" in capsys.readouterr().err
@@ -233,6 +251,8 @@ def _spoil_experiment(spec: dict, case: str) -> None:
         next(iter(spec["cameras"].values()))["image_size"] = "2048x1088"
     elif case == "target without pitch":
         del spec["target"]["pitch"]
+    elif case == "unknown threshold":
+        spec["target"]["threshold"] = "median"
 
 
 @pytest.mark.parametrize(
@@ -242,6 +262,7 @@ def _spoil_experiment(spec: dict, case: str) -> None:
         ("no traverse_z", "experiment.json", "traverse_z: required to calibrate"),
         ("string image size", "experiment.json", "image_size: '2048x1088' is not of type"),
         ("target without pitch", "experiment.json", "target: 'pitch' is a required property"),
+        ("unknown threshold", "experiment.json", "target.threshold: 'median' is not one of"),
         ("missing plane", "plane_01.tif", "plate image missing"),
         ("text as a plane", "plane_00.tif", "not readable as a TIFF image"),
         ("truncated truth", "truth.h5", "cannot read plate/dots_world"),

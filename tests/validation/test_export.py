@@ -353,6 +353,27 @@ def test_a_bad_experiment_field_is_named(capsys, tmp_path, dataset):
     assert "dt" in err
 
 
+def test_dot_lists_instead_of_plate_images_are_refused(capsys, tmp_path, dataset):
+    copy = tmp_path / "copy"
+    shutil.copytree(dataset, copy)
+    spec = experiment(copy)
+    for name in spec["cameras"]:
+        for j in range(len(spec["traverse_z"])):
+            rows = [
+                f"{i},{k},{100 + 20 * i + 5 * j},{100 + 20 * k}" for i in range(5) for k in range(5)
+            ]
+            (copy / f"{name}_{j}.csv").write_text("i,j,x,y\n" + "\n".join(rows))
+    del spec["calibration_images"]
+    spec["calibration_dots"] = {"format": "csv", "files": "{camera}_{j}.csv"}
+    (copy / "experiment.json").write_text(json.dumps(spec))
+    before = set(tmp_path.iterdir())
+    code, err = export(
+        capsys, "--dataset", str(copy), "--format", "openptv", "--out", str(tmp_path / "out")
+    )
+    assert_refused(code, err, "experiment.json", tmp_path, before)
+    assert "dot lists (calibration_dots)" in err
+
+
 def test_an_existing_output_folder_and_an_unknown_format_are_refused(capsys, tmp_path, dataset):
     (tmp_path / "taken").mkdir()
     before = set(tmp_path.iterdir())

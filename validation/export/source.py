@@ -80,8 +80,8 @@ def read_source(folder: str | Path) -> ExportSource:
     ------
     ValueError
         One line naming the file and the field: no such folder, no truth.h5, a
-        malformed experiment.json, a missing image, camera names that differ between
-        experiment.json and truth.h5.
+        malformed experiment.json, a missing image, dot lists instead of plate images,
+        camera names that differ between experiment.json and truth.h5.
     """
     folder = Path(folder)
     if not folder.is_dir():
@@ -96,6 +96,11 @@ def read_source(folder: str | Path) -> ExportSource:
         setup = plate_setup(folder)
     except FileNotFoundError as err:
         raise ValueError(str(err)) from None
+    if setup.listed:
+        raise ValueError(
+            f"{folder / 'experiment.json'}: export copies the plate images; this folder gives "
+            "dot lists (calibration_dots) instead"
+        )
     truth = TruthFile(folder)
     if tuple(truth.rig.camera_names) != dataset.cameras:
         raise ValueError(

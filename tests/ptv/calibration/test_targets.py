@@ -9,6 +9,7 @@ Truth: each dot's grid index and the centroid of its rendered light
 import dataclasses
 import json
 
+import cv2
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -23,6 +24,7 @@ from ptv.calibration.targets import (
     find_dots,
     observations_from_images,
 )
+from ptv.experiment import description_problems
 from simulator.render.plate import render_plate
 from simulator.render.sensor import Sensor
 from simulator.rigs import load_rig
@@ -111,6 +113,12 @@ def test_description_missing_field_is_named(field):
         ({"marks": {"origin": [0, 0], "x_axis": [2.5, 0], "y_axis": [0, 3]}}, "two integers"),
         ({"dots_are": "grey"}, "bright"),
         ({"columns": 0}, "columns"),
+        ({"marks": {"origin": [0, 0]}}, "a single mark needs the axes"),
+        (
+            {"marks": {"origin": [0, 0]}, "axes": ["right", "left"]},
+            "axes must name one of right and left and one of up and down",
+        ),
+        ({"axes": ["right", "up"]}, "axes go with a single mark, the plate has 3"),
     ],
 )
 def test_description_bad_fields(change, message):
@@ -162,6 +170,64 @@ def test_seed_dots_that_contradict_each_other_are_named(stereo):
     message = r"p\.tif contradict each other: no grid holds .*\(5, 3\) at"
     with pytest.raises(SeedDotsError, match=message):
         find_dots(shot.noisy, UNMARKED, seeds=seeds, source="p.tif")
+
+
+# -- a single mark and the axes -------------------------------------------------------------
+ONE_MARK = dataclasses.replace(DESCRIPTION, marks={"origin": (0, 0)}, axes=("right", "up"))
+
+
+def one_mark(shot):
+    """The rendered plate with its x_axis and y_axis marks replaced by ordinary dots."""
+    row_of = {tuple(ij): r for r, ij in enumerate(shot.truth.indices.tolist())}
+    x, y = np.round(shot.truth.centroid[row_of[5, 5]]).astype(int)
+    dot = shot.noisy[y - 18 : y + 19, x - 18 : x + 19].copy()
+    image = shot.noisy.copy()
+    for name in ("x_axis", "y_axis"):
+        x, y = np.round(shot.truth.centroid[shot.truth.marks[name]]).astype(int)
+        image[y - 18 : y + 19, x - 18 : x + 19] = dot
+    return image
+
+
+def test_a_single_mark_from_experiment_json():
+    spec = {**DESIGN.as_dict(), "marks": {"origin": [0, 0]}, "axes": ["right", "up"]}
+    cameras = {c: {"image_size": [64, 48]} for c in ("cam1", "cam2")}
+    assert description_problems({"cameras": cameras, "target": spec}) == []
+    assert PlateDescription.from_dict(spec) == ONE_MARK
+
+
+@pytest.mark.parametrize("camera", [0, 1])
+def test_a_single_mark_and_the_axes_index_the_plate_as_three_marks_do(stereo, camera):
+    # On both cameras' images the plate's +i points right and +j up.
+    shot = stereo[camera, 6]
+    image = one_mark(shot)
+    dots = find_dots(image, ONE_MARK)
+    _, wrong = errors(dots, shot.truth.centroid, shot.truth.indices)
+    assert wrong == 0 and len(dots) == 441 and len(dots.missing) == 0
+    assert {name: tuple(dots.indices[row]) for name, row in dots.marks.items()} == {
+        "origin": (0, 0)
+    }
+    # The axes given the other way round index the plate mirrored: i → −i.
+    mirrored = find_dots(image, dataclasses.replace(ONE_MARK, axes=("left", "up")))
+    flipped = mirrored.indices * [-1, 1]
+    _, wrong = errors(
+        dataclasses.replace(mirrored, indices=flipped), shot.truth.centroid, shot.truth.indices
+    )
+    assert wrong == 0 and len(mirrored) == 441
+
+
+def test_a_single_mark_needs_one_large_blob_and_axes_near_the_grid(stereo):
+    shot = stereo[0, 6]
+    with pytest.raises(
+        MarkersNotFoundError, match=r"markers not found in p\.tif: 3 blob.* need the one mark"
+    ):
+        find_dots(shot.noisy, ONE_MARK, source="p.tif")  # the rendered plate has three
+    image = one_mark(shot)
+    h, w = image.shape
+    x, y = shot.truth.centroid[shot.truth.marks["origin"]]
+    turn = cv2.getRotationMatrix2D((float(x), float(y)), 45.0, 1.0)
+    turned = cv2.warpAffine(image.astype(np.float32), turn, (w, h), borderValue=SENSOR.offset)
+    with pytest.raises(MarkersNotFoundError, match=r"points right \(the nearest is 4\d° off"):
+        find_dots(turned, ONE_MARK, source="p.tif")
 
 
 # -- detection and indexing against truth ---------------------------------------------------
@@ -292,13 +358,41 @@ def test_a_stray_blob_is_not_a_dot(stereo):
     assert "area" in dots.rejected_reasons
 
 
+def test_a_saturated_region_beside_the_plate_drives_the_global_threshold_not_the_local_one(
+    stereo,
+):
+    # The back-light fades to 20 % across the plate, and a bright window frame and a
+    # reflection beside it saturate the sensor (a quarter of the image).
+    shot = stereo[0, 6]
+    x = np.arange(shot.noisy.shape[1])
+    light = np.clip(1.0 - 0.8 * (x - 600) / 850, 0.2, 1.0)
+    image = (shot.noisy - SENSOR.offset) * light + SENSOR.offset
+    image[:, 1500:1560] = SENSOR.max_dn
+    image[100:700, 1650:] = SENSOR.max_dn
+    image = np.round(image).astype(np.uint16)
+    assert np.nanmax(shot.truth.centroid[:, 0]) < 1450  # the saturated pixels: off the plate
+    # The global threshold is a fifth of the saturated pixels' height: the dim dots fall
+    # below it.
+    globally = find_dots(image, DESCRIPTION)
+    _, wrong = errors(globally, shot.truth.centroid, shot.truth.indices)
+    assert wrong == 0 and len(globally) < 0.8 * 441
+    # The local one sees each dot against its own surroundings: every dot, well centred
+    # (noise on a fifth of the light: ~0.03 px RMS).
+    locally = find_dots(image, DESCRIPTION, threshold="local")
+    err, wrong = errors(locally, shot.truth.centroid, shot.truth.indices)
+    assert wrong == 0 and len(locally) == 441 and len(locally.missing) == 0
+    assert rms(err) < 0.05
+    assert locally.threshold < globally.threshold
+
+
 # -- errors ----------------------------------------------------------------------------------
 def test_noise_only_image_has_no_target():
     noise = SENSOR.record(np.zeros((1088, 2048)), np.random.default_rng(3))
-    with pytest.raises(NoTargetError, match=r"no target in dark\.tif"):
-        find_dots(noise, DESCRIPTION, source="dark.tif")
-    with pytest.raises(NoTargetError, match="no target"):
-        find_dots(np.zeros((200, 300)), DESCRIPTION)
+    for threshold in ("global", "local"):
+        with pytest.raises(NoTargetError, match=r"no target in dark\.tif"):
+            find_dots(noise, DESCRIPTION, source="dark.tif", threshold=threshold)
+        with pytest.raises(NoTargetError, match="no target"):
+            find_dots(np.zeros((200, 300)), DESCRIPTION, threshold=threshold)
 
 
 def test_few_blobs_are_no_target(stereo):
@@ -353,6 +447,8 @@ def test_bad_options(stereo):
         find_dots(image, DESCRIPTION, threshold_fraction=1.5)
     with pytest.raises(ValueError, match="margin"):
         find_dots(image, DESCRIPTION, margin=0)
+    with pytest.raises(ValueError, match="threshold must be one of global, local"):
+        find_dots(image, DESCRIPTION, threshold="median")
     with pytest.raises(TypeError, match="PlateDescription"):
         find_dots(image, DESIGN.as_dict())
 
