@@ -31,6 +31,8 @@ __all__ = ["CSV_COLUMNS", "DotListError", "read_csv_dots", "read_openptv_dots"]
 CSV_COLUMNS = ("i", "j", "x", "y")
 #: OpenPTV's pixel origin (the top-left pixel's corner) in synptv's pixel coordinates, px.
 OPENPTV_PIXEL_ORIGIN = -0.5
+#: The coordinate OpenPTV writes for a point it did not find, px.
+NOT_FOUND = -999.0
 #: How far a .fix point may lie from its grid node, in pitches (the files round to 10 nm).
 GRID_TOLERANCE = 0.01
 #: How far a .fix point's Z may differ from the traverse reading, m.
@@ -199,7 +201,8 @@ def read_openptv_dots(
     ----------
     crd : Path
         Lines ``number x y``: the dots found on the image, px, OpenPTV's pixel origin
-        (the top-left pixel's corner).
+        (the top-left pixel's corner). A line with a negative number or with x, y at
+        −999 (OpenPTV's mark of a point it did not find) is skipped.
     fix : Path
         Lines ``number X Y Z``: the plate points, mm, on the plate's grid
         (X, Y) = pitch·(i, j), Z the traverse reading.
@@ -230,6 +233,8 @@ def read_openptv_dots(
     found = _openptv_lines(crd, 3, "number x y")
     dots = []
     for number, (line, (x, y)) in found.items():
+        if number < 0 or x == NOT_FOUND or y == NOT_FOUND:
+            continue
         if number not in points:
             raise DotListError(f"{crd}: line {line}: point number {number} is not in {fix}")
         fix_line, (big_x, big_y, big_z) = points[number]

@@ -274,3 +274,16 @@ def test_a_bad_dot_list_is_named_in_one_line_and_nothing_is_written(small, tmp_p
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(folder / file) in err and message in err, err
     assert not out.exists()
+
+
+def test_points_openptv_did_not_find_are_skipped(tmp_path):
+    """OpenPTV writes −999 for a plate point it could not sort on an image: those lines
+    are left out, not refused, and the other dots read as written."""
+    written = write_dot_lists(tmp_path, "openptv", traverse_positions(3))
+    crd = tmp_path / "lists" / f"plane1_{RIG.camera_names[0]}.crd"
+    lines = crd.read_text().splitlines()
+    lines[0] = f"{lines[0].split()[0]} -999.000000000 -999.000000000"
+    lines[1] = "  -999 -999.000000000 -999.000000000"
+    crd.write_text("\n".join(lines) + "\n")
+    first = find_traverse_dots(plate_setup(tmp_path))[RIG.camera_names[0]][0]
+    assert len(first.indices) == len(written[0][0].indices) - 2
