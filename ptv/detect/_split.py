@@ -58,16 +58,20 @@ SCREEN_CHI2 = 39.0
 #: (and a spot split off this close to any other detection is a duplicate: it is
 #: dropped by :func:`ptv.detect.locate._undouble`).
 MIN_SEPARATION = 0.8
-#: At most this many spots are added to a group (a triple blend needs two).
-MAX_ADDED = 2
+#: At most this many spots are added to a group (a triple blend needs two; a group of
+#: six detections at 0.03 particles per pixel often holds two blends). From 2 to 4 with
+#: 4 to 10 trials: rms error 0.082 → 0.078 px at 0.01 particles per pixel, 0.175 →
+#: 0.158 at 0.03 (benchmarks/bench_dense.py).
+MAX_ADDED = 4
 #: Gauss–Newton steps at most of the trial fits: a blend's one-spot fit can take many,
 #: its width, amplitude and background being strongly correlated on a few pixels.
 _ITERATIONS = 25
 #: A trial frees the spots closer than this to the one it splits, px; the group's
 #: other spots are held fixed (their light on its pixels is small, and already fitted).
 _LOCAL_DISTANCE = 4.0
-#: Split trials per group at most (each costs two or three weighted fits).
-_MAX_TRIALS = 4
+#: Split trials per group at most (each costs two or three weighted fits); more than 10
+#: (20, with 8 spots added) changed the dense benchmark's figures by under 0.003 px.
+_MAX_TRIALS = 10
 #: Separation of the two starting spots of a trial, px: from the second moments,
 #: within these bounds.
 _START_SEPARATION = (0.8, 2.0)
