@@ -10,7 +10,8 @@ What a command needs beyond the schema's few required fields is asked for by nam
 (:data:`NEEDS`): processing particles needs ``dt``, ``frames_per_dt`` and
 ``particle_images``; calibrating needs ``target``, ``traverse_z``,
 ``calibration_images`` (or dot lists instead, ``calibration_dots``) and every camera's
-``pixel_pitch`` and ``focal_length``.
+``pixel_pitch`` and ``focal_length`` for a plate, and ``target``, ``calibration_images``
+and ``calibration_seeds`` for a 3-D target of listed points (:func:`has_point_target`).
 """
 
 import json
@@ -29,6 +30,7 @@ __all__ = [
     "DescriptionError",
     "description_problems",
     "experiment_schema",
+    "has_point_target",
     "read_experiment",
 ]
 
@@ -43,6 +45,8 @@ NEEDS = {
     "particles": ("dt", "frames_per_dt"),
     "calibration": ("target", "traverse_z", ("calibration_images", "calibration_dots")),
 }
+#: What calibrating needs instead of ``NEEDS["calibration"]`` with a point target.
+POINT_TARGET_NEEDS = ("target", "calibration_images", "calibration_seeds")
 #: Fields a time-resolved description replaces.
 TIME_RESOLVED_REPLACES = ("dt", "frames_per_dt", "particle_images", "shared_first_frame")
 #: Fields dot lists (``calibration_dots``) replace.
@@ -53,6 +57,13 @@ DOTS_FORMAT_FIELDS = {"csv": ("files",), "openptv": ("crd", "fix")}
 _VERB = {"particles": "process particle images", "calibration": "calibrate"}
 #: Camera fields calibrating needs.
 CALIBRATION_CAMERA_FIELDS = ("pixel_pitch", "focal_length")
+
+
+def has_point_target(spec: object) -> bool:
+    """Whether a description's target is a 3-D target of listed points (it has a
+    ``points`` file) rather than a plate."""
+    target = spec.get("target") if isinstance(spec, dict) else None
+    return isinstance(target, dict) and "points" in target
 
 
 @cache
@@ -83,6 +94,13 @@ def _message(error) -> str:
         return f"3-D PTV needs at least two cameras, got {list(error.instance)!r}"
     if path == ["cameras"] and error.validator == "pattern":  # from propertyNames
         return f"camera name: expected {FILE_NAME_RULE}, got {error.instance!r}"
+    if error.validator == "not" and path == ["traverse_z"]:  # a point target has no traverse
+        return "a point target is imaged once per camera, not along a traverse: leave it out"
+    if error.validator == "not" and path == ["calibration_images"]:
+        return (
+            f"{error.instance!r}: a point target has one image per camera: use {{camera}} "
+            "and no {j}"
+        )
     if error.validator == "not" and path == []:  # the fields a dependentSchema refuses
         owner = error.relative_schema_path[1]
         if owner == "calibration_dots":
@@ -129,10 +147,12 @@ def description_problems(spec: object, needs: Iterable[str] = ()) -> list[str]:
         for error in validator.iter_errors(spec)
     ]
     if isinstance(spec, dict):
+        points = has_point_target(spec)
         for need in needs:
             if need == "particles" and "time_resolved" in spec:
                 continue  # it gives the Δt values and the frame pairs
-            for field in NEEDS[need]:
+            fields = POINT_TARGET_NEEDS if need == "calibration" and points else NEEDS[need]
+            for field in fields:
                 choice = (field,) if isinstance(field, str) else field
                 if not any(f in spec for f in choice):
                     text = f"{choice[0]}: required to {_VERB[need]}"
@@ -141,7 +161,7 @@ def description_problems(spec: object, needs: Iterable[str] = ()) -> list[str]:
             if need == "particles" and spec.get("particle_images", "") is None:
                 problems.append((["particle_images"], "particle_images: null, no particle images"))
         cameras = spec.get("cameras")
-        if "calibration" in needs and isinstance(cameras, dict):
+        if "calibration" in needs and isinstance(cameras, dict) and not points:
             problems += [
                 (
                     ["cameras", name, field],

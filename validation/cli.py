@@ -189,17 +189,35 @@ def _say_took_over(command: str, note: str | None) -> None:
         print(f"synptv {command}: {note}", file=sys.stderr)
 
 
+#: The methods ``synptv calibrate`` fits to a plate when --methods is not given.
+PLATE_METHODS = "model-free,tsai,pinhole,soloff"
+
+
 def _run_calibrate(args: argparse.Namespace) -> int:
-    from validation.dataset.calibrate import calibrate_dataset
+    from ptv.experiment import has_point_target, read_experiment
+    from validation.dataset.calibrate import calibrate_dataset, check_methods
     from validation.report.calibration_figures import plate_offsets_figure
     from validation.report.png import save_figure
 
+    given = PLATE_METHODS if args.methods is None else args.methods
+    methods = [m.strip() for m in given.split(",") if m.strip()]
+    check_methods(methods)
     dataset = Path(args.dataset)
     if not dataset.is_dir():
         raise UsageError(f"--dataset {dataset}: no such folder")
     out = check_output_folder(args.out if args.out is not None else dataset / "calibrations")
+    try:
+        point_target = has_point_target(read_experiment(dataset, needs=("calibration",)))
+    except FileNotFoundError as err:
+        raise UsageError(str(err)) from None
+    if point_target:
+        if args.plate_offsets is not None:
+            raise UsageError(
+                f"--plate-offsets: {dataset / 'experiment.json'} gives a target of listed "
+                "points, not a plate on a traverse"
+            )
+        return _calibrate_point_target(args, dataset, out)
     bar = ProgressBar("calibrate", enabled=not args.quiet)
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     with hold_output_folder(out, "synptv calibrate") as took_over:
         _say_took_over("calibrate", took_over)
         try:
@@ -267,6 +285,49 @@ def _print_plate_offsets(offsets, path: Path) -> None:
         f"{residual['nominal']:.1f} -> {residual['corrected']:.1f} um; in {path} "
         "and plate_offsets.png"
     )
+
+
+def _calibrate_point_target(args: argparse.Namespace, dataset: Path, out: Path) -> int:
+    """``synptv calibrate`` on a dataset whose target is a 3-D target of listed points."""
+    from validation.dataset.calibrate import POINT_TARGET_METHOD, calibrate_point_dataset
+
+    if args.methods is not None and args.methods.strip() != POINT_TARGET_METHOD:
+        raise UsageError(
+            f"--methods {args.methods}: {dataset / 'experiment.json'} gives a target of "
+            f"listed points, imaged once per camera, which calibrates with "
+            f"{POINT_TARGET_METHOD} only"
+        )
+    bar = ProgressBar("calibrate", enabled=not args.quiet)
+    with hold_output_folder(out, "synptv calibrate") as took_over:
+        _say_took_over("calibrate", took_over)
+        try:
+            result = calibrate_point_dataset(dataset, out=out, progress=bar)
+        except FileNotFoundError as err:
+            raise UsageError(str(err)) from None
+    summary = result.as_dict()
+    if args.json:
+        json.dump(summary, sys.stdout, indent=2)
+        print()
+        return 0
+    print(
+        f"{'camera':12s} {'points':>6s} {'blobs':>6s} {'seeds':>5s} {'rms (px)':>8s}  "
+        "model (f_x, f_y; c_x, c_y px)"
+    )
+    for name, cam in summary["cameras"].items():
+        (fx, fy), (cx, cy) = cam["focal_px"], cam["principal_point_px"]
+        print(
+            f"{name:12s} {cam['points']:6d} {cam['blobs']:6d} {cam['seeds']:5d} "
+            f"{cam['rms_px']:8.3f}  {cam['model']} ({fx:.0f}, {fy:.0f}; {cx:.0f}, {cy:.0f})"
+        )
+    t = summary["target_points"]
+    print(
+        f"target points seen by two or more cameras, triangulated back: {t['points']}; "
+        f"d_X {t['d_X_um']:.1f}, d_Y {t['d_Y_um']:.1f}, d_Z {t['d_Z_um']:.1f}, "
+        f"d {t['d_um']:.1f} um"
+    )
+    for method, path in summary["files"].items():
+        print(f"{method} calibration written to {path}")
+    return 0
 
 
 def _run_experiment(args: argparse.Namespace) -> int:
@@ -634,13 +695,15 @@ def _add_calibrate_parser(sub) -> None:
         "read the dot lists its experiment.json names instead), "
         "calibrate each camera with each method, write one calibration file per method "
         "and print the paper's Table 1 metric (against the nominal dot positions, and "
-        "against the true centres when the folder holds truth.h5).",
+        "against the true centres when the folder holds truth.h5). A dataset whose target "
+        "is a 3-D target of listed points (one image per camera) gets one pinhole per "
+        "camera, its reprojection RMS and the target points triangulated back.",
     )
     cal.add_argument("--dataset", required=True, help="folder written by synptv render")
     cal.add_argument(
         "--methods",
-        default="model-free,tsai,pinhole,soloff",
-        help="comma-separated: model-free, tsai, pinhole, soloff",
+        help=f"comma-separated: model-free, tsai, pinhole, soloff (default {PLATE_METHODS}; "
+        "pinhole only for a point target)",
     )
     cal.add_argument(
         "--out", help="folder for the calibration files (default DATASET/calibrations)"

@@ -265,7 +265,7 @@ def _check_plate_images(paths: list[Path], shape: tuple[int, int]) -> None:
         first_seen[digest] = path
 
 
-def _masked(image: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
+def masked_image(image: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
     """``image`` with the pixels ``mask`` leaves out set to the median of the others."""
     if mask is None:
         return image
@@ -310,7 +310,7 @@ def find_traverse_dots(
     for name, paths in setup.images.items():
         planes = []
         for j, (z, path) in enumerate(zip(setup.z, paths, strict=True)):
-            image = _masked(read_image(path), setup.masks.get(name))
+            image = masked_image(read_image(path), setup.masks.get(name))
             seeds = setup.seeds.get((name, j))
             dots = find_dots(
                 image, setup.plate, source=str(path), seeds=seeds, threshold=setup.threshold

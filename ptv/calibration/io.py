@@ -210,6 +210,7 @@ def _write_pinhole(group: h5py.Group, cal: PinholeCalibration) -> None:
     group.attrs["image_size"] = np.asarray(cal.image_size, dtype=np.int64)
     group.attrs["distortion"] = ",".join(cal.model.distortion)
     group.attrs["tilted"] = bool(cal.model.tilted)
+    group.attrs["fixed_principal_point"] = bool(cal.model.fixed_principal_point)
     group.create_dataset("params", data=np.asarray(cal.params, dtype=np.float64))
     group.attrs["rms"] = float(cal.rms)
     group.attrs["start"] = str(cal.start)
@@ -224,6 +225,7 @@ def _read_pinhole(group: h5py.Group) -> PinholeCalibration:
         model=PinholeModel(
             distortion=tuple(distortion.split(",")) if distortion else (),
             tilted=bool(group.attrs["tilted"]),
+            fixed_principal_point=bool(group.attrs.get("fixed_principal_point", False)),
         ),
         params=_array(group, "params", ndim=1),
         rms=float(group.attrs["rms"]),

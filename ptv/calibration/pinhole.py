@@ -73,10 +73,14 @@ class PinholeModel:
         together: OpenCV cannot free one alone). The others are zero.
     tilted : bool
         Fit OpenCV's tilted-sensor angles τ_x, τ_y (``CALIB_TILTED_MODEL``).
+    fixed_principal_point : bool
+        Keep (c_x, c_y) at its guess (``CALIB_FIX_PRINCIPAL_POINT``): for one view of a
+        shallow target, where the principal point trades off against the rotation.
     """
 
     distortion: tuple[str, ...] = ("k1", "k2", "p1", "p2")
     tilted: bool = False
+    fixed_principal_point: bool = False
 
     def __post_init__(self) -> None:
         terms = tuple(self.distortion)
@@ -90,17 +94,20 @@ class PinholeModel:
         ordered = tuple(t for t in DISTORTION_TERMS if t in terms)
         object.__setattr__(self, "distortion", ordered)
         object.__setattr__(self, "tilted", bool(self.tilted))
+        object.__setattr__(self, "fixed_principal_point", bool(self.fixed_principal_point))
 
     @property
     def name(self) -> str:
-        """Short description, e.g. ``'k1,k2,p1,p2'`` or ``'k1+tilt'``."""
+        """Short description, e.g. ``'k1,k2,p1,p2'``, ``'k1+tilt'`` or ``'k1+fixed pp'``."""
         name = ",".join(self.distortion) or "no distortion"
-        return name + ("+tilt" if self.tilted else "")
+        name += "+tilt" if self.tilted else ""
+        return name + ("+fixed pp" if self.fixed_principal_point else "")
 
     @property
     def free(self) -> np.ndarray:
         """Indices of the free entries of the full parameter vector (``PARAMETER_NAMES``)."""
-        idx = [_FX, _FY, _CX, _CY, *(_DIST_INDEX[t] for t in self.distortion)]
+        centre = [] if self.fixed_principal_point else [_CX, _CY]
+        idx = [_FX, _FY, *centre, *(_DIST_INDEX[t] for t in self.distortion)]
         if self.tilted:
             idx += [_TAU_X, _TAU_Y]
         idx += list(range(_RVEC.start, _TVEC.stop))
@@ -118,6 +125,8 @@ class PinholeModel:
             flags |= cv2.CALIB_ZERO_TANGENT_DIST
         if self.tilted:
             flags |= cv2.CALIB_TILTED_MODEL
+        if self.fixed_principal_point:
+            flags |= cv2.CALIB_FIX_PRINCIPAL_POINT
         return flags
 
     def restrict(self, params: np.ndarray) -> np.ndarray:
@@ -600,10 +609,11 @@ def polish(params: np.ndarray, model: PinholeModel, obj: np.ndarray, img: np.nda
 def _chain(model: PinholeModel) -> list[PinholeModel]:
     """The nested models, simplest first, ending with ``model``."""
     chain = []
+    fixed = model.fixed_principal_point
     if "k1" in model.distortion and (len(model.distortion) > 1 or model.tilted):
-        chain.append(PinholeModel(("k1",)))
+        chain.append(PinholeModel(("k1",), fixed_principal_point=fixed))
     if model.tilted and len(model.distortion) > 1:
-        chain.append(PinholeModel(model.distortion))
+        chain.append(PinholeModel(model.distortion, fixed_principal_point=fixed))
     chain.append(model)
     return chain
 
@@ -630,7 +640,8 @@ def calibrate_pinhole(
         Guess of the principal distance in pixels (focal length / pixel pitch); default
         from the DLT.
     principal_point : tuple of float, optional
-        Guess of (c_x, c_y), px; default the image centre.
+        Guess of (c_x, c_y), px; default the image centre (where a model with
+        ``fixed_principal_point`` keeps it).
 
     Returns
     -------
@@ -661,6 +672,8 @@ def calibrate_pinhole(
         raise ValueError(f"focal_px must be > 0, got {focal_px!r}")
     k0 = np.array([[focal_px, 0.0, cx0], [0.0, focal_px, cy0], [0.0, 0.0, 1.0]])
     guess = _params(focal_px, focal_px, cx0, cy0, np.zeros(3), np.zeros(3))
+    if dlt is not None and model.fixed_principal_point:
+        dlt[[_CX, _CY]] = cx0, cy0  # the polish keeps the guess
     independent = {"dlt": dlt, "pnp": _pnp(obj, img, k0)}
 
     best_of_level: dict[str, np.ndarray] = {}

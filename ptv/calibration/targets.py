@@ -513,18 +513,9 @@ def _relative_area(centroid: np.ndarray, area: np.ndarray) -> np.ndarray:
 
 # -- the detector ---------------------------------------------------------------------------
 def _check_find_options(
-    description,
-    threshold,
-    threshold_fraction,
-    threshold_sigmas,
-    min_area,
-    margin,
-    ring,
-    background_tile,
+    threshold, threshold_fraction, threshold_sigmas, min_area, margin, ring, background_tile
 ) -> None:
-    """Refuse options of :func:`find_dots` it cannot work with."""
-    if not isinstance(description, PlateDescription):
-        raise TypeError(f"description must be a PlateDescription, got {type(description).__name__}")
+    """Refuse options of :func:`find_dots` and :func:`find_blobs` they cannot work with."""
     if threshold not in THRESHOLDS:
         raise ValueError(f"threshold must be one of {', '.join(THRESHOLDS)}, got {threshold!r}")
     if not 0 < threshold_fraction < 1:
@@ -696,6 +687,139 @@ def _plane_dots(
     )
 
 
+def _threshold_blobs(
+    image: np.ndarray,
+    dots: str,
+    *,
+    source: str,
+    threshold: str,
+    threshold_fraction: float,
+    threshold_sigmas: float,
+    min_area: int,
+    margin: int,
+    ring: int,
+    background_tile: int,
+    saturation: float | None,
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray | float, _Blobs]:
+    """Steps 1–3 of the module docstring: the image with its dots bright, its background
+    map, noise σ and mask level (one number, or a map for the ``"local"`` threshold),
+    and every blob of the mask measured."""
+    raw = np.asarray(image)
+    img = _check_image(raw, source)
+    _check_find_options(
+        threshold, threshold_fraction, threshold_sigmas, min_area, margin, ring, background_tile
+    )
+    signal, saturated_px = _dot_signal(img, raw.dtype, dots, saturation)
+    background, noise = _background_and_noise(signal, background_tile)
+    if threshold == "local":
+        background, level = _local_level(
+            signal,
+            saturated_px,
+            noise,
+            threshold_sigmas,
+            threshold_fraction,
+            background_tile,
+            source,
+        )
+    else:
+        level = _mask_level(
+            signal - background, noise, threshold_sigmas, threshold_fraction, source
+        )
+    blobs = _measure_blobs(
+        signal,
+        signal - background > level,
+        background,
+        min_area=min_area,
+        margin=margin,
+        ring=ring,
+        saturated_px=saturated_px,
+    )
+    return signal, background, noise, level, blobs
+
+
+@dataclass(frozen=True)
+class TargetBlobs:
+    """Dot-like blobs of an image, not indexed (what a target of scattered points needs).
+
+    Attributes
+    ----------
+    pixels : ndarray, shape (N, 2)
+        Intensity-weighted centres, px (x = column, y = row).
+    area : ndarray of int, shape (N,)
+        Pixels of each blob above the threshold.
+    """
+
+    pixels: np.ndarray
+    area: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.pixels)
+
+
+def find_blobs(
+    image: np.ndarray,
+    *,
+    dots: str = "bright",
+    source: str = "image",
+    threshold_fraction: float = 0.1,
+    threshold_sigmas: float = 4.0,
+    min_area: int = 4,
+    margin: int = 3,
+    ring: int = 3,
+    background_tile: int = 64,
+    saturation: float | None = None,
+) -> TargetBlobs:
+    """Centres of the dot-like blobs of an image: steps 1–3 of :func:`find_dots`, without
+    the size test against neighbours or any indexing.
+
+    The defaults are looser than :func:`find_dots`' (4σ and a tenth of the signal): a
+    3-D target seen obliquely shows dim dots, and the blobs are kept only where a
+    calibration predicts a target point (:mod:`ptv.calibration.point_target`), so
+    specks do no harm.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W)
+        Grey levels (integers or floats).
+    dots : {"bright", "dark"}
+        Bright dots on a dark target, or dark on bright (the image is inverted).
+    source : str
+        Name of the image for messages.
+    threshold_fraction, threshold_sigmas, min_area, margin, ring, background_tile, saturation
+        As :func:`find_dots`.
+
+    Returns
+    -------
+    TargetBlobs
+        The blobs whose window lies inside the image, touches no other blob's window
+        and holds light above the local background.
+
+    Raises
+    ------
+    ValueError
+        A non-2-D, empty or non-real image, NaN pixels, or bad options.
+    NoTargetError
+        Nothing stands out of the noise.
+    """
+    if dots not in ("bright", "dark"):
+        raise ValueError(f"dots must be 'bright' or 'dark', got {dots!r}")
+    blobs = _threshold_blobs(
+        image,
+        dots,
+        source=source,
+        threshold="global",
+        threshold_fraction=threshold_fraction,
+        threshold_sigmas=threshold_sigmas,
+        min_area=min_area,
+        margin=margin,
+        ring=ring,
+        background_tile=background_tile,
+        saturation=saturation,
+    )[-1]
+    usable = blobs.reason == ""
+    return TargetBlobs(pixels=blobs.centroid[usable], area=blobs.area[usable])
+
+
 def find_dots(
     image: np.ndarray,
     description: PlateDescription,
@@ -764,45 +888,22 @@ def find_dots(
     SeedDotsError
         Seeds with no dot near them, or that contradict each other.
     """
-    raw = np.asarray(image)
-    img = _check_image(raw, source)
-    _check_find_options(
-        description,
-        threshold,
-        threshold_fraction,
-        threshold_sigmas,
-        min_area,
-        margin,
-        ring,
-        background_tile,
-    )
-    signal, saturated_px = _dot_signal(img, raw.dtype, description.dots, saturation)
-    h, w = signal.shape
-
-    background, noise = _background_and_noise(signal, background_tile)
-    if threshold == "local":
-        background, level = _local_level(
-            signal,
-            saturated_px,
-            noise,
-            threshold_sigmas,
-            threshold_fraction,
-            background_tile,
-            source,
-        )
-    else:
-        level = _mask_level(
-            signal - background, noise, threshold_sigmas, threshold_fraction, source
-        )
-    blobs = _measure_blobs(
-        signal,
-        signal - background > level,
-        background,
+    if not isinstance(description, PlateDescription):
+        raise TypeError(f"description must be a PlateDescription, got {type(description).__name__}")
+    signal, background, noise, level, blobs = _threshold_blobs(
+        image,
+        description.dots,
+        source=source,
+        threshold=threshold,
+        threshold_fraction=threshold_fraction,
+        threshold_sigmas=threshold_sigmas,
         min_area=min_area,
         margin=margin,
         ring=ring,
-        saturated_px=saturated_px,
+        background_tile=background_tile,
+        saturation=saturation,
     )
+    h, w = signal.shape
     reason = blobs.reason.copy()
     mask = f"{threshold} threshold {np.median(level):.3g} above background, noise σ {noise:.3g}"
     rel = _sizes_against_neighbours(blobs, reason, description.mark_area_ratio, source, mask)

@@ -52,6 +52,30 @@ def test_a_complete_description_has_no_problem():
     assert description_problems(spec, needs=("particles", "calibration")) == []
 
 
+def test_a_point_target_description_needs_no_traverse_nor_data_sheet():
+    spec = {
+        **PARTICLES,
+        "target": {
+            "points": "cal/target.txt",
+            "units": "mm",
+            "dots": "bright",
+            "min_dot_area": 6,
+            "distortion": ["k1", "k2"],
+            "principal_point": "centre",
+        },
+        "calibration_images": "cal/{camera}.tif",
+        "calibration_seeds": "seeds.csv",
+    }
+    assert description_problems(spec, needs=("particles", "calibration")) == []
+    spec["target"] |= {"pitch": 0.005, "principal_point": "middle", "distortion": ["k4"]}
+    assert description_problems(spec) == [
+        "target: unknown field(s) 'pitch'; known: points, units, dots, min_dot_area, "
+        "distortion, principal_point",
+        "target.distortion[0]: 'k4' is not one of ['k1', 'k2', 'p1', 'p2', 'k3']",
+        "target.principal_point: 'middle' is not one of ['free', 'centre']",
+    ]
+
+
 def test_every_problem_is_named_in_one_line(tmp_path):
     spec = {
         "cameras": {"cam1": {"image_size": [64]}, "../cam2": {"image_size": [64, 48]}},

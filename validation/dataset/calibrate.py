@@ -5,7 +5,9 @@ synthetic: :mod:`ptv.calibration.experiment` finds and indexes the dots and cali
 every camera with each requested method (no truth involved); this module writes one
 calibration file per method and computes the Table 1 metric against the nominal dot
 positions (as in the paper) and, when the folder holds a ``truth.h5``, against the
-true centres too.
+true centres too. A folder whose target is a 3-D target of listed points, imaged once
+per camera, is calibrated by :func:`calibrate_point_dataset`
+(:mod:`ptv.calibration.point_experiment`): one pinhole per camera.
 """
 
 from collections.abc import Callable, Sequence
@@ -22,11 +24,17 @@ from ptv.calibration.experiment import (
     nominal_grid,
     plate_setup,
 )
-from ptv.calibration.grid_errors import TraverseDots, table1_errors
+from ptv.calibration.grid_errors import PositionErrors, TraverseDots, table1_errors
 from ptv.calibration.io import save_calibrations
 from ptv.calibration.methods import CALIBRATION_METHODS
 from ptv.calibration.plate_offsets import MODES as PLATE_OFFSET_MODES
 from ptv.calibration.plate_offsets import PlateOffsets, estimate_plate_offsets
+from ptv.calibration.point_experiment import (
+    calibrate_point_cameras,
+    point_target_setup,
+    target_errors,
+)
+from ptv.calibration.point_target import PointTargetFit
 from ptv.dataset import DatasetError
 from validation.workflow.files import staged_output
 
@@ -154,6 +162,16 @@ def dot_positions(folder: Path) -> tuple[np.ndarray, np.ndarray]:
     return true, nominal
 
 
+def check_methods(methods: Sequence[str]) -> None:
+    """Refuse an empty list of calibration methods or an unknown one (ValueError)."""
+    unknown = [m for m in methods if m not in CALIBRATION_METHODS]
+    if unknown or not methods:
+        raise ValueError(
+            f"calibration methods must be some of {', '.join(CALIBRATION_METHODS)}; got "
+            f"{', '.join(map(repr, methods)) or 'none'}"
+        )
+
+
 def calibrate_dataset(
     folder: Path,
     *,
@@ -198,12 +216,7 @@ def calibrate_dataset(
         all found before any dot is searched. Nothing is written unless every method
         calibrates.
     """
-    unknown = [m for m in methods if m not in CALIBRATION_METHODS]
-    if unknown or not methods:
-        raise ValueError(
-            f"calibration methods must be some of {', '.join(CALIBRATION_METHODS)}; got "
-            f"{', '.join(map(repr, methods)) or 'none'}"
-        )
+    check_methods(methods)
     if plate_offsets is not None and plate_offsets not in PLATE_OFFSET_MODES:
         raise ValueError(
             f"plate offsets must be one of {', '.join(PLATE_OFFSET_MODES)}; got {plate_offsets!r}"
@@ -274,4 +287,91 @@ def calibrate_dataset(
     files = {method: str(out / f"{method}.h5") for method in fitted_models}
     return DatasetCalibration(
         list(dots.values()), residuals, table1, files, errors, held_out, warnings, offsets
+    )
+
+
+#: The one method a point target calibrates with.
+POINT_TARGET_METHOD = "pinhole"
+
+
+@dataclass(frozen=True)
+class PointTargetCalibration:
+    """What ``synptv calibrate`` found on a dataset with a point target.
+
+    Attributes
+    ----------
+    fits : dict of str to PointTargetFit
+        Per camera: the pinhole, the target points used and their residuals.
+    errors : PositionErrors
+        The target points used by two or more cameras, triangulated back, against their
+        listed positions.
+    files : dict
+        ``{"pinhole": path}`` of the written calibration file.
+    """
+
+    fits: dict[str, PointTargetFit]
+    errors: PositionErrors
+    files: dict
+
+    def as_dict(self) -> dict:
+        """JSON-able: per camera the fit's summary (reprojection RMS, points used, ...),
+        the target points' errors (d_X_um, d_Y_um, d_Z_um, d_um, count) and the files."""
+        return {
+            "cameras": {name: fit.summary() for name, fit in self.fits.items()},
+            "target_points": {
+                **{k: v for k, v in self.errors.summary().items() if k != "coverage"},
+                "points": len(self.errors.truth),
+            },
+            "files": self.files,
+        }
+
+
+def calibrate_point_dataset(
+    folder: Path, *, out: Path | None = None, progress: Progress | None = None
+) -> PointTargetCalibration:
+    """Calibrate every camera of a dataset from its image of a point target, and save.
+
+    Parameters
+    ----------
+    folder : Path
+        Dataset folder whose experiment.json gives a point target.
+    out : Path, optional
+        Folder for the calibration file, ``pinhole.h5`` (``<folder>/calibrations`` by
+        default).
+    progress : callable(done, total), optional
+        Called after each camera.
+
+    Returns
+    -------
+    PointTargetCalibration
+
+    Raises
+    ------
+    FileNotFoundError
+        No experiment.json, target file, seed file or image.
+    ValueError
+        A bad experiment.json, target file, seed file or image (found before any dot is
+        searched), or a camera that cannot be calibrated (naming its image). Nothing is
+        written unless every camera calibrates.
+    """
+    folder = Path(folder)
+    setup = point_target_setup(folder)
+    done = 0
+
+    def tick() -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, len(setup.cameras))
+
+    fits = calibrate_point_cameras(setup, tick)
+    errors = target_errors(setup.target, fits)
+    out = Path(out) if out is not None else folder / "calibrations"
+    calibrations = {name: fit.calibration for name, fit in fits.items()}
+    with staged_output(out) as staging:
+        save_calibrations(
+            staging / f"{POINT_TARGET_METHOD}.h5", calibrations, metadata={"dataset": str(folder)}
+        )
+    return PointTargetCalibration(
+        fits, errors, {POINT_TARGET_METHOD: str(out / f"{POINT_TARGET_METHOD}.h5")}
     )
