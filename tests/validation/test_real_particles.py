@@ -1,5 +1,7 @@
-"""synptv's 3-D particles on real images beside those MyPTV and OpenPTV shipped
-(benchmarks/bench_real_particles.py: calibrate and ptv from the command line)."""
+"""synptv's 3-D particles on real images beside those MyPTV shipped
+(benchmarks/bench_real_particles.py: calibrate and ptv from the command line). The
+test-cavity comparison is reported by the benchmark only: with a pinhole through air,
+glass and water its agreement is poor, and no physical tolerance would describe it."""
 
 import pytest
 
@@ -23,16 +25,3 @@ def test_myptv_example_particles_agree_with_myptvs_own():
         assert frame["median_mm"] < 0.3, number
     blobs = result["myptv_blobs_through_synptv"]
     assert blobs["median_ray_mm"] < 0.02 and blobs["median_mm"] < 0.3
-
-
-def test_test_cavity_particles_against_openptvs_correspondences():
-    result = main(["test-cavity"])["test-cavity"]
-    for name, cam in result["calibration"]["cameras"].items():
-        assert cam["rms_px"] < 1.0 and cam["points"] >= 40, name
-    assert list(result["frames"]) == ["10001", "10002"]
-    for number, frame in result["frames"].items():
-        # A pinhole through air, glass and water, fitted to a 70 x 50 x 16 mm target,
-        # against OpenPTV's multimedia model over the whole cavity: the agreement is
-        # poor (README.md's figures); this guards it against getting worse.
-        assert frame["within_1mm"] >= 0.1, number
-        assert frame["median_mm"] < 4.0, number
