@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ptv.calibration.plate_offsets import MODES as PLATE_OFFSET_MODES
 from simulator.presets import FLOW_PRESETS, flow_preset
 from simulator.rigs import load_rig, rig_presets
 from simulator.spectra import SPECTRA
@@ -710,7 +711,7 @@ def _add_calibrate_parser(sub) -> None:
     )
     cal.add_argument(
         "--plate-offsets",
-        choices=("rows-columns", "dots"),
+        choices=PLATE_OFFSET_MODES,
         help="self-calibrate the plate: estimate each column's and row's (or each dot's) "
         "offset from the nominal grid with the calibration, fit every method on the "
         "corrected grid and add Table 1 against it (plate_offsets.json and .png in OUT)",

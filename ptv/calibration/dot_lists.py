@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ptv.calibration.targets import MIN_BLOBS, PlateDescription
+from ptv.camera_model import on_image
 from ptv.errors import DatasetError
 
 __all__ = ["CSV_COLUMNS", "DotListError", "read_csv_dots", "read_openptv_dots"]
@@ -91,7 +92,7 @@ def _checked_dots(
                 f"{path}: line {line}: grid node {node} lies outside the target's extent "
                 f"{plate.extent}"
             )
-        if not (-0.5 <= x <= width - 0.5 and -0.5 <= y <= height - 0.5):
+        if not on_image(np.array([[x, y]]), image_size)[0]:
             raise DotListError(
                 f"{path}: line {line}: pixel ({x:g}, {y:g}) lies off the {width} × {height} "
                 "px image"

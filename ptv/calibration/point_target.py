@@ -50,7 +50,7 @@ from ptv.calibration.pinhole import (
     calibrate_pinhole,
     project_parameters,
 )
-from ptv.calibration.targets import TargetBlobs, find_blobs
+from ptv.calibration.targets import find_blobs
 from ptv.camera_model import on_image
 
 __all__ = [
@@ -473,7 +473,6 @@ def calibrate_point_target(
     *,
     focal_px: float | None = None,
     source: str = "image",
-    blobs: TargetBlobs | None = None,
 ) -> PointTargetFit:
     """Calibrate one camera from one image of a point target (module docstring).
 
@@ -489,9 +488,6 @@ def calibrate_point_target(
         Nominal principal distance, px (focal length / pixel pitch).
     source : str
         The image's name, for messages.
-    blobs : TargetBlobs, optional
-        The image's blobs, if already found (default :func:`find_blobs` with the
-        target's dots and speck size).
 
     Returns
     -------
@@ -521,8 +517,7 @@ def calibrate_point_target(
             f"{seed_residual[worst]:.1f} px off (largest allowed {SEED_TOLERANCE_PX:g} px): "
             "a wrong point or pixel?"
         )
-    if blobs is None:
-        blobs = find_blobs(image, dots=target.dots, source=source, min_area=target.min_dot_area)
+    blobs = find_blobs(image, dots=target.dots, source=source, min_area=target.min_dot_area)
     predicted = _projected(params, target.points, size)
     seen = predicted[np.isfinite(predicted).all(axis=1)]
     if len(seen) < 2:
