@@ -26,8 +26,8 @@ Diagnostics that separate the calibration from detection and matching:
   (``myptv/cam*_cal_points``);
 - test-cavity: each camera's centre against OpenPTV's ``openptv/cal/cam*.tif.ori``;
   with ``optv`` installed (``pip install synptv[peers]``), OpenPTV's particles of frame
-  10001 projected by its own calibration onto synptv's detections, and those all four
-  cameras saw triangulated by synptv's calibration (:func:`openptv_check`).
+  10001 taken apart: the particle images they cite, how tightly its rays meet, and its
+  correspondences triangulated by synptv's calibration (:func:`openptv_check`).
 
 Run: ``python -m benchmarks.bench_real_particles [myptv] [test-cavity]``; prints one
 JSON object. About a minute per example on two cores.
@@ -156,33 +156,47 @@ def _ori_centre(path: Path) -> np.ndarray:
     return np.array(path.read_text().split()[:3], dtype=float) * MM
 
 
+#: OpenPTV's image pre-processing before its target recognition: the half-width of the
+#: box filter whose output is subtracted (the high-pass its GUI applies), px.
+_OPENPTV_HIGHPASS = 25
+
+
 def openptv_check(folder: Path, calibration: str, frame: int = 10001) -> dict | None:
-    """OpenPTV's particles of ``frame`` against synptv's detections (needs ``optv``).
+    """OpenPTV's particles of ``frame`` taken apart with ``optv`` (``pip install
+    synptv[peers]``).
 
-    Each particle of ``rt_is.<frame>`` is projected into every camera that saw it by
-    OpenPTV's own calibration (``.ori`` with its multimedia model, by ``optv``); the
-    nearest synptv detection (the example's ``ptv.toml``) is taken as its image. Then
-    the particles all four cameras saw are triangulated by synptv's calibration from
-    those detections.
+    ``rt_is`` names, per camera, the index of the particle image each particle used in
+    OpenPTV's target list, which is not shipped. It is rebuilt as OpenPTV builds it:
+    the high-passed image, its target recognition with the shipped ``targ_rec.par``,
+    sorted by image row. Then:
 
-    Returns
-    -------
-    dict or None
-        ``reprojection_px``: per camera, the median distance from OpenPTV's projection to
-        the nearest detection; ``four_camera``: the particles triangulated (nearest
-        detections within 3 px in every camera), their median distance to OpenPTV's
-        point (mm) and median RMS ray distance (mm). None without ``optv``.
+    - ``rebuilt_mm``: those targets triangulated by OpenPTV's calibration (``.ori``,
+      ``.addpar``, its multimedia model), median distance to OpenPTV's points: the
+      rebuild is right when this is the file's rounding;
+    - per camera ``reprojection_px``: OpenPTV's particles projected by its own
+      calibration, median distance to the targets they cite (how tightly its own rays
+      meet), and ``detected_1px``: the fraction of those targets with a synptv detection
+      (the example's ``ptv.toml``) within 1 px;
+    - ``synptv_triangulation``: OpenPTV's correspondences triangulated by synptv's
+      calibration, by the number of cameras: count, median distance to OpenPTV's point
+      (mm) and the fraction within 0.1 mm. This compares the two calibrations alone.
+
+    Returns None without ``optv``.
     """
     try:
         from optv.calibration import Calibration
+        from optv.image_processing import preprocess_image
         from optv.imgcoord import image_coordinates
-        from optv.parameters import ControlParams
-        from optv.transforms import convert_arr_metric_to_pixel
+        from optv.orientation import point_positions
+        from optv.parameters import ControlParams, TargetParams
+        from optv.segmentation import target_recognition
+        from optv.transforms import convert_arr_metric_to_pixel, convert_arr_pixel_to_metric
     except ImportError:
         return None
     from scipy.spatial import cKDTree
 
     from ptv.frames import ImageDetector
+    from ptv.images import read_image
     from ptv.settings import load_settings
 
     dataset = open_dataset(folder)
@@ -195,34 +209,61 @@ def openptv_check(folder: Path, calibration: str, frame: int = 10001) -> dict | 
     )
     detections = [d.xy for d in detector.detect(k, 0, frame_of)]
     table = np.loadtxt(folder / "openptv" / "res" / f"rt_is.{frame}", skiprows=1, ndmin=2)
+    parameters = folder / "openptv" / "parameters"
     control = ControlParams(len(detections))
-    control.read_control_par(str(folder / "openptv" / "parameters" / "ptv.par"))
-    pixels, reprojection = [], {}
+    control.read_control_par(str(parameters / "ptv.par"))
+    recognition = TargetParams()
+    recognition.read(str(parameters / "targ_rec.par"))
+    cited = np.full((len(detections), len(table), 2), np.nan)
+    cameras, per_camera = [], {}
     for c, name in enumerate(dataset.cameras):
         cal = Calibration()
         cal.from_file(
             str(folder / "openptv" / "cal" / f"{name}.tif.ori").encode(),
             str(folder / "openptv" / "cal" / f"{name}.tif.addpar").encode(),
         )
+        cameras.append(cal)
+        path = folder / dataset.sequence.images.format(camera=name, n=frame)
+        image = read_image(path).astype(np.uint8)
+        targets = target_recognition(
+            preprocess_image(image, 0, control, _OPENPTV_HIGHPASS), recognition, c, control
+        )
+        targets.sort_y()
+        xy = np.array([t.pos() for t in targets])
+        index = table[:, 4 + c].astype(int)
+        seen = index >= 0
+        cited[c, seen] = xy[index[seen]]
         metric = image_coordinates(
-            np.ascontiguousarray(table[:, 1:4]), cal, control.get_multimedia_params()
+            np.ascontiguousarray(table[seen, 1:4]), cal, control.get_multimedia_params()
         )
         projected = convert_arr_metric_to_pixel(metric, control)
-        distance, nearest = cKDTree(detections[c]).query(projected)
-        seen = table[:, 4 + c] >= 0
-        reprojection[name] = float(np.median(distance[seen]))
-        image = detections[c][nearest]
-        image[~seen | (distance > 3.0)] = np.nan
-        pixels.append(image)
-    result = triangulate(list(load_calibrations(calibration).values()), pixels)
-    every = np.isfinite(np.array(pixels)).all(axis=(0, 2))
-    distance = np.linalg.norm(result.points[every] - table[every, 1:4] * MM, axis=1)
+        # OpenPTV's pixel (0, 0) is a corner, synptv's a centre.
+        nearest = cKDTree(detections[c]).query(cited[c, seen] - 0.5)[0]
+        per_camera[name] = {
+            "targets": len(xy),
+            "cited": int(seen.sum()),
+            "reprojection_px": float(np.median(np.linalg.norm(projected - cited[c, seen], axis=1))),
+            "detected_1px": float(np.mean(nearest <= 1.0)),
+        }
+    count = np.isfinite(cited[:, :, 0]).sum(axis=0)
+    four = count == len(cameras)
+    metric = np.stack(
+        [convert_arr_pixel_to_metric(np.ascontiguousarray(p[four]), control) for p in cited],
+        axis=1,
+    )
+    rebuilt = point_positions(np.ascontiguousarray(metric), control, cameras, None)[0]
+    ours = triangulate(list(load_calibrations(calibration).values()), list(cited - 0.5)).points
+    distance = np.linalg.norm(ours - table[:, 1:4] * MM, axis=1)
     return {
-        "reprojection_px": reprojection,
-        "four_camera": {
-            "particles": int(every.sum()),
-            "median_mm": float(np.median(distance) / MM),
-            "median_ray_mm": float(np.median(result.rms_distance[every]) / MM),
+        "rebuilt_mm": float(np.median(np.linalg.norm(rebuilt - table[four, 1:4], axis=1))),
+        "cameras": per_camera,
+        "synptv_triangulation": {
+            str(n): {
+                "particles": int(np.sum(count == n)),
+                "median_mm": float(np.median(distance[count == n]) / MM),
+                "within": float(np.mean(distance[count == n] <= 0.1 * MM)),
+            }
+            for n in range(2, len(cameras) + 1)
         },
     }
 

@@ -161,6 +161,16 @@ def description_problems(spec: object, needs: Iterable[str] = ()) -> list[str]:
             if need == "particles" and spec.get("particle_images", "") is None:
                 problems.append((["particle_images"], "particle_images: null, no particle images"))
         cameras = spec.get("cameras")
+        if isinstance(cameras, dict) and not points:
+            problems += [
+                (
+                    ["cameras", name, "window"],
+                    f"{_where(['cameras', name, 'window'])}: only a point target's pinhole "
+                    "uses a window (a plate's model-free rays need none)",
+                )
+                for name, info in cameras.items()
+                if isinstance(info, dict) and "window" in info
+            ]
         if "calibration" in needs and isinstance(cameras, dict) and not points:
             problems += [
                 (

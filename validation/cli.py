@@ -319,6 +319,7 @@ def _calibrate_point_target(args: argparse.Namespace, dataset: Path, out: Path) 
         print(
             f"{name:12s} {cam['points']:6d} {cam['blobs']:6d} {cam['seeds']:5d} "
             f"{cam['rms_px']:8.3f}  {cam['model']} ({fx:.0f}, {fy:.0f}; {cx:.0f}, {cy:.0f})"
+            + (", behind its window" if "window" in cam else "")
         )
     t = summary["target_points"]
     print(

@@ -3,7 +3,7 @@
 Layout (format ``synptv-calibration``, version :data:`FORMAT_VERSION`)::
 
     /                     attrs: format, format_version, written_by, + user metadata
-    /cameras/<name>       attrs: model ("model-free" | "tsai"), then the model's data
+    /cameras/<name>       attrs: model (a registered name below), then the model's data
 
 ``model-free`` (:class:`~ptv.calibration.model_free.ModelFreeCalibration`)::
 
@@ -12,6 +12,18 @@ Layout (format ``synptv-calibration``, version :data:`FORMAT_VERSION`)::
     planes/<k>            attrs z; datasets residual_px, residual_m, hull_points (N, 2)
     planes/<k>/to_world   attrs degree; datasets centre, scale, coefficients
     planes/<k>/to_pixel   (the same)
+
+``opencv-pinhole`` (:class:`~ptv.calibration.pinhole.PinholeCalibration`)::
+
+    attrs    image_size (2,), distortion, tilted, fixed_principal_point, rms, start,
+             n_points
+    datasets params (17,)
+
+``refractive-pinhole`` (:class:`~ptv.calibration.refractive_pinhole.
+RefractivePinholeCalibration`): the ``opencv-pinhole`` entries, and::
+
+    attrs    window_normal (3,), window_distance, window_thickness, glass_index,
+             medium_index, air_index
 
 The plane hulls are rebuilt from their points (Delaunay), the splines from the grid and
 line parameters, so a loaded calibration maps pixels to rays, and points to pixels,
@@ -45,6 +57,7 @@ from scipy.spatial import Delaunay
 from ptv.calibration.model_free import ModelFreeCalibration, PlaneFit
 from ptv.calibration.pinhole import PinholeCalibration, PinholeModel
 from ptv.calibration.polynomial import Polynomial2D
+from ptv.calibration.refractive_pinhole import FlatWindow, RefractivePinholeCalibration
 from ptv.calibration.soloff import SoloffCalibration
 from ptv.calibration.tsai import TsaiCalibration
 from ptv.camera_model import CameraModel
@@ -234,6 +247,29 @@ def _read_pinhole(group: h5py.Group) -> PinholeCalibration:
     )
 
 
+# -- pinhole behind a flat window ------------------------------------------------------------
+_WINDOW_ATTRS = {
+    "window_normal": "normal",
+    "window_distance": "distance",
+    "window_thickness": "thickness",
+    "glass_index": "glass_index",
+    "medium_index": "medium_index",
+    "air_index": "air_index",
+}
+
+
+def _write_refractive_pinhole(group: h5py.Group, cal: RefractivePinholeCalibration) -> None:
+    _write_pinhole(group, cal.pinhole)
+    window = cal.window.as_dict()
+    for attr, field in _WINDOW_ATTRS.items():
+        group.attrs[attr] = window[field]
+
+
+def _read_refractive_pinhole(group: h5py.Group) -> RefractivePinholeCalibration:
+    window = FlatWindow(**{field: group.attrs[attr] for attr, field in _WINDOW_ATTRS.items()})
+    return RefractivePinholeCalibration(_read_pinhole(group), window)
+
+
 # -- Soloff ----------------------------------------------------------------------------------
 _SOLOFF_ARRAYS = ("centre", "scale", "coefficients", "inverse", "z_levels", "residual_px")
 
@@ -256,6 +292,12 @@ register_codec(ModelFreeCalibration, "model-free", _write_model_free, _read_mode
 register_codec(TsaiCalibration, "tsai", _write_tsai, _read_tsai)
 register_codec(PinholeCalibration, "opencv-pinhole", _write_pinhole, _read_pinhole)
 register_codec(SoloffCalibration, "soloff", _write_soloff, _read_soloff)
+register_codec(
+    RefractivePinholeCalibration,
+    "refractive-pinhole",
+    _write_refractive_pinhole,
+    _read_refractive_pinhole,
+)
 
 
 def _line_parameters(group: h5py.Group, shape: tuple) -> np.ndarray:

@@ -26,6 +26,7 @@ from ptv.calibration.point_target import (
     PointTargetFit,
     calibrate_point_target,
 )
+from ptv.calibration.refractive_pinhole import FlatWindow
 from ptv.dataset import DatasetError, camera_masks
 from ptv.experiment import has_point_target, read_experiment
 from ptv.images import read_image
@@ -66,6 +67,8 @@ class PointTargetSetup:
         The masks of the cameras that have one (True where the image is used).
     seeds : dict of str to dict of int to (float, float)
         Per camera, target row → approximate pixel of each seed point.
+    windows : dict of str to FlatWindow
+        The cameras that look through a flat window into the medium, and their window.
     """
 
     folder: Path
@@ -75,6 +78,7 @@ class PointTargetSetup:
     images: dict[str, Path]
     masks: Mapping[str, np.ndarray]
     seeds: dict[str, dict[int, tuple[float, float]]]
+    windows: dict[str, FlatWindow]
 
     @property
     def cameras(self) -> list[str]:
@@ -95,7 +99,8 @@ def point_target_setup(folder: str | Path) -> PointTargetSetup:
     DatasetError
         The target is a plate; a bad target file or seed file (naming the file and the
         line or row); a bad ``calibration_images`` pattern; an image of the wrong size
-        or unreadable; a camera with fewer than four seeds.
+        or unreadable; a camera with fewer than four seeds; a window whose glass or
+        medium is less dense than its air.
     """
     folder = Path(folder)
     spec = read_experiment(folder, needs=("calibration",))
@@ -132,9 +137,18 @@ def point_target_setup(folder: str | Path) -> PointTargetSetup:
                 f"gives {width} × {height} px for camera {name!r}"
             )
         images[name] = path
+    windows = {}
+    for name, info in cameras.items():
+        if "window" in info:
+            try:
+                windows[name] = FlatWindow.from_dict(
+                    info["window"], source=f"{source}: cameras.{name}.window"
+                )
+            except ValueError as err:
+                raise DatasetError(str(err)) from None
     seeds = read_point_seeds(folder / spec["calibration_seeds"], list(sizes), target)
     masks = camera_masks(folder, spec, {n: (h, w) for n, (w, h) in sizes.items()})
-    return PointTargetSetup(folder, target, sizes, focal, images, masks, seeds)
+    return PointTargetSetup(folder, target, sizes, focal, images, masks, seeds, windows)
 
 
 def read_point_seeds(
@@ -210,7 +224,8 @@ def read_point_seeds(
 def calibrate_point_cameras(
     setup: PointTargetSetup, progress: Callable[[], None] | None = None
 ) -> dict[str, PointTargetFit]:
-    """One pinhole per camera from its image of the point target.
+    """One pinhole per camera from its image of the point target (behind the camera's
+    window when it has one).
 
     Parameters
     ----------
@@ -238,6 +253,7 @@ def calibrate_point_cameras(
             setup.target,
             setup.seeds[name],
             focal_px=setup.focal_px[name],
+            window=setup.windows.get(name),
             source=str(path),
         )
         if progress is not None:

@@ -29,9 +29,13 @@ Steps of :func:`calibrate_point_target`:
    max(:data:`MIN_TOLERANCE_PX`, :data:`RESIDUAL_FACTOR` × the median residual), which
    drops the blobs that stood in for a hidden dot.
 
-The fitted camera is a straight-ray pinhole. Behind a flat window into water (air,
-glass, water) the rays bend; the distortion terms absorb part of that near the
-target, but the camera is an approximation away from it (docs/calibration.md §9).
+6. **Window** (when the camera has one): steps 3–4 again with the pinhole behind the
+   flat glass wall (:mod:`ptv.calibration.refractive_pinhole`), started from the
+   straight-ray fit.
+
+Without a window the camera is a straight-ray pinhole. Behind a flat window into water
+(air, glass, water) the rays bend; its distortion terms absorb part of that near the
+target, but it errs away from it (docs/calibration.md §9).
 """
 
 from collections.abc import Mapping
@@ -49,6 +53,11 @@ from ptv.calibration.pinhole import (
     PinholeModel,
     calibrate_pinhole,
     project_parameters,
+)
+from ptv.calibration.refractive_pinhole import (
+    FlatWindow,
+    RefractivePinholeCalibration,
+    fit_refractive_pinhole,
 )
 from ptv.calibration.targets import find_blobs
 from ptv.camera_model import on_image
@@ -273,8 +282,8 @@ class PointTargetFit:
 
     Attributes
     ----------
-    calibration : PinholeCalibration
-        The camera.
+    calibration : PinholeCalibration or RefractivePinholeCalibration
+        The camera (behind its window when it has one).
     rows : ndarray of int, shape (M,)
         The target points used (rows of :attr:`PointTarget.points`).
     pixels : ndarray, shape (M, 2)
@@ -291,7 +300,7 @@ class PointTargetFit:
         The last association tolerance, px.
     """
 
-    calibration: PinholeCalibration
+    calibration: PinholeCalibration | RefractivePinholeCalibration
     rows: np.ndarray
     pixels: np.ndarray
     residuals: np.ndarray
@@ -307,8 +316,10 @@ class PointTargetFit:
 
     def summary(self) -> dict:
         """Reprojection RMS (px), points used, blobs, seeds, iterations, the fitted
-        principal distance and point (px), for tables and JSON."""
+        principal distance and point (px), the centre (m) and the window (when the
+        camera has one), for tables and JSON."""
         p = self.calibration.params
+        window = getattr(self.calibration, "window", None)
         return {
             "rms_px": self.rms,
             "points": len(self.rows),
@@ -320,6 +331,7 @@ class PointTargetFit:
             "focal_px": [float(p[0]), float(p[1])],
             "principal_point_px": [float(p[2]), float(p[3])],
             "centre_m": self.calibration.centre.tolist(),
+            **({} if window is None else {"window": window.as_dict()}),
         }
 
 
@@ -472,6 +484,7 @@ def calibrate_point_target(
     seeds: Mapping[int, tuple[float, float]],
     *,
     focal_px: float | None = None,
+    window: FlatWindow | None = None,
     source: str = "image",
 ) -> PointTargetFit:
     """Calibrate one camera from one image of a point target (module docstring).
@@ -486,6 +499,9 @@ def calibrate_point_target(
         Target row → approximate pixel (x, y) of four or more points.
     focal_px : float, optional
         Nominal principal distance, px (focal length / pixel pitch).
+    window : FlatWindow, optional
+        The flat wall the camera looks through into the medium the target is in: the
+        pinhole is then fitted with the rays refracted at both faces (step 6).
     source : str
         The image's name, for messages.
 
@@ -560,4 +576,47 @@ def calibrate_point_target(
         tolerance = min(tolerance, max(MIN_TOLERANCE_PX, RESIDUAL_FACTOR * np.median(residuals)))
         predicted = _projected(params, target.points, size)
         previous, model = (rows, blob_rows), target.model
-    return fit
+    if window is None:
+        return fit
+    try:
+        return _refit_through_window(fit, target, window, blobs.pixels, source)
+    except ValueError as err:
+        raise ValueError(f"{source}: {err}") from None
+
+
+def _refit_through_window(
+    fit: PointTargetFit,
+    target: PointTarget,
+    window: FlatWindow,
+    blobs: np.ndarray,
+    source: str,
+) -> PointTargetFit:
+    """Steps 3–4 again with the pinhole behind ``window`` (module docstring, step 6),
+    started from the straight-ray ``fit``; ``blobs`` (B, 2) are the image's blob
+    centres, px."""
+    rows, pixels, tolerance = fit.rows, fit.pixels, fit.tolerance
+    start = fit.calibration
+    for iteration in range(1, MAX_ITERATIONS + 1):
+        camera = fit_refractive_pinhole(start, window, target.points[rows], pixels)
+        residuals = np.linalg.norm(camera.project(target.points[rows]) - pixels, axis=1)
+        out = PointTargetFit(
+            camera,
+            rows,
+            pixels,
+            residuals,
+            fit.blobs,
+            fit.seeds,
+            fit.iterations + iteration,
+            float(tolerance),
+        )
+        tolerance = min(tolerance, max(MIN_TOLERANCE_PX, RESIDUAL_FACTOR * np.median(residuals)))
+        again, blob_rows = associate(camera.project(target.points), blobs, tolerance)
+        if len(again) < MIN_POINTS:
+            raise ValueError(
+                f"through the window only {len(again)} target points have a dot within "
+                f"{tolerance:.1f} px of where the camera puts them (need {MIN_POINTS})"
+            )
+        if np.array_equal(again, rows) and np.array_equal(blobs[blob_rows], pixels):
+            break
+        rows, pixels, start = again, blobs[blob_rows], camera.pinhole
+    return out

@@ -241,3 +241,28 @@ def test_a_time_resolved_recording_replaces_the_frame_pair_fields(tmp_path):
         "time_resolved.frame_rate: -5.0 is less than or equal to the minimum of 0",
         "time_resolved.steps: [2] is too short",
     ]
+
+
+WINDOW = {"normal": [0, 0, 1], "distance": 0.03, "thickness": 0.01, "glass_index": 1.49,
+          "medium_index": 1.33}  # fmt: skip
+
+
+def test_a_window_belongs_to_a_point_target_and_has_every_field():
+    spec = {
+        **PARTICLES,
+        "target": {"points": "cal/target.txt", "units": "mm"},
+        "calibration_images": "cal/{camera}.tif",
+        "calibration_seeds": "seeds.csv",
+    }
+    spec["cameras"] = {"cam1": {"image_size": [64, 48], "window": WINDOW},
+                       "cam2": {"image_size": [64, 48], "window": {"normal": [0, 1]}}}  # fmt: skip
+    problems = description_problems(spec, needs=("calibration",))
+    assert any(p.startswith("cameras.cam2.window.normal: [0, 1] is too short") for p in problems)
+    assert "cameras.cam2.window: 'distance' is a required property" in problems
+    plate = {**PARTICLES, "cameras": {c: {"image_size": [64, 48], "window": WINDOW}
+                                      for c in ("cam1", "cam2")}}  # fmt: skip
+    assert description_problems(plate) == [
+        f"cameras.{c}.window: only a point target's pinhole uses a window (a plate's "
+        "model-free rays need none)"
+        for c in ("cam1", "cam2")
+    ]

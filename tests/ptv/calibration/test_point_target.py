@@ -14,6 +14,9 @@ from ptv.calibration.point_target import (
     read_target_points,
     seed_camera,
 )
+from ptv.calibration.refractive_pinhole import FlatWindow
+from simulator.optics.forward import solve_chief_rays
+from simulator.optics.interfaces import FlatInterfaces
 
 SIZE = (800, 600)
 #: Dot image: Gaussian σ (px), peak and background (DN), read noise σ (DN).
@@ -49,7 +52,11 @@ def true_camera(k1: float = -0.15, centre=(0.02, 0.016, 0.5)) -> np.ndarray:
 def render(params: np.ndarray, points: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """An 8-bit image of the target's dots (pixel-sampled Gaussians) with read noise and
     a few specks."""
-    xy, _ = project_parameters(params, points)
+    return dot_image(project_parameters(params, points)[0], rng)
+
+
+def dot_image(xy: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """An 8-bit image of dots at pixels ``xy`` (N, 2), with read noise and specks."""
     rows, cols = np.mgrid[0 : SIZE[1], 0 : SIZE[0]]
     image = np.full((SIZE[1], SIZE[0]), BACKGROUND)
     for x, y in xy:
@@ -210,3 +217,38 @@ def test_a_flat_target_cannot_calibrate_from_one_image():
         PointTarget(points, np.arange(len(points)))
     with pytest.raises(ValueError, match="at least 12 points"):
         PointTarget(stepped_target()[:5], np.arange(5))
+
+
+def test_a_camera_behind_a_window_is_recovered_from_its_image():
+    """Rendered through air, glass and water by the simulator's ray optics: the
+    straight-ray pinhole misplaces the camera by tens of mm, the pinhole fitted through
+    the window finds it, and projects a volume 18 mm deeper than the target as the
+    truth does."""
+    rng = np.random.default_rng(8)
+    points = stepped_target()
+    truth_params = true_camera()
+    window = FlatWindow([0.0, 0.0, 1.0], 0.02, 0.008, 1.49, 1.33)
+    stack = FlatInterfaces([0.0, 0.0, -1.0], [-0.028, -0.02], window.indices)
+    centre = -cv2.Rodrigues(truth_params[11:14])[0].T @ truth_params[14:17]
+
+    def through_window(world: np.ndarray) -> np.ndarray:
+        directions = solve_chief_rays(centre, world, stack).directions
+        return project_parameters(truth_params, centre + directions)[0]
+
+    image = dot_image(through_window(points), rng)
+    seeds = {int(r): tuple(through_window(points[[r]])[0] + rng.uniform(-1.5, 1.5, 2))
+             for r in SEED_ROWS}  # fmt: skip
+    target = PointTarget(points, np.arange(len(points)))
+    straight = calibrate_point_target(image, target, seeds)
+    fit = calibrate_point_target(image, target, seeds, window=window)
+    assert len(fit.rows) == len(points)
+    assert fit.rms < 0.08  # the dot centres' noise
+    assert np.linalg.norm(fit.calibration.centre - centre) < 1e-3
+    assert np.linalg.norm(straight.calibration.centre - centre) > 0.01
+    volume = np.stack(
+        np.meshgrid(np.linspace(0, 42e-3, 6), np.linspace(0, 33e-3, 5),
+                    np.linspace(-30e-3, 10e-3, 5)),
+        axis=-1,
+    ).reshape(-1, 3)  # fmt: skip
+    error = np.linalg.norm(fit.calibration.project(volume) - through_window(volume), axis=1)
+    assert error.max() < 0.15
