@@ -32,7 +32,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from ptv.calibration.pinhole import PinholeCalibration, project_parameters, rodrigues
+from ptv.calibration.pinhole import (
+    PinholeCalibration,
+    PinholeModel,
+    project_parameters,
+    rodrigues,
+)
 from ptv.camera_model import on_image
 from ptv.rays import Rays
 
@@ -313,8 +318,8 @@ class RefractivePinholeCalibration:
         return self.pinhole.params
 
     @property
-    def model(self):
-        """The pinhole's fitted parameter set (PinholeModel)."""
+    def model(self) -> PinholeModel:
+        """The pinhole's fitted parameter set."""
         return self.pinhole.model
 
     @property

@@ -134,3 +134,22 @@ def test_seeds_that_fit_no_camera_name_the_image(tmp_path, capsys):
     )
     err = refuse(folder, capsys)
     assert f"{folder / 'Calibration' / 'cam2.tif'}: the seed points do not fit one camera" in err
+
+
+def test_a_window_on_the_cameras_wrong_side_names_the_image(tmp_path, capsys):
+    folder = copy_example(tmp_path)
+
+    def edit(spec):
+        # The wet face 0.5 m below the target, facing away from the cameras above it.
+        spec["cameras"]["cam2"]["window"] = {
+            "normal": [0, 0, -1],
+            "distance": 0.5,
+            "thickness": 0.01,
+            "glass_index": 1.5,
+            "medium_index": 1.33,
+        }
+
+    edit_json(folder, edit)
+    err = refuse(folder, capsys)
+    assert f"{folder / 'Calibration' / 'cam2.tif'}: the camera (centre " in err
+    assert "is not outside its window" in err
