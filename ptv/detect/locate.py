@@ -93,9 +93,11 @@ Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
    split in 59–60 of 60, their centres' errors at the Cramér–Rao bound (rms of
    error / σ_CR 0.85–1.2). On uniformly random particles (benchmarks/bench_dense.py,
    σ 0.7–1.0 px, 800–8000 e⁻): found / rms 0.998 / 0.051 px at 0.002 particles per
-   pixel, 0.979 / 0.082 px at 0.01, 0.872 / 0.175 px at 0.03, false detections 0.1 /
-   0.2 / 1.4 %; what is missed is mostly pairs closer than 1 px, which no fit can tell
-   from one spot. The model test costs about 60 % more time on sparse frames.
+   pixel, 0.981 / 0.078 px at 0.01, 0.888 / 0.158 px at 0.03, false detections 0.1 /
+   0.2 / 1.5 %; what is missed is mostly pairs closer than 1 px, which no fit can tell
+   from one spot. Up to 0.01 the error is within 1.3× of the Cramér–Rao bound of the
+   particles that can be located to 0.1 px, 2.2× at 0.03. The model test costs about
+   60 % more time on sparse frames.
 
 Measured on pixel-integrated Gaussian spots rendered with known centres (12-bit sensor,
 gain 0.4 DN/e⁻, 8 e⁻ read noise, 5 e⁻ background, k = 6), gauss / gauss3 / centroid:
