@@ -170,9 +170,10 @@ def openptv_check(folder: Path, calibration: str, frame: int = 10001) -> dict | 
     the high-passed image, its target recognition with the shipped ``targ_rec.par``,
     sorted by image row. Then:
 
-    - ``rebuilt_mm``: those targets triangulated by OpenPTV's calibration (``.ori``,
-      ``.addpar``, its multimedia model), median distance to OpenPTV's points: the
-      rebuild is right when this is the file's rounding;
+    - ``rebuilt_mm``: the targets of the four-camera particles triangulated by
+      OpenPTV's calibration (``.ori``, ``.addpar``, its multimedia model), median
+      distance to OpenPTV's points: the rebuild is right when this is the file's
+      rounding;
     - per camera ``reprojection_px``: OpenPTV's particles projected by its own
       calibration, median distance to the targets they cite (how tightly its own rays
       meet), and ``detected_1px``: the fraction of those targets with a synptv detection

@@ -579,7 +579,7 @@ def calibrate_point_target(
     if window is None:
         return fit
     try:
-        return _refit_through_window(fit, target, window, blobs.pixels, source)
+        return _refit_through_window(fit, target, window, blobs.pixels)
     except ValueError as err:
         raise ValueError(f"{source}: {err}") from None
 
@@ -589,7 +589,6 @@ def _refit_through_window(
     target: PointTarget,
     window: FlatWindow,
     blobs: np.ndarray,
-    source: str,
 ) -> PointTargetFit:
     """Steps 3–4 again with the pinhole behind ``window`` (module docstring, step 6),
     started from the straight-ray ``fit``; ``blobs`` (B, 2) are the image's blob
