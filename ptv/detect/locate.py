@@ -219,7 +219,10 @@ def _noise_model(stats: np.ndarray, groups: Groups, noise2: np.ndarray) -> tuple
     whose y is above the 0.999 quantile of χ²_dof/dof times the line.
     Where the bins' x span less than a factor 2, c and γ cannot be told apart: c = 1.
     With too few groups for two bins, c = 1 and γ is the median of (y′ − 1)/x; (1, 0)
-    when nothing was fitted.
+    when no fitted group's residuals look white. That happens when every particle image
+    is blended or not a Gaussian spot (an image holding only pairs 1.5 px apart): the
+    split test then takes the spots' shot noise for structure, and how many blends it
+    splits varies from image to image.
     """
     sizes = np.diff(groups.offsets)
     dof, light, square = stats[:, 2], stats[:, 1], stats[:, 0]
