@@ -699,7 +699,8 @@ def _add_calibrate_parser(sub) -> None:
         "and print the paper's Table 1 metric (against the nominal dot positions, and "
         "against the true centres when the folder holds truth.h5). A dataset whose target "
         "is a 3-D target of listed points (one image per camera) gets one pinhole per "
-        "camera, its reprojection RMS and the target points triangulated back.",
+        "camera (fitted through the camera's glass wall when experiment.json gives its "
+        "window), its reprojection RMS and the target points triangulated back.",
     )
     cal.add_argument("--dataset", required=True, help="folder written by synptv render")
     cal.add_argument(
