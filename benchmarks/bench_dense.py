@@ -273,14 +273,14 @@ def against_bound(truths: list, bounds: list, founds: list) -> dict:
     """A detector's error beside the Cramér–Rao bound, on the particles it found that
     the bound says can be located to :data:`LOCATABLE_PX`: their fraction of the found,
     the detector's rms error on them and the rms of their bounds, px."""
-    errors, limits = [], []
+    errors, limits, count = [], [], 0
     for truth, limit, found in zip(truths, bounds, founds, strict=True):
         ti, fi = match(truth, found)
         keep = limit[ti] <= LOCATABLE_PX
         errors.append(found[fi[keep]] - truth[ti[keep]])
         limits.append(limit[ti[keep]])
+        count += len(ti)
     e, b = np.concatenate(errors), np.concatenate(limits)
-    count = sum(len(match(t, f)[0]) for t, f in zip(truths, founds, strict=True))
     return {
         "locatable": round(len(b) / max(count, 1), 4),
         "rms_px": round(float(np.sqrt((e**2).sum(axis=1).mean())), 4),
