@@ -597,7 +597,8 @@ def _refit_through_window(
     start = fit.calibration
     for iteration in range(1, MAX_ITERATIONS + 1):
         camera = fit_refractive_pinhole(start, window, target.points[rows], pixels)
-        residuals = np.linalg.norm(camera.project(target.points[rows]) - pixels, axis=1)
+        predicted = camera.project(target.points)
+        residuals = np.linalg.norm(predicted[rows] - pixels, axis=1)
         out = PointTargetFit(
             camera,
             rows,
@@ -609,7 +610,7 @@ def _refit_through_window(
             float(tolerance),
         )
         tolerance = min(tolerance, max(MIN_TOLERANCE_PX, RESIDUAL_FACTOR * np.median(residuals)))
-        again, blob_rows = associate(camera.project(target.points), blobs, tolerance)
+        again, blob_rows = associate(predicted, blobs, tolerance)
         if len(again) < MIN_POINTS:
             raise ValueError(
                 f"through the window only {len(again)} target points have a dot within "

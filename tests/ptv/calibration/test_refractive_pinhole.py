@@ -118,14 +118,14 @@ def reference_pixels(camera: RefractivePinholeCalibration, points: np.ndarray) -
     x=st.floats(-0.15, 0.15), y=st.floats(-0.15, 0.15), height=st.floats(0.2, 0.8),
     pixels=st.lists(st.tuples(st.floats(0, 1279), st.floats(0, 1023)), min_size=1,
                     max_size=10),
-    depths=st.floats(1e-3, 0.3),
+    depth=st.floats(1e-3, 0.3),
 )  # fmt: skip
-def test_a_pixels_ray_projects_back_onto_the_pixel(x, y, height, pixels, depths):
+def test_a_pixels_ray_projects_back_onto_the_pixel(x, y, height, pixels, depth):
     camera = camera_behind(WINDOW, (x, y, height), (0.0, 0.0, -0.05))
     xy = np.array(pixels)
     rays = camera.pixel_to_ray(xy)
     ok = rays.valid
-    points = rays.origins[ok] + depths * rays.directions[ok]
+    points = rays.origins[ok] + depth * rays.directions[ok]
     np.testing.assert_allclose(camera.project(points), xy[ok], rtol=0, atol=1e-6)
     np.testing.assert_allclose(reference_pixels(camera, points), xy[ok], rtol=0, atol=1e-6)
 
