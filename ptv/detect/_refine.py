@@ -459,18 +459,21 @@ def fixed_light(spots, near, rr, cc, work, out):  # pragma: no cover (compiled)
 
 @njit(cache=True, parallel=True)
 def refine_groups(
-    img, spots, level, members, offsets, near, near_offsets, snapshot
+    img, spots, level, members, offsets, near, near_offsets, snapshot, noise2, gamma
 ):  # pragma: no cover
     """Refine groups of particles by a joint integrated-Gaussian fit.
 
     The model of pixel (i, j) is Σ_k A_k·E(i − x_k)·E(j − y_k) + F + B, E the light of a
     Gaussian of width s_k falling on the pixel (erf differences), F the light of the
     group's neighbours held fixed, over the union of the members' 5 × 5 windows, fitted
-    with uniform weights by Gauss–Newton from the members' spots and their mean
-    background ``level``. Every pixel counts whatever its value, so no threshold or
-    logarithm shapes the estimate. A group whose fit fails (a window off the image,
-    singular, a step beyond ½ px, a width outside 0.3–3 px, no convergence, a centre
-    moved more than 1 px) keeps its spots.
+    by Gauss–Newton from the members' spots and their mean background ``level``. Every
+    pixel counts whatever its value, so no threshold or logarithm shapes the estimate.
+    The weights are uniform (least squares) when ``gamma`` < 0; otherwise each pixel is
+    weighted by 1/σ_p², σ_p² = noise2 + γ·m_p, m_p the light of the starting spots on
+    it (maximum likelihood for Gaussian read noise and Poisson shot noise, once the
+    noise model is known). A group whose fit fails (a window off the image, singular,
+    a step beyond ½ px, a width outside 0.3–3 px, no convergence, a centre moved more
+    than 1 px) keeps its spots.
 
     Parameters
     ----------
@@ -490,6 +493,11 @@ def refine_groups(
     snapshot : ndarray (N, 4)
         The spots the neighbours' light is taken from (read only: a copy of ``spots``
         made before the call, so the result does not depend on the order of the groups).
+    noise2 : ndarray (N,)
+        Read and background noise variance at each particle, DN² (the group's mean is
+        used; not read when ``gamma`` < 0).
+    gamma : float
+        Shot-noise variance per DN of light, DN; < 0 for uniform weights.
 
     Returns
     -------
@@ -500,9 +508,10 @@ def refine_groups(
         background m_p weighted by the pixels' share of the residual (h_p: leverage); the
         degrees of freedom, pixels − parameters; the fitted background B, DN; the sum of
         the products of the residuals of horizontally and vertically adjacent pixels,
-        DN² (0, 0, 0, NaN, 0 where the fit failed). The expected Σ (I − model)² is
-        Σ (1 − h_p)·σ_p²; the last is near 0 for white noise, and large for a misfit (a
-        blend leaves residuals of one sign over several pixels).
+        DN² (0, 0, 0, NaN, 0 where the fit failed). For a least-squares fit the
+        expected Σ (I − model)² is Σ (1 − h_p)·σ_p²; the last is near 0 for white noise,
+        and large for a misfit (a blend leaves residuals of one sign over several
+        pixels).
     """
     rows, cols = img.shape
     refined = np.zeros(spots.shape[0], np.bool_)
@@ -522,7 +531,7 @@ def refine_groups(
         n_max = largest * (2 * HALF + 1) ** 2
         rr, cc = np.empty(n_max, np.int64), np.empty(n_max, np.int64)
         fixed, resid, light = np.empty(n_max), np.empty(n_max), np.empty(n_max)
-        root_w = np.ones(n_max)
+        root_w, ones = np.ones(n_max), np.ones(n_max)
         params = np.empty(4 * largest + 1)
         for g in range(chunk * n_groups // _CHUNKS, (chunk + 1) * n_groups // _CHUNKS):
             group = members[offsets[g] : offsets[g + 1]]
@@ -530,10 +539,12 @@ def refine_groups(
             if count == 0:
                 continue
             p = params[: 4 * group.size + 1]
-            p[-1] = 0.0
+            p[-1] = var_n = 0.0
             for k in range(group.size):
                 p[4 * k : 4 * k + 4] = spots[group[k]]
                 p[-1] += level[group[k]] / group.size
+                if gamma >= 0.0:
+                    var_n += noise2[group[k]] / group.size
             fixed_light(
                 snapshot,
                 near[near_offsets[g] : near_offsets[g + 1]],
@@ -543,6 +554,10 @@ def refine_groups(
                 fixed,
             )
             w, f = root_w[:count], fixed[:count]
+            if gamma >= 0.0:
+                model_light(img, rr[:count], cc[:count], p, work, fixed, resid, light)
+                for i in range(count):
+                    w[i] = 1.0 / sqrt(var_n + gamma * max(light[i], 0.0))
             if fit_group(img, rr[:count], cc[:count], p, work, w, f, _ITERATIONS, False):
                 for k in range(group.size):
                     spots[group[k]] = p[4 * k : 4 * k + 4]
@@ -550,7 +565,7 @@ def refine_groups(
                 model_light(img, rr[:count], cc[:count], p, work, fixed, resid, light)
                 stats[g, 0] = np.sum(resid[:count] ** 2)
                 stats[g, 1] = _residual_light(
-                    img, rr[:count], cc[:count], p, work, root_w[:count], fixed, light
+                    img, rr[:count], cc[:count], p, work, ones[:count], fixed, light
                 )
                 stats[g, 2] = count - p.size
                 stats[g, 3] = p[-1]
