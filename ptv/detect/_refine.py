@@ -508,10 +508,10 @@ def refine_groups(
         background m_p weighted by the pixels' share of the residual (h_p: leverage); the
         degrees of freedom, pixels − parameters; the fitted background B, DN; the sum of
         the products of the residuals of horizontally and vertically adjacent pixels,
-        DN² (0, 0, 0, NaN, 0 where the fit failed). For a least-squares fit the
-        expected Σ (I − model)² is Σ (1 − h_p)·σ_p²; the last is near 0 for white noise,
-        and large for a misfit (a blend leaves residuals of one sign over several
-        pixels).
+        DN² (0, 0, 0, NaN, 0 where the fit failed; a weighted fit gives only the degrees
+        of freedom and the background). The expected Σ (I − model)² is
+        Σ (1 − h_p)·σ_p²; the last is near 0 for white noise, and large for a misfit (a
+        blend leaves residuals of one sign over several pixels).
     """
     rows, cols = img.shape
     refined = np.zeros(spots.shape[0], np.bool_)
@@ -531,7 +531,7 @@ def refine_groups(
         n_max = largest * (2 * HALF + 1) ** 2
         rr, cc = np.empty(n_max, np.int64), np.empty(n_max, np.int64)
         fixed, resid, light = np.empty(n_max), np.empty(n_max), np.empty(n_max)
-        root_w, ones = np.ones(n_max), np.ones(n_max)
+        root_w = np.ones(n_max)
         params = np.empty(4 * largest + 1)
         for g in range(chunk * n_groups // _CHUNKS, (chunk + 1) * n_groups // _CHUNKS):
             group = members[offsets[g] : offsets[g + 1]]
@@ -562,13 +562,15 @@ def refine_groups(
                 for k in range(group.size):
                     spots[group[k]] = p[4 * k : 4 * k + 4]
                     refined[group[k]] = True
+                stats[g, 2] = count - p.size
+                stats[g, 3] = p[-1]
+                if gamma >= 0.0:
+                    continue  # the noise model reads the least-squares fits' statistics
                 model_light(img, rr[:count], cc[:count], p, work, fixed, resid, light)
                 stats[g, 0] = np.sum(resid[:count] ** 2)
                 stats[g, 1] = _residual_light(
-                    img, rr[:count], cc[:count], p, work, ones[:count], fixed, light
+                    img, rr[:count], cc[:count], p, work, root_w[:count], fixed, light
                 )
-                stats[g, 2] = count - p.size
-                stats[g, 3] = p[-1]
                 stats[g, 4] = _neighbour_products(rr[:count], cc[:count], resid, seen, grid)
     return refined, stats
 

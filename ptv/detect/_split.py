@@ -55,13 +55,14 @@ SPLIT_CHI2 = 20.0
 #: (≈ 20 degrees of freedom: exceeded with probability < 10⁻² by a well-fitted spot).
 SCREEN_CHI2 = 39.0
 #: Split spots closer than this, px, are one spot of another shape, not two particles
-#: (and a spot split off this close to any other detection is a duplicate: it is
-#: dropped by :func:`ptv.detect.locate._undouble`).
+#: (and a spot split off this close to any other detection is a duplicate, which
+#: :func:`ptv.detect.locate._undouble` drops or merges).
 MIN_SEPARATION = 0.8
-#: At most this many spots are added to a group (a triple blend needs two; a group of
-#: six detections at 0.03 particles per pixel often holds two blends). From 2 to 4 with
-#: 4 to 10 trials: rms error 0.082 → 0.078 px at 0.01 particles per pixel, 0.175 →
-#: 0.158 at 0.03 (benchmarks/bench_dense.py).
+#: At most this many spots are added to a group in one round of the split stage (a
+#: triple blend needs two; a group of six detections at 0.03 particles per pixel often
+#: holds two blends). From 2 to 4 with 4 to 10 trials, in a single round: rms error
+#: 0.082 → 0.078 px at 0.01 particles per pixel, 0.175 → 0.158 at 0.03
+#: (benchmarks/bench_dense.py).
 MAX_ADDED = 4
 #: Gauss–Newton steps at most of the trial fits: a blend's one-spot fit can take many,
 #: its width, amplitude and background being strongly correlated on a few pixels.

@@ -20,7 +20,7 @@ import pytest
 from scipy.spatial import cKDTree
 from scipy.special import erf
 
-from ptv.detect import DetectionFlag, detect_particles
+from ptv.detect import DetectionFlag, detect_particles, locate
 
 GAIN, READ_NOISE, BACKGROUND, OFFSET = 0.4, 8.0, 5.0, 10.0
 SIGMA = 0.8
@@ -149,3 +149,20 @@ def test_noise_elongated_single_spots_are_not_split():
     assert elongated >= 0.01 * spots  # kept as one particle, the flag kept
     # Poisson with mean ≤ 12 (10⁻³ × 12000): above 24 with probability < 10⁻³.
     assert extra <= 2 * FALSE_SPLIT_RATE * spots
+
+
+def test_a_particle_split_off_twice_is_kept_once():
+    """The split stage tries neighbouring groups side by side, so two of them can each
+    split off a spot for one hidden particle, or put one on a detection: closer than
+    MIN_SEPARATION, spots are one particle. Two new ones become one at their mean, one
+    on a detection is dropped, and a detection moved onto another is put back."""
+    fitted = np.array([[900.0, 10.0, 10.0, 0.8], [900.0, 20.0, 10.0, 0.8]])
+    spots = fitted.copy()
+    spots[1, 1:3] = [10.3, 10.2]  # moved by the split stage onto the first
+    new = np.array([[15.0, 10.0], [15.4, 10.2], [20.5, 10.0], [30.0, 30.0]])
+    kept = locate._undouble(spots, fitted, new)
+    np.testing.assert_array_equal(spots, fitted)
+    np.testing.assert_allclose(kept[0], [15.2, 10.1])
+    assert np.isnan(kept[1:3]).all()
+    np.testing.assert_array_equal(kept[3], new[3])
+    np.testing.assert_array_equal(new[1], [15.4, 10.2])  # the caller's array is untouched
