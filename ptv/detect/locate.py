@@ -80,7 +80,7 @@ Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
      Gaussian noise of known variance; for a second spot at a fixed place it would
      follow χ²₄ under one spot (4 more parameters), and P(χ²₄ > 20) = 5·10⁻⁴. The place
      is fitted, which can only raise Δχ², so the false-split rate was measured on
-     isolated single spots: 3 of 20250 (σ 0.7–1.0 px, 800–8000 e⁻) and 17 of 60750
+     isolated single spots: 4 of 20250 (σ 0.7–1.0 px, 800–8000 e⁻) and 14 of 60750
      faint ones (800–2000 e⁻, σ 0.85–1.0 px), i.e. below 10⁻³ per spot; of the faint
      spots that noise made look elongated (1.7 %), 1 % are split. (A BIC penalty,
      4·ln n ≈ 16 for n ≈ 50 pixels, would split more; 20 keeps the rate below 10⁻³
@@ -104,13 +104,14 @@ Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
    split in 59–60 of 60, their centres' errors at the Cramér–Rao bound (rms of
    error / σ_CR 0.85–1.2). On uniformly random particles (benchmarks/bench_dense.py,
    σ 0.7–1.0 px, 800–8000 e⁻): found / rms 0.998 / 0.049 px at 0.002 particles per
-   pixel, 0.983 / 0.073 px at 0.01, 0.926 / 0.141 px at 0.03, false detections 0.06 /
-   0.14 / 1.7 %; what is missed is mostly pairs closer than 1.2 px, which no fit can
-   tell from one spot. Up to 0.01 the error is within 1.15× of the Cramér–Rao bound of
-   the particles that can be located to 0.1 px, 1.7× at 0.03; over all found particles
-   it is that of an efficient detector resolving every pair from 1.0 px at 0.01, from
-   1.5 px at 0.03 (which finds fewer: 0.893). On sparse frames the model test costs
-   about 60 % more time, and the weighted refit 20–30 % more.
+   pixel, 0.982 / 0.073 px at 0.01, 0.926 / 0.142 px at 0.03, false detections 0.06 /
+   0.10 / 1.8 %; what is missed is mostly pairs closer than 1.2 px, which no fit can
+   tell from one spot. Up to 0.01 the error is within 1.16× of the Cramér–Rao bound of
+   the particles that can be located to 0.1 px, 1.8× at 0.03; over all found particles
+   it is that of an efficient detector resolving every pair from 1.0 px at 0.01, and
+   about that of one resolving from 1.5 px at 0.03 (0.141 px; it finds 0.893). On
+   sparse frames the model test costs about 60 % more time, and the weighted refit
+   10–20 % more.
 
 Measured on pixel-integrated Gaussian spots rendered with known centres (12-bit sensor,
 gain 0.4 DN/e⁻, 8 e⁻ read noise, 5 e⁻ background, k = 6), gauss / gauss3 / centroid:
@@ -183,7 +184,7 @@ _EXPLAINED = int(DetectionFlag.ELONGATED | DetectionFlag.FALLBACK)
 #: ``gamma`` of :func:`ptv.detect._refine.refine_groups` for uniform weights.
 _LEAST_SQUARES = -1.0
 #: Rounds of the split stage at most (:func:`_refine`). At 0.03 particles per pixel,
-#: 1 → 2 → 4 rounds: found 0.914 → 0.926 → 0.926, rms error 0.161 → 0.142 → 0.141 px
+#: 1 → 2 → 4 rounds: found 0.913 → 0.925 → 0.926, rms error 0.164 → 0.143 → 0.142 px
 #: (benchmarks/bench_dense.py); most images need two or three.
 _SPLIT_ROUNDS = 4
 
