@@ -17,9 +17,8 @@ from simulator.optics.scheimpflug import focus_on_plane
 def _camera():
     lens = Lens(0.05, 5.5e-6, k1=-0.08, k2=0.3, p1=2e-4, p2=-1e-4, f_number=8.0)
     window = WindowSpec(0.3, 0.015, np.radians(10.0), np.pi / 4)
-    camera = look_at_camera(
-        [0.0, 0.0, 0.0], lens, distance=0.9, azimuth=np.radians(35.0), window=window
-    )
+    camera = look_at_camera([0.0, 0.0, 0.0], lens, distance=0.9, azimuth=np.radians(35.0),
+                            window=window)
     return focus_on_plane(camera)
 
 

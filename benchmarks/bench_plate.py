@@ -24,9 +24,8 @@ TARGET_S = 3.0
 def _camera():
     lens = Lens(0.05, 5.5e-6, k1=-0.08, k2=0.3, p1=2e-4, p2=-1e-4, f_number=8.0)
     window = WindowSpec(0.3, 0.015, np.radians(10.0), np.pi / 4)
-    camera = look_at_camera(
-        [0.0, 0.0, 0.0], lens, distance=0.9, azimuth=np.radians(35.0), window=window
-    )
+    camera = look_at_camera([0.0, 0.0, 0.0], lens, distance=0.9, azimuth=np.radians(35.0),
+                            window=window)
     return focus_on_plane(camera)
 
 
@@ -55,7 +54,6 @@ def run(quick: bool) -> dict:
         "supersampled_pixel_fraction": round(result.supersampled_pixels / (rows * cols), 4),
         "dots_lit": int(result.visible.sum()),
         "dots_on_sensor": int(result.on_sensor.sum()),
-        "bias_px_median": round(
-            float(np.median(np.linalg.norm(result.bias[result.on_sensor], axis=1))), 4
-        ),
+        "bias_px_median": round(float(np.median(np.linalg.norm(
+            result.bias[result.on_sensor], axis=1))), 4),
     }

@@ -43,7 +43,7 @@ _CLAMPED_TOLERANCE = 1e-2
 #: Convergence of a weighted refit (:func:`refine_groups` with ``gamma`` >= 0), px: it
 #: starts from the least-squares fit, 0.01–0.03 px from the weighted optimum, so its
 #: first step passes and leaves the centre within about a tenth of that step of it
-#: (under 0.003 px, a tenth of the best random error) at a third of the cost.
+#: (under 0.003 px, a tenth of the best random error): one step instead of three.
 _WEIGHTED_TOLERANCE = 5e-2
 #: Accepted spot widths, px.
 _WIDTH_RANGE = (0.3, 3.0)
