@@ -40,11 +40,6 @@ _SMALLEST_STEP = 1.0 / 64.0
 #: above; a clamped fit serves a model test, which needs χ² near its minimum).
 _CLAMPED_REACH = 3.0
 _CLAMPED_TOLERANCE = 1e-2
-#: Convergence of a weighted refit (:func:`refine_groups` with ``gamma`` >= 0), px: it
-#: starts from the least-squares fit, 0.01–0.03 px from the weighted optimum, so its
-#: first step passes and leaves the centre within about a tenth of that step of it
-#: (under 0.003 px, a tenth of the best random error): one step instead of three.
-_WEIGHTED_TOLERANCE = 5e-2
 #: Accepted spot widths, px.
 _WIDTH_RANGE = (0.3, 3.0)
 
@@ -263,9 +258,7 @@ def _spot_masses(params, n_spots, r_lo, c_lo, n_rows, n_cols, ex, ey):  # pragma
 
 
 @njit(cache=True)
-def fit_group(
-    img, rr, cc, params, work, root_w, fixed, iterations, clamp, tolerance
-):  # pragma: no cover
+def fit_group(img, rr, cc, params, work, root_w, fixed, iterations, clamp):  # pragma: no cover
     """Gauss–Newton on (A, x₀, y₀, s) per spot and one background; True if converged.
 
     Parameters
@@ -290,12 +283,11 @@ def fit_group(
         A step that would move a centre by more than ½ px is shortened to ½ px, and one
         that would take a width out of 0.3–3 px or an amplitude to <= 0 is halved until
         it does not (at most down to :data:`_SMALLEST_STEP` of it), a centre may end up
-        to :data:`_CLAMPED_REACH` px from its start (True: fits that start far, as the
+        to :data:`_CLAMPED_REACH` px from its start, and the fit has converged when the
+        last step is below :data:`_CLAMPED_TOLERANCE` (True: fits that start far, as the
         trials of a split); otherwise either step, or a centre more than 1 px from its
-        start, ends the fit as failed (False: the refinement, which starts close).
-    tolerance : float
-        The fit has converged when a full step moves no centre by this much, px
-        (:data:`_TOLERANCE`, :data:`_CLAMPED_TOLERANCE`, :data:`_WEIGHTED_TOLERANCE`).
+        start, ends the fit as failed, and convergence is a step below :data:`_TOLERANCE`
+        (False: the refinement, which starts close).
 
     Returns
     -------
@@ -344,7 +336,7 @@ def fit_group(
                 return False
         for u in range(n_par):
             params[u] += fraction * step[u]
-        if fraction == 1.0 and move < tolerance:
+        if fraction == 1.0 and move < (_CLAMPED_TOLERANCE if clamp else _TOLERANCE):
             for k in range(n_spots):
                 shift_x = abs(params[4 * k + 1] - start[k, 0])
                 reach = _CLAMPED_REACH if clamp else 1.0
@@ -467,21 +459,18 @@ def fixed_light(spots, near, rr, cc, work, out):  # pragma: no cover (compiled)
 
 @njit(cache=True, parallel=True)
 def refine_groups(
-    img, spots, level, members, offsets, near, near_offsets, snapshot, noise2, gamma
+    img, spots, level, members, offsets, near, near_offsets, snapshot
 ):  # pragma: no cover
     """Refine groups of particles by a joint integrated-Gaussian fit.
 
     The model of pixel (i, j) is Σ_k A_k·E(i − x_k)·E(j − y_k) + F + B, E the light of a
     Gaussian of width s_k falling on the pixel (erf differences), F the light of the
     group's neighbours held fixed, over the union of the members' 5 × 5 windows, fitted
-    by Gauss–Newton from the members' spots and their mean background ``level``. Every
-    pixel counts whatever its value, so no threshold or logarithm shapes the estimate.
-    The weights are uniform (least squares) when ``gamma`` < 0; otherwise each pixel is
-    weighted by 1/σ_p², σ_p² = noise2 + γ·m_p, m_p the light of the starting spots on
-    it (maximum likelihood for Gaussian read noise and Poisson shot noise, once the
-    noise model is known). A group whose fit fails (a window off the image, singular,
-    a step beyond ½ px, a width outside 0.3–3 px, no convergence, a centre moved more
-    than 1 px) keeps its spots.
+    with uniform weights by Gauss–Newton from the members' spots and their mean
+    background ``level``. Every pixel counts whatever its value, so no threshold or
+    logarithm shapes the estimate. A group whose fit fails (a window off the image,
+    singular, a step beyond ½ px, a width outside 0.3–3 px, no convergence, a centre
+    moved more than 1 px) keeps its spots.
 
     Parameters
     ----------
@@ -501,11 +490,6 @@ def refine_groups(
     snapshot : ndarray (N, 4)
         The spots the neighbours' light is taken from (read only: a copy of ``spots``
         made before the call, so the result does not depend on the order of the groups).
-    noise2 : ndarray (N,)
-        Read and background noise variance at each particle, DN² (the group's mean is
-        used; not read when ``gamma`` < 0).
-    gamma : float
-        Shot-noise variance per DN of light, DN; < 0 for uniform weights.
 
     Returns
     -------
@@ -516,8 +500,7 @@ def refine_groups(
         background m_p weighted by the pixels' share of the residual (h_p: leverage); the
         degrees of freedom, pixels − parameters; the fitted background B, DN; the sum of
         the products of the residuals of horizontally and vertically adjacent pixels,
-        DN² (0, 0, 0, NaN, 0 where the fit failed; a weighted fit gives only the degrees
-        of freedom and the background). The expected Σ (I − model)² is
+        DN² (0, 0, 0, NaN, 0 where the fit failed). The expected Σ (I − model)² is
         Σ (1 − h_p)·σ_p²; the last is near 0 for white noise, and large for a misfit (a
         blend leaves residuals of one sign over several pixels).
     """
@@ -547,12 +530,10 @@ def refine_groups(
             if count == 0:
                 continue
             p = params[: 4 * group.size + 1]
-            p[-1] = var_n = 0.0
+            p[-1] = 0.0
             for k in range(group.size):
                 p[4 * k : 4 * k + 4] = spots[group[k]]
                 p[-1] += level[group[k]] / group.size
-                if gamma >= 0.0:
-                    var_n += noise2[group[k]] / group.size
             fixed_light(
                 snapshot,
                 near[near_offsets[g] : near_offsets[g + 1]],
@@ -562,25 +543,17 @@ def refine_groups(
                 fixed,
             )
             w, f = root_w[:count], fixed[:count]
-            tolerance = _TOLERANCE
-            if gamma >= 0.0:
-                tolerance = _WEIGHTED_TOLERANCE
-                model_light(img, rr[:count], cc[:count], p, work, fixed, resid, light)
-                for i in range(count):
-                    w[i] = 1.0 / sqrt(var_n + gamma * max(light[i], 0.0))
-            if fit_group(img, rr[:count], cc[:count], p, work, w, f, _ITERATIONS, False, tolerance):
+            if fit_group(img, rr[:count], cc[:count], p, work, w, f, _ITERATIONS, False):
                 for k in range(group.size):
                     spots[group[k]] = p[4 * k : 4 * k + 4]
                     refined[group[k]] = True
-                stats[g, 2] = count - p.size
-                stats[g, 3] = p[-1]
-                if gamma >= 0.0:
-                    continue  # the noise model reads the least-squares fits' statistics
                 model_light(img, rr[:count], cc[:count], p, work, fixed, resid, light)
                 stats[g, 0] = np.sum(resid[:count] ** 2)
                 stats[g, 1] = _residual_light(
                     img, rr[:count], cc[:count], p, work, root_w[:count], fixed, light
                 )
+                stats[g, 2] = count - p.size
+                stats[g, 3] = p[-1]
                 stats[g, 4] = _neighbour_products(rr[:count], cc[:count], resid, seen, grid)
     return refined, stats
 

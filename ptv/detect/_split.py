@@ -40,7 +40,6 @@ import numpy as np
 from numba import njit, prange
 
 from ptv.detect._refine import (
-    _CLAMPED_TOLERANCE,
     HALF,
     _pixel_mass,
     fit_group,
@@ -225,7 +224,7 @@ def _trial(img, p, n_loc, k, near, noise2, gamma, snapshot, sc):  # pragma: no c
     model_light(img, r, c, q1, work, fixed, resid, light)
     _weights(light, noise2, gamma, count, root_w)
     w = root_w[:count]
-    if not fit_group(img, r, c, q1, work, w, f, _ITERATIONS, True, _CLAMPED_TOLERANCE):
+    if not fit_group(img, r, c, q1, work, w, f, _ITERATIONS, True):
         return False
     chi_one = _chi2(img, r, c, q1, work, fixed, w, resid, light)
     if not _starts(r, c, resid, w, q1, kf, work, starts):
@@ -237,7 +236,7 @@ def _trial(img, p, n_loc, k, near, noise2, gamma, snapshot, sc):  # pragma: no c
         q2[4 * kf : 4 * kf + 4] = starts[start, 0]
         q2[4 * n_free : 4 * n_free + 4] = starts[start, 1]
         q2[-1] = q1[-1]
-        if not fit_group(img, r, c, q2, work, w, f, _ITERATIONS, True, _CLAMPED_TOLERANCE):
+        if not fit_group(img, r, c, q2, work, w, f, _ITERATIONS, True):
             continue
         gap_x = q2[4 * kf + 1] - q2[4 * n_free + 1]
         gap = sqrt(gap_x**2 + (q2[4 * kf + 2] - q2[4 * n_free + 2]) ** 2)
@@ -315,9 +314,7 @@ def _rescue(img, p, n_loc, near, noise2, gamma, snapshot, sc):  # pragma: no cov
     _weights(light, noise2, gamma, count, root_w)
     q = sc[12][: 4 * n_loc + 1]
     q[:] = p[: 4 * n_loc + 1]
-    if not fit_group(
-        img, r, c, q, work, root_w[:count], fixed[:count], _ITERATIONS, True, _CLAMPED_TOLERANCE
-    ):
+    if not fit_group(img, r, c, q, work, root_w[:count], fixed[:count], _ITERATIONS, True):
         return False
     p[: 4 * n_loc + 1] = q
     return True

@@ -64,11 +64,6 @@ Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
      fitted spots on the pixel and γ the camera's gain in DN per photo-electron
      (Poisson shot noise), measured on the image itself from the residuals of the
      groups whose residuals are white (:func:`_noise_model`): no camera data needed.
-   - Every fitted group is fitted again from its least-squares fit, each pixel weighted
-     by 1/σ_p²: the maximum-likelihood centres, which count the faint flanks of a spot
-     more than its shot-noisy top (:func:`_weighted_refit`; rms error 0.051 → 0.049 px
-     at 0.002 particles per pixel, 0.034 → 0.032 px on the 2048 × 1088 frames of
-     benchmarks/bench_detect.py).
    - A spot whose 5 × 5 window leaves a weighted residual χ² above 39 (≈ 20 degrees of
      freedom: a well-fitted spot exceeds it with probability < 10⁻²), or that was
      flagged ELONGATED, is tried: it and its neighbours within 4 px are refitted,
@@ -80,7 +75,7 @@ Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
      Gaussian noise of known variance; for a second spot at a fixed place it would
      follow χ²₄ under one spot (4 more parameters), and P(χ²₄ > 20) = 5·10⁻⁴. The place
      is fitted, which can only raise Δχ², so the false-split rate was measured on
-     isolated single spots: 4 of 20250 (σ 0.7–1.0 px, 800–8000 e⁻) and 14 of 60750
+     isolated single spots: 4 of 20250 (σ 0.7–1.0 px, 800–8000 e⁻) and 16 of 60750
      faint ones (800–2000 e⁻, σ 0.85–1.0 px), i.e. below 10⁻³ per spot; of the faint
      spots that noise made look elongated (1.7 %), 1 % are split. (A BIC penalty,
      4·ln n ≈ 16 for n ≈ 50 pixels, would split more; 20 keeps the rate below 10⁻³
@@ -103,15 +98,14 @@ Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
    pairs 1.2, 1.5 and 1.8 px apart, σ = 0.8 px, 4000 + 4000 or 4000 + 2000 e⁻, are
    split in 59–60 of 60, their centres' errors at the Cramér–Rao bound (rms of
    error / σ_CR 0.85–1.2). On uniformly random particles (benchmarks/bench_dense.py,
-   σ 0.7–1.0 px, 800–8000 e⁻): found / rms 0.998 / 0.049 px at 0.002 particles per
-   pixel, 0.982 / 0.073 px at 0.01, 0.926 / 0.142 px at 0.03, false detections 0.06 /
-   0.10 / 1.8 %; what is missed is mostly pairs closer than 1.2 px, which no fit can
-   tell from one spot. Up to 0.01 the error is within 1.16× of the Cramér–Rao bound of
-   the particles that can be located to 0.1 px, 1.8× at 0.03; over all found particles
-   it is that of an efficient detector resolving every pair from 1.0 px at 0.01, and
-   about that of one resolving from 1.5 px at 0.03 (0.141 px; it finds 0.893). On
-   sparse frames the model test costs about 60 % more time, and the weighted refit
-   10–20 % more.
+   σ 0.7–1.0 px, 800–8000 e⁻): found / rms 0.998 / 0.051 px at 0.002 particles per
+   pixel, 0.984 / 0.075 px at 0.01, 0.927 / 0.140 px at 0.03, false detections 0.06 /
+   0.17 / 1.7 %; what is missed is mostly pairs closer than 1.2 px, which no fit can
+   tell from one spot. Up to 0.01 the error is within 1.2× of the Cramér–Rao bound of
+   the particles that can be located to 0.1 px, 1.7× at 0.03; over all found particles
+   it is about that of an efficient detector resolving every pair from 1.0 px, at 0.01
+   (0.074 px) and at 0.03 (0.139 px; it finds 0.952). The model test costs about 60 %
+   more time on sparse frames.
 
 Measured on pixel-integrated Gaussian spots rendered with known centres (12-bit sensor,
 gain 0.4 DN/e⁻, 8 e⁻ read noise, 5 e⁻ background, k = 6), gauss / gauss3 / centroid:
@@ -181,10 +175,8 @@ _PRESCREEN = 0.75
 _WHITE_LIMIT = 0.2
 #: Flags a particle split from a blend no longer carries.
 _EXPLAINED = int(DetectionFlag.ELONGATED | DetectionFlag.FALLBACK)
-#: ``gamma`` of :func:`ptv.detect._refine.refine_groups` for uniform weights.
-_LEAST_SQUARES = -1.0
 #: Rounds of the split stage at most (:func:`_refine`). At 0.03 particles per pixel,
-#: 1 → 2 → 4 rounds: found 0.913 → 0.925 → 0.926, rms error 0.164 → 0.143 → 0.142 px
+#: 1 → 2 → 4 rounds: found 0.914 → 0.926 → 0.927, rms error 0.160 → 0.142 → 0.140 px
 #: (benchmarks/bench_dense.py); most images need two or three.
 _SPLIT_ROUNDS = 4
 
@@ -199,16 +191,13 @@ def _fit_spots(
     spots = _refine_kernels.start_spots(img, x, y, level, _REFINE_START_WIDTH)
     spots[unmodelled, 0] = 0.0  # their light is not modelled, nor held fixed
     groups = fit_groups(xy, unmodelled)
-    unweighted = (np.zeros(0), _LEAST_SQUARES)
-    refined, stats = _refine_kernels.refine_groups(
-        img, spots, level, *groups, spots.copy(), *unweighted
-    )
+    refined, stats = _refine_kernels.refine_groups(img, spots, level, *groups, spots.copy())
     dense = groups.has_near
     if dense.any():
         pieces = groups.subset(dense)
         for _ in range(_DENSE_SWEEPS - 1):
             again, piece_stats = _refine_kernels.refine_groups(
-                img, spots, level, *pieces, spots.copy(), *unweighted
+                img, spots, level, *pieces, spots.copy()
             )
             refined |= again
             ok = piece_stats[:, 2] > 0
@@ -221,31 +210,6 @@ def _fit_spots(
         int(dense.sum()),
     )
     return spots, groups, stats
-
-
-def _weighted_refit(
-    img: np.ndarray,
-    spots: np.ndarray,
-    groups: Groups,
-    stats: np.ndarray,
-    var_n: np.ndarray,
-    gamma: float,
-) -> None:
-    """Refit the refined groups from their least-squares fits with each pixel weighted
-    by 1/σ_p², σ_p² = var_n + γ·m_p (:func:`_noise_model`): the maximum-likelihood
-    centres, which weigh the faint flanks of a spot more than its shot-noisy top.
-
-    ``spots`` (N, 4) and the groups' fitted backgrounds ``stats[:, 3]`` are updated in
-    place where the weighted fit converges; ``var_n`` (N,) is c·σ_n², DN².
-    """
-    ok = stats[:, 2] > 0
-    start = np.zeros(len(spots))
-    start[groups.members] = np.repeat(stats[:, 3], np.diff(groups.offsets))
-    _, again = _refine_kernels.refine_groups(
-        img, spots, start, *groups.subset(ok), spots.copy(), var_n, gamma
-    )
-    converged = again[:, 2] > 0
-    stats[np.flatnonzero(ok)[converged], 3] = again[converged, 3]
 
 
 def _noise_model(stats: np.ndarray, groups: Groups, noise2: np.ndarray) -> tuple[float, float]:
@@ -422,15 +386,15 @@ def _refine(
 
     The split stage runs in rounds, at most :data:`_SPLIT_ROUNDS`: after each, the
     detections are grouped again, and the groups holding a particle split off in it are
-    refitted with it (weighted) and tried again, since a spot split off is a neighbour
-    the first fits of its group and of the groups around did not model."""
+    refitted with it (weighted, as the trials are) and tried again, since a spot split
+    off is a neighbour the first fits of its group and of the groups around did not
+    model."""
     x, y, _, _, _, flags = columns
     xy = np.column_stack((x, y))
     level, noise = background.at(xy)
     unmodelled = ((flags & _UNMODELLED) != 0) | crowded
     spots, groups, stats = _fit_spots(img, xy, unmodelled, level)
     scale, gamma = _noise_model(stats, groups, noise**2)
-    _weighted_refit(img, spots, groups, stats, scale * noise**2, gamma)
     candidate = (flags & DetectionFlag.ELONGATED) != 0
     tried = _worth_trying(stats, groups, scale * noise**2, gamma, candidate)
     backgrounds = stats[tried, 3]

@@ -54,9 +54,8 @@ def cameras(draw):
 @settings(max_examples=150)
 @given(
     camera=cameras(),
-    fractions=st.lists(
-        st.tuples(st.floats(0.0, 1.0), st.floats(0.0, 1.0)), min_size=1, max_size=20
-    ),
+    fractions=st.lists(st.tuples(st.floats(0.0, 1.0), st.floats(0.0, 1.0)), min_size=1,
+                       max_size=20),
     depth=st.floats(1e-4, 1.0),
 )
 def test_project_inverts_pixel_to_ray(camera, fractions, depth):
@@ -73,9 +72,8 @@ def test_project_inverts_pixel_to_ray(camera, fractions, depth):
 @given(
     n_layers=st.integers(1, 3),
     data=st.data(),
-    fractions=st.lists(
-        st.tuples(st.floats(0.0, 1.0), st.floats(0.0, 1.0)), min_size=1, max_size=20
-    ),
+    fractions=st.lists(st.tuples(st.floats(0.0, 1.0), st.floats(0.0, 1.0)), min_size=1,
+                       max_size=20),
     depth=st.floats(1e-4, 1.0),
 )
 def test_round_trip_through_general_stacks(n_layers, data, fractions, depth):
@@ -88,12 +86,8 @@ def test_round_trip_through_general_stacks(n_layers, data, fractions, depth):
     normal = np.array([np.sin(tilt) * np.cos(turn), np.sin(tilt) * np.sin(turn), np.cos(tilt)])
     first = data.draw(st.floats(0.05, 0.8))
     stack = FlatInterfaces(normal, first + np.cumsum(np.r_[0.0, gaps]), indices)
-    lens = Lens(
-        data.draw(st.floats(0.016, 0.1)),
-        5.5e-6,
-        k1=data.draw(st.floats(-0.5, 0.5)),
-        tau_y=data.draw(st.floats(-0.05, 0.05)),
-    )
+    lens = Lens(data.draw(st.floats(0.016, 0.1)), 5.5e-6, k1=data.draw(st.floats(-0.5, 0.5)),
+                tau_y=data.draw(st.floats(-0.05, 0.05)))
     camera = Camera(np.zeros(3), np.eye(3), lens, stack)
     xy = np.array(fractions) * [2047, 1087]
     rays = camera.pixel_to_ray(xy)

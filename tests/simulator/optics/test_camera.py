@@ -23,9 +23,8 @@ def test_pinhole_projection_is_the_textbook_formula():
     xy = cam.project(points)
     rel = points - cam.center
     fx = 0.05 / 5.5e-6
-    expected = np.column_stack(
-        [fx * rel[:, 0] / rel[:, 2] + 1023.5, fx * rel[:, 1] / rel[:, 2] + 543.5]
-    )
+    expected = np.column_stack([fx * rel[:, 0] / rel[:, 2] + 1023.5,
+                                fx * rel[:, 1] / rel[:, 2] + 543.5])
     assert xy.shape == (3, 2)
     np.testing.assert_allclose(xy, expected, atol=1e-9)
 
@@ -43,12 +42,8 @@ def test_refraction_at_a_perpendicular_window_matches_snell_by_hand():
 
     def miss(theta):
         s = np.sin(theta)
-        return (
-            h_a * np.tan(theta)
-            + t * np.tan(np.arcsin(s / n_g))
-            + h_w * np.tan(np.arcsin(s / n_w))
-            - rho
-        )
+        return (h_a * np.tan(theta) + t * np.tan(np.arcsin(s / n_g))
+                + h_w * np.tan(np.arcsin(s / n_w)) - rho)
 
     theta = brentq(miss, 0.0, 0.5, xtol=1e-15)
     xy = cam.project(point)

@@ -43,11 +43,9 @@ def test_single_interface_matches_the_quartic():
         r, hw = rho[i], h_w[i]
         # expand in x: A x²(ρ−x)² + B x² − C (ρ−x)²
         a_, b_, c_ = n_a**2 - n_w**2, (n_a * hw) ** 2, (n_w * h_a) ** 2
-        poly = (
-            a_ * np.polynomial.Polynomial([0, 0, 1]) * np.polynomial.Polynomial([r, -1]) ** 2
-            + b_ * np.polynomial.Polynomial([0, 0, 1])
-            - c_ * np.polynomial.Polynomial([r, -1]) ** 2
-        )
+        poly = (a_ * np.polynomial.Polynomial([0, 0, 1]) * np.polynomial.Polynomial([r, -1]) ** 2
+                + b_ * np.polynomial.Polynomial([0, 0, 1])
+                - c_ * np.polynomial.Polynomial([r, -1]) ** 2)
         roots = poly.roots()
         real = roots[(abs(roots.imag) < 1e-9) & (roots.real >= -1e-12) & (roots.real <= r + 1e-12)]
         assert len(real) >= 1

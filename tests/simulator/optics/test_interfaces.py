@@ -23,9 +23,8 @@ def _random_directions(rng, n, normal, max_angle):
     phi = rng.uniform(0, 2 * np.pi, n)
     a = _unit(np.cross(normal, [0.3, 1.0, 0.2]))
     b = np.cross(normal, a)
-    return np.cos(theta)[:, None] * normal + np.sin(theta)[:, None] * (
-        np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b
-    )
+    return (np.cos(theta)[:, None] * normal + np.sin(theta)[:, None]
+            * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b))
 
 
 def test_snell_and_coplanarity_at_every_interface():

@@ -8,18 +8,8 @@ from simulator.optics.lens import Lens, radial_fold, tilt_from_normal, undistort
 
 
 def _lens(**kw):
-    base = dict(
-        focal_length=0.05,
-        pixel_pitch=5.5e-6,
-        k1=-0.8,
-        k2=3.0,
-        k3=-10.0,
-        p1=4e-4,
-        p2=-3e-4,
-        tau_x=0.03,
-        tau_y=-0.05,
-        principal_point=(1030.2, 540.7),
-    )
+    base = dict(focal_length=0.05, pixel_pitch=5.5e-6, k1=-0.8, k2=3.0, k3=-10.0, p1=4e-4,
+                p2=-3e-4, tau_x=0.03, tau_y=-0.05, principal_point=(1030.2, 540.7))
     base.update(kw)
     return Lens(**base)
 
@@ -36,9 +26,8 @@ def test_normalized_to_pixel_matches_opencv_project_points():
     xy, valid = lens.normalized_to_pixel(xn)
     assert valid.all()
     obj = np.column_stack([xn, np.ones(len(xn))])
-    ref, _ = cv2.projectPoints(
-        obj, np.zeros(3), np.zeros(3), lens.camera_matrix(), lens.opencv_dist_coeffs()
-    )
+    ref, _ = cv2.projectPoints(obj, np.zeros(3), np.zeros(3), lens.camera_matrix(),
+                               lens.opencv_dist_coeffs())
     np.testing.assert_allclose(xy, ref.reshape(-1, 2), atol=1e-8)
 
 
@@ -49,9 +38,8 @@ def test_pixel_to_normalized_matches_opencv_undistort_points():
     back = lens.pixel_to_normalized(xy)
     np.testing.assert_allclose(back, xn, atol=1e-13)
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-15)
-    ref = cv2.undistortPoints(
-        xy.reshape(-1, 1, 2), lens.camera_matrix(), lens.opencv_dist_coeffs(), criteria=crit
-    )
+    ref = cv2.undistortPoints(xy.reshape(-1, 1, 2), lens.camera_matrix(),
+                              lens.opencv_dist_coeffs(), criteria=crit)
     np.testing.assert_allclose(back, ref.reshape(-1, 2), atol=1e-7)
 
 
@@ -61,8 +49,7 @@ def test_tilted_sensor_is_the_chief_ray_hit_on_a_tilted_plane():
     lens = Lens(0.05, 5.5e-6, tau_x=tau_x, tau_y=tau_y, image_distance=0.0532)
     cx_, sx_, cy_, sy_ = np.cos(tau_x), np.sin(tau_x), np.cos(tau_y), np.sin(tau_y)
     rot = np.array([[cy_, 0, -sy_], [0, 1, 0], [sy_, 0, cy_]]) @ np.array(
-        [[1, 0, 0], [0, cx_, sx_], [0, -sx_, cx_]]
-    )
+        [[1, 0, 0], [0, cx_, sx_], [0, -sx_, cx_]])
     xn = _normalized_grid(7, 0.1)
     xy, valid = lens.normalized_to_pixel(xn)
     assert valid.all()

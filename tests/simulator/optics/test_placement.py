@@ -14,9 +14,8 @@ TARGET = np.array([0.01, -0.02, 0.005])
 @pytest.mark.parametrize("direction", [0.0, np.pi / 4])
 def test_target_images_at_the_principal_point(obliquity_deg, direction):
     window = WindowSpec(0.25, 0.015, np.radians(obliquity_deg), direction)
-    cam = look_at_camera(
-        TARGET, LENS, distance=0.9, azimuth=np.radians(-35), elevation=np.radians(5), window=window
-    )
+    cam = look_at_camera(TARGET, LENS, distance=0.9, azimuth=np.radians(-35),
+                         elevation=np.radians(5), window=window)
     xy = cam.project(TARGET[None, :])
     np.testing.assert_allclose(xy[0], LENS.principal_point, atol=1e-8)
 
@@ -30,9 +29,8 @@ def test_pose_follows_azimuth_and_elevation():
 
 
 def test_image_is_upright_with_rows_along_world_y():
-    cam = look_at_camera(
-        TARGET, LENS, distance=0.7, azimuth=np.radians(40), elevation=np.radians(8)
-    )
+    cam = look_at_camera(TARGET, LENS, distance=0.7, azimuth=np.radians(40),
+                         elevation=np.radians(8))
     x_axis, y_axis = cam.rotation[0], cam.rotation[1]
     assert x_axis[1] == pytest.approx(0.0, abs=1e-15)  # image x horizontal
     assert y_axis[1] < -0.99  # image y (rows, down) along −Y
@@ -57,13 +55,8 @@ def test_window_geometry():
     # the wet face crosses the line of sight water_path before the target
     wet_hit = TARGET - 0.2 * line
     assert stack.normal @ wet_hit == pytest.approx(stack.offsets[-1], abs=1e-15)
-    diagonal = look_at_camera(
-        TARGET,
-        LENS,
-        distance=0.9,
-        azimuth=az,
-        window=WindowSpec(0.2, 0.012, np.radians(15), np.pi / 4),
-    )
+    diagonal = look_at_camera(TARGET, LENS, distance=0.9, azimuth=az,
+                              window=WindowSpec(0.2, 0.012, np.radians(15), np.pi / 4))
     tilt = diagonal.interfaces.normal - (diagonal.interfaces.normal @ line) * line
     frame_x = np.cross([0, 1.0, 0], line)
     frame_x /= np.linalg.norm(frame_x)  # the nominal image x (horizontal, ⊥ line)

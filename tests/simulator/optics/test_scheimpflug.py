@@ -29,7 +29,8 @@ def _tilt_angle(focus):
 @pytest.mark.parametrize("view_deg", [20.0, 35.0, 45.0])
 def test_tilt_in_air_obeys_the_scheimpflug_rule(view_deg):
     distance = 0.8
-    cam = look_at_camera([0, 0, 0], Lens(F, PITCH), distance=distance, azimuth=np.radians(view_deg))
+    cam = look_at_camera([0, 0, 0], Lens(F, PITCH), distance=distance,
+                         azimuth=np.radians(view_deg))
     focus = scheimpflug_focus(cam)
     s_i = F * distance / (distance - F)
     assert focus.image_distance == pytest.approx(s_i, rel=1e-12)
@@ -45,9 +46,8 @@ def test_tilt_through_a_perpendicular_window_matches_the_paraxial_rule():
     """tan θ_o,app = (n_a/n_w) tan θ_o and M from the apparent distance (docs/optics.md §3)."""
     view = np.radians(35)
     h_w, t_g, distance = 0.3, 0.015, 0.9
-    cam = look_at_camera(
-        [0, 0, 0], Lens(F, PITCH), distance=distance, azimuth=view, window=WindowSpec(h_w, t_g)
-    )
+    cam = look_at_camera([0, 0, 0], Lens(F, PITCH), distance=distance, azimuth=view,
+                         window=WindowSpec(h_w, t_g))
     focus = scheimpflug_focus(cam)
     apparent = distance - h_w - t_g + t_g / 1.49 + h_w / 1.333
     s_i = F * apparent / (apparent - F)
@@ -60,9 +60,8 @@ def test_tilt_through_a_perpendicular_window_matches_the_paraxial_rule():
 def test_scheimpflug_tilt_focuses_the_sheet_and_no_tilt_does_not(view_deg):
     """f/4, 50 mm, ~0.085 mm/px object-side pixel, perpendicular window."""
     lens = Lens(F, PITCH, f_number=4.0)
-    cam = look_at_camera(
-        [0, 0, 0], lens, distance=0.9, azimuth=np.radians(view_deg), window=WindowSpec(0.3, 0.015)
-    )
+    cam = look_at_camera([0, 0, 0], lens, distance=0.9, azimuth=np.radians(view_deg),
+                         window=WindowSpec(0.3, 0.015))
     sheet = _sheet_grid()
     tilted = focus_on_plane(cam, tilt=True)
     flat = focus_on_plane(cam, tilt=False)
@@ -84,7 +83,8 @@ def test_scheimpflug_tilt_focuses_the_sheet_and_no_tilt_does_not(view_deg):
 def test_axial_blur_matches_gauss_and_adrian():
     lens = Lens(F, PITCH, f_number=8.0)
     s_o = 0.8
-    cam = focus_on_plane(look_at_camera([0, 0, 0], lens, distance=s_o, azimuth=0.0), tilt=False)
+    cam = focus_on_plane(look_at_camera([0, 0, 0], lens, distance=s_o, azimuth=0.0),
+                         tilt=False)
     assert cam.lens.image_distance == pytest.approx(F * s_o / (s_o - F), rel=1e-12)
     dz = np.array([-0.01, -0.001, 0.001, 0.01])
     points = np.column_stack([np.zeros(4), np.zeros(4), -dz])  # camera looks along −Z

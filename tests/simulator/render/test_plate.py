@@ -24,15 +24,15 @@ def _window_camera(sensor_size=(2048, 1088)):
     """The benchmark rig: 50 mm, mild distortion, 35° off Z, 10° oblique window, Scheimpflug."""
     lens = Lens(0.05, 5.5e-6, sensor_size=sensor_size, k1=-0.08, k2=0.3, p1=2e-4, p2=-1e-4)
     window = WindowSpec(0.3, 0.015, np.radians(10.0), np.pi / 4)
-    camera = look_at_camera(
-        [0.0, 0.0, 0.0], lens, distance=0.9, azimuth=np.radians(35.0), window=window
-    )
+    camera = look_at_camera([0.0, 0.0, 0.0], lens, distance=0.9, azimuth=np.radians(35.0),
+                            window=window)
     return focus_on_plane(camera)
 
 
 def _pinhole_camera(azimuth_deg, *, distance=0.9, sensor_size=(640, 480)):
     lens = Lens(0.05, 5.5e-6, sensor_size=sensor_size)
-    return look_at_camera([0.0, 0.0, 0.0], lens, distance=distance, azimuth=np.radians(azimuth_deg))
+    return look_at_camera([0.0, 0.0, 0.0], lens, distance=distance,
+                          azimuth=np.radians(azimuth_deg))
 
 
 @pytest.fixture(scope="module")
@@ -97,7 +97,9 @@ def _disc_quadrature(camera, plate, plane, k, *, n_r=24, n_t=192):
     t = np.linspace(0.0, 2 * np.pi, n_t + 1)
     rr, tt = np.meshgrid(r, t, indexing="ij")
     uv = plate.dot_xy[k] + np.stack([rr * np.cos(tt), rr * np.sin(tt)], axis=-1)
-    xy = camera.project(plate.plate_to_world(plane, uv.reshape(-1, 2))).reshape(n_r + 1, n_t + 1, 2)
+    xy = camera.project(plate.plate_to_world(plane, uv.reshape(-1, 2))).reshape(
+        n_r + 1, n_t + 1, 2
+    )
     quads = np.stack([xy[:-1, :-1], xy[1:, :-1], xy[1:, 1:], xy[:-1, 1:]], axis=2)
     x, y = quads[..., 0], quads[..., 1]
     x1, y1 = np.roll(x, -1, axis=2), np.roll(y, -1, axis=2)
@@ -118,9 +120,8 @@ def _tir_camera():
     """A camera in water looking into air through two layers: oblique pixels are totally
     internally reflected."""
     normal = np.array([0.4, 0.05, 1.0])
-    stack = FlatInterfaces(
-        normal / np.linalg.norm(normal), [0.05, 0.06, 0.08], [1.333, 1.7, 1.2, 1.0]
-    )
+    stack = FlatInterfaces(normal / np.linalg.norm(normal), [0.05, 0.06, 0.08],
+                           [1.333, 1.7, 1.2, 1.0])
     lens = Lens(0.008, 5.5e-6, k1=-0.2, k2=0.05, p1=1e-3, tau_x=0.03, tau_y=-0.02)
     return Camera(np.zeros(3), np.eye(3), lens, stack)
 
@@ -195,9 +196,8 @@ def test_image_centroids_miss_the_projected_centre_by_the_disc_bias(window_image
     assert np.sqrt(np.mean(raw**2)) < 0.01 + np.sqrt(np.mean(np.sum(bias**2, axis=1)))
 
 
-def test_truth_centroid_and_light_match_a_forward_projected_quadrature(
-    window_image, realistic_plate
-):
+def test_truth_centroid_and_light_match_a_forward_projected_quadrature(window_image,
+                                                                       realistic_plate):
     """Independent check through ``camera.project`` (Newton forward refraction), with the
     realistic plate's tilt, bow, dot scatter and uneven back-light."""
     camera, result = window_image
@@ -221,10 +221,8 @@ def test_total_light_is_brightness_times_the_jacobian_area(window_image, realist
     )
     assert far.sum() > 100
     uv = realistic_plate.dot_xy[far]
-    area = (
-        np.pi
-        * (0.5 * result.diameters[far]) ** 2
-        * np.abs(np.linalg.det(_jacobian(camera, realistic_plate, 1, uv)))
+    area = np.pi * (0.5 * result.diameters[far]) ** 2 * np.abs(
+        np.linalg.det(_jacobian(camera, realistic_plate, 1, uv))
     )
     expected = FULL * realistic_plate.brightness(uv) * area
     ratio = result.electrons[far] / expected
@@ -314,10 +312,12 @@ def test_oblique_pinhole_bias_is_minus_r_squared_l_c(ideal_plate):
 
 
 @pytest.mark.parametrize("supersampling", [3, 4])
-def test_adaptive_supersampling_equals_supersampling_every_pixel(realistic_plate, supersampling):
+def test_adaptive_supersampling_equals_supersampling_every_pixel(realistic_plate,
+                                                                 supersampling):
     camera = _window_camera((320, 240))
     fast = render_plate(realistic_plate, camera, 2, supersampling=supersampling)
-    slow = render_plate(realistic_plate, camera, 2, supersampling=supersampling, adaptive=False)
+    slow = render_plate(realistic_plate, camera, 2, supersampling=supersampling,
+                        adaptive=False)
     # interior pixels take the centre's brightness instead of the sub-sample mean
     np.testing.assert_allclose(fast.image, slow.image, rtol=1e-7, atol=0)
     seen = fast.visible
@@ -349,9 +349,8 @@ def test_soft_edge_and_defocus_keep_light_and_centroids(ideal_plate):
     ok = sharp.on_sensor & soft.on_sensor
     # a linear ramp of width w adds π w²/12 to a disc's area
     radius = 0.5 * sharp.diameters[ok]
-    np.testing.assert_allclose(
-        soft.electrons[ok] / sharp.electrons[ok], 1 + 0.2e-3**2 / 12 / radius**2, rtol=5e-4
-    )
+    np.testing.assert_allclose(soft.electrons[ok] / sharp.electrons[ok],
+                               1 + 0.2e-3**2 / 12 / radius**2, rtol=5e-4)
     np.testing.assert_allclose(soft.centroid[ok], sharp.centroid[ok], atol=3e-3)
     assert np.count_nonzero(soft.image) > np.count_nonzero(sharp.image)
     # 20 mm off the focused sheet: a blur disc of about two pixels (σ = d/4)
@@ -392,9 +391,8 @@ def test_plane_out_of_range_is_an_error(ideal_plate, plane):
 
 
 def test_a_camera_that_sees_no_dot_is_an_error(ideal_plate):
-    away = look_at_camera(
-        [0.0, 0.5, 0.0], Lens(0.05, 5.5e-6, sensor_size=(64, 48)), distance=0.9, azimuth=0.0
-    )
+    away = look_at_camera([0.0, 0.5, 0.0], Lens(0.05, 5.5e-6, sensor_size=(64, 48)),
+                          distance=0.9, azimuth=0.0)
     with pytest.raises(ValueError, match="sees no dot of the plate at plane 0"):
         render_plate(ideal_plate, away, 0)
     behind = Camera(np.array([0.0, 0.0, 0.9]), np.eye(3), Lens(0.05, 5.5e-6))  # looks at +Z
