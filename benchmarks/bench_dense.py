@@ -132,6 +132,12 @@ def bound(xy: np.ndarray, sigma: np.ndarray, electrons: np.ndarray) -> np.ndarra
     return crowded_localisation_bound(xy, sigma, electrons, BACKGROUND, read, SHAPE)
 
 
+def _clusters(n: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Connected-component label of each of n nodes linked by the edges (i, j)."""
+    graph = coo_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
 def match(truth: np.ndarray, found: np.ndarray, radius: float = 1.0) -> tuple:
     """One-to-one matching within ``radius`` px: indices into truth and into found.
 
@@ -145,8 +151,7 @@ def match(truth: np.ndarray, found: np.ndarray, radius: float = 1.0) -> tuple:
     if len(t) == 0:
         return np.empty(0, np.int64), np.empty(0, np.int64)
     n_t = len(truth)
-    graph = coo_matrix((np.ones(len(t)), (t, n_t + f)), shape=(n_t + len(found),) * 2)
-    _, label = connected_components(graph, directed=False)
+    label = _clusters(n_t + len(found), t, n_t + f)
     ti, fi = [], []
     order = np.argsort(label[t], kind="stable")
     bounds = np.flatnonzero(np.diff(label[t][order], prepend=-1, append=-2))
@@ -305,8 +310,7 @@ def efficient_detector(
     for xy, weight, limit in zip(truths, electrons, bounds, strict=True):
         n = len(xy)
         pairs = cKDTree(xy).query_pairs(merge, output_type="ndarray")
-        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-        label = connected_components(graph, directed=False)[1]
+        label = _clusters(n, pairs[:, 0], pairs[:, 1])
         single = np.bincount(label)[label] == 1
         square += float(np.sum(limit[single] ** 2))
         clustered = np.flatnonzero(~single)
