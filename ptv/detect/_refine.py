@@ -392,6 +392,7 @@ def _residual_light(img, rr, cc, params, work, ones, fixed, light):  # pragma: n
     r_lo, c_lo = rr.min(), cc.min()
     jac, low, z, scale = jac_all[: n_par + 1], normal_all[:n_par, :n_par], z_all, scale_all
     _normal_equations(img, rr, cc, r_lo, c_lo, params, ex, ey, jac, low, rhs_all, ones, fixed)
+    inverse = rhs_all  # 1 / L's diagonal (the right-hand side is not needed here)
     for u in range(n_par):
         scale[u] = 1.0 / sqrt(low[u, u])
     for v in range(n_par):  # Cholesky of the scaled JᵀJ (upper triangle given), in place
@@ -403,16 +404,17 @@ def _residual_light(img, rr, cc, params, work, ones, fixed, light):  # pragma: n
                 if not total > 0.0:
                     return 0.0
                 low[v, v] = sqrt(total)
+                inverse[v] = 1.0 / low[v, v]
             else:
-                low[u, v] = total / low[v, v]
+                low[u, v] = total * inverse[v]
     total = 0.0
     for p in range(rr.size):
         h = 0.0
-        for u in range(n_par):  # z = L⁻¹ (scaled j_p)
+        for u in range(n_par):  # z = L⁻¹ (scaled j_p), by multiplications only (speed)
             t = jac[u, p] * scale[u]
             for v in range(u):
                 t -= low[u, v] * z[v]
-            z[u] = t / low[u, u]
+            z[u] = t * inverse[u]
             h += z[u] * z[u]
         total += (1.0 - h) * light[p]
     return total
@@ -437,6 +439,82 @@ def _neighbour_products(rr, cc, resid, seen, grid):  # pragma: no cover (compile
     for p in range(rr.size):
         seen[rr[p] - r_lo, cc[p] - c_lo] = False
     return total
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def _lone_spot_stats(img, rr, cc, params, work, fixed, out):  # pragma: no cover
+    """:func:`refine_groups`' statistics of a lone spot (its 5 × 5 window, parameters
+    A, x₀, y₀, s, B) into out[0], out[1] and out[4]: Σ r², Σ (1 − h_p)·m_p and the
+    products of adjacent residuals, as :func:`model_light`, :func:`_residual_light`
+    and :func:`_neighbour_products` give them for any group, in one pass over the
+    pixels, about three times faster (most groups of a sparse image are lone spots).
+
+    Σ_p h_p·m_p = tr((JᵀJ)⁻¹·Σ_p m_p·j_p·j_pᵀ), both matrices summed in the same pass
+    (after Jacobi scaling, with JᵀJ = LLᵀ: the trace of W·M·Wᵀ, W = L⁻¹); Σ (1 − h_p)·m_p
+    is 0 if JᵀJ is not positive definite."""
+    n_par = 5
+    side = 2 * HALF + 1
+    ex, ey = work[0][0], work[1][0]
+    a, b = params[0], params[4]
+    r_lo, c_lo = rr.min(), cc.min()
+    _axis_masses(c_lo, side, params[1], params[3], ex)
+    _axis_masses(r_lo, side, params[2], params[3], ey)
+    normal = np.zeros((n_par, n_par))
+    shot = np.zeros((n_par, n_par))
+    grid = np.zeros((side + 1, side + 1))  # residuals, and a zero border right and below
+    j = np.empty(n_par)
+    square = light_sum = 0.0
+    for p in range(rr.size):
+        col, row = cc[p] - c_lo, rr[p] - r_lo
+        mx, dxc, dxw = ex[col, 0], ex[col, 1], ex[col, 2]
+        my, dyc, dyw = ey[row, 0], ey[row, 1], ey[row, 2]
+        j[0], j[1], j[2] = mx * my, a * dxc * my, a * mx * dyc
+        j[3], j[4] = a * (dxw * my + mx * dyw), 1.0
+        light = fixed[p] + a * j[0]
+        resid = float(img[rr[p], cc[p]]) - b - light
+        grid[row, col] = resid
+        square += resid * resid
+        light_sum += light
+        for u in range(n_par):
+            for v in range(u, n_par):
+                normal[u, v] += j[u] * j[v]
+                shot[u, v] += light * j[u] * j[v]
+    out[0] = square
+    adjacent = 0.0
+    for row in range(side):
+        for col in range(side):
+            adjacent += grid[row, col] * (grid[row, col + 1] + grid[row + 1, col])
+    out[4] = adjacent
+    out[1] = 0.0
+    scale = np.empty(n_par)
+    for u in range(n_par):
+        scale[u] = 1.0 / sqrt(normal[u, u])
+    low = np.zeros((n_par, n_par))  # L of the scaled JᵀJ
+    for v in range(n_par):
+        for u in range(v, n_par):
+            total = normal[v, u] * scale[u] * scale[v]
+            for t in range(v):
+                total -= low[u, t] * low[v, t]
+            if u == v:
+                if not total > 0.0:
+                    return
+                low[v, v] = sqrt(total)
+            else:
+                low[u, v] = total / low[v, v]
+    inverse = np.zeros((n_par, n_par))  # W = L⁻¹, lower triangular
+    for u in range(n_par):
+        for v in range(u + 1):
+            total = 1.0 if u == v else 0.0
+            for t in range(v, u):
+                total -= low[u, t] * inverse[t, v]
+            inverse[u, v] = total / low[u, u]
+    trace = 0.0
+    for u in range(n_par):
+        for v in range(u + 1):
+            for t in range(u + 1):
+                m_vt = shot[min(v, t), max(v, t)] * scale[v] * scale[t]
+                trace += inverse[u, v] * m_vt * inverse[u, t]
+    out[1] = light_sum - trace
 
 
 @njit(cache=True)
@@ -547,14 +625,17 @@ def refine_groups(
                 for k in range(group.size):
                     spots[group[k]] = p[4 * k : 4 * k + 4]
                     refined[group[k]] = True
-                model_light(img, rr[:count], cc[:count], p, work, fixed, resid, light)
-                stats[g, 0] = np.sum(resid[:count] ** 2)
-                stats[g, 1] = _residual_light(
-                    img, rr[:count], cc[:count], p, work, root_w[:count], fixed, light
-                )
+                if group.size == 1:
+                    _lone_spot_stats(img, rr[:count], cc[:count], p, work, fixed, stats[g])
+                else:
+                    model_light(img, rr[:count], cc[:count], p, work, fixed, resid, light)
+                    stats[g, 0] = np.sum(resid[:count] ** 2)
+                    stats[g, 1] = _residual_light(
+                        img, rr[:count], cc[:count], p, work, root_w[:count], fixed, light
+                    )
+                    stats[g, 4] = _neighbour_products(rr[:count], cc[:count], resid, seen, grid)
                 stats[g, 2] = count - p.size
                 stats[g, 3] = p[-1]
-                stats[g, 4] = _neighbour_products(rr[:count], cc[:count], resid, seen, grid)
     return refined, stats
 
 

@@ -442,19 +442,25 @@ def _undouble(spots: np.ndarray, fitted: np.ndarray, new: np.ndarray) -> np.ndar
     limit = _split_kernels.MIN_SEPARATION
     moved = np.flatnonzero((spots != fitted).any(axis=1))
     if moved.size:
-        gap = cKDTree(spots[:, 1:3]).query(spots[moved, 1:3], k=2)[0][:, 1]
+        gap = _tree(spots[:, 1:3]).query(spots[moved, 1:3], k=2)[0][:, 1]
         back = moved[gap < limit]
         spots[back] = fitted[back]
     new = new.copy()
     if len(new) == 0:
         return new
-    new[cKDTree(spots[:, 1:3]).query(new)[0] < limit] = np.nan
+    new[_tree(spots[:, 1:3]).query(new)[0] < limit] = np.nan
     alive = np.flatnonzero(np.isfinite(new[:, 0]))
     for a, b in alive[cKDTree(new[alive]).query_pairs(limit, output_type="ndarray")]:
         if np.isfinite(new[a, 0]) and np.isfinite(new[b, 0]):
             new[a] = 0.5 * (new[a] + new[b])
             new[b] = np.nan
     return new
+
+
+def _tree(xy: np.ndarray) -> cKDTree:
+    """A KD-tree of points (N, 2) queried a few times: built unbalanced, in half the time
+    of a balanced one."""
+    return cKDTree(xy, balanced_tree=False, compact_nodes=False)
 
 
 def _number(name: str, value: object, *, low: float, strict: bool = False) -> float:

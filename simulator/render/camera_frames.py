@@ -96,12 +96,14 @@ def local_magnification(camera: Camera, points: np.ndarray, *, step: float = 1e-
         point itself is outside the view.
     """
     offset = np.array([0.0, step, 0.0])
-    centre = camera.project(points)
     ahead, behind = camera.project(points + offset), camera.project(points - offset)
     derivative = (ahead - behind) / (2 * step)
-    for one_sided in ((ahead - centre) / step, (centre - behind) / step):
-        missing = ~np.isfinite(derivative).all(axis=1)
-        derivative[missing] = one_sided[missing]
+    edge = np.flatnonzero(~np.isfinite(derivative).all(axis=1))
+    if edge.size:  # rare: the centres are projected for these points only
+        centre = camera.project(points[edge])
+        for one_sided in ((ahead[edge] - centre) / step, (centre - behind[edge]) / step):
+            missing = ~np.isfinite(derivative[edge]).all(axis=1)
+            derivative[edge[missing]] = one_sided[missing]
     return np.linalg.norm(derivative, axis=1) * camera.lens.pixel_pitch
 
 
