@@ -104,8 +104,10 @@ Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
    tell from one spot. Up to 0.01 the error is within 1.2× of the Cramér–Rao bound of
    the particles that can be located to 0.1 px, 1.7× at 0.03; over all found particles
    it is about that of an efficient detector resolving every pair from 1.0 px, at 0.01
-   (0.074 px) and at 0.03 (0.139 px; it finds 0.952). The model test costs about 60 %
-   more time on sparse frames.
+   (0.074 px) and at 0.03 (0.139 px; it finds 0.952). The model test costs time even
+   on sparse frames, where it splits about 1 % of the detections: about 60 % more on
+   those of benchmarks/bench_detect.py, 80 % more on paper-10hz's (15–16 → 28–29 ms per
+   image on one core, side by side).
 
 Measured on pixel-integrated Gaussian spots rendered with known centres (12-bit sensor,
 gain 0.4 DN/e⁻, 8 e⁻ read noise, 5 e⁻ background, k = 6), gauss / gauss3 / centroid:
