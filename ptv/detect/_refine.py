@@ -379,6 +379,32 @@ def model_light(img, rr, cc, params, work, fixed, resid, light):  # pragma: no c
 
 
 @njit(cache=True)
+def _scaled_cholesky(normal, low, scale, inverse, n):  # pragma: no cover (compiled)
+    """Cholesky factor L of D·N·D, D = diag(``scale``), scale_u = 1/√N_uu (Jacobi
+    scaling), N the n × n symmetric matrix whose upper triangle ``normal`` holds.
+
+    L goes into the lower triangle of ``low``, which may be ``normal`` itself (only the
+    upper triangle is read, each diagonal entry before it is overwritten), and 1/L_uu
+    into ``inverse``, so that triangular solves multiply instead of divide. Returns
+    False if N is not positive definite."""
+    for u in range(n):
+        scale[u] = 1.0 / sqrt(normal[u, u])
+    for v in range(n):
+        for u in range(v, n):
+            total = normal[v, u] * scale[u] * scale[v]
+            for t in range(v):
+                total -= low[u, t] * low[v, t]
+            if u == v:
+                if not total > 0.0:
+                    return False
+                low[v, v] = sqrt(total)
+                inverse[v] = 1.0 / low[v, v]
+            else:
+                low[u, v] = total * inverse[v]
+    return True
+
+
+@njit(cache=True)
 def _residual_light(img, rr, cc, params, work, ones, fixed, light):  # pragma: no cover
     """Σ_p (1 − h_p)·light_p, h_p = j_pᵀ(JᵀJ)⁻¹j_p the leverage of pixel p in the
     least-squares fit at ``params`` (j_p: its row of the Jacobian J): the shot-noise
@@ -393,20 +419,8 @@ def _residual_light(img, rr, cc, params, work, ones, fixed, light):  # pragma: n
     jac, low, z, scale = jac_all[: n_par + 1], normal_all[:n_par, :n_par], z_all, scale_all
     _normal_equations(img, rr, cc, r_lo, c_lo, params, ex, ey, jac, low, rhs_all, ones, fixed)
     inverse = rhs_all  # 1 / L's diagonal (the right-hand side is not needed here)
-    for u in range(n_par):
-        scale[u] = 1.0 / sqrt(low[u, u])
-    for v in range(n_par):  # Cholesky of the scaled JᵀJ (upper triangle given), in place
-        for u in range(v, n_par):
-            total = low[v, u] * scale[u] * scale[v]
-            for t in range(v):
-                total -= low[u, t] * low[v, t]
-            if u == v:
-                if not total > 0.0:
-                    return 0.0
-                low[v, v] = sqrt(total)
-                inverse[v] = 1.0 / low[v, v]
-            else:
-                low[u, v] = total * inverse[v]
+    if not _scaled_cholesky(low, low, scale, inverse, n_par):
+        return 0.0
     total = 0.0
     for p in range(rr.size):
         h = 0.0
@@ -486,28 +500,17 @@ def _lone_spot_stats(img, rr, cc, params, work, fixed, out):  # pragma: no cover
             adjacent += grid[row, col] * (grid[row, col + 1] + grid[row + 1, col])
     out[4] = adjacent
     out[1] = 0.0
-    scale = np.empty(n_par)
-    for u in range(n_par):
-        scale[u] = 1.0 / sqrt(normal[u, u])
-    low = np.zeros((n_par, n_par))  # L of the scaled JᵀJ
-    for v in range(n_par):
-        for u in range(v, n_par):
-            total = normal[v, u] * scale[u] * scale[v]
-            for t in range(v):
-                total -= low[u, t] * low[v, t]
-            if u == v:
-                if not total > 0.0:
-                    return
-                low[v, v] = sqrt(total)
-            else:
-                low[u, v] = total / low[v, v]
+    scale, diagonal = np.empty(n_par), np.empty(n_par)
+    low = np.zeros((n_par, n_par))
+    if not _scaled_cholesky(normal, low, scale, diagonal, n_par):
+        return
     inverse = np.zeros((n_par, n_par))  # W = L⁻¹, lower triangular
     for u in range(n_par):
         for v in range(u + 1):
             total = 1.0 if u == v else 0.0
             for t in range(v, u):
                 total -= low[u, t] * inverse[t, v]
-            inverse[u, v] = total / low[u, u]
+            inverse[u, v] = total * diagonal[u]
     trace = 0.0
     for u in range(n_par):
         for v in range(u + 1):
