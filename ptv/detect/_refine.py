@@ -153,7 +153,7 @@ def _solve(normal, rhs, out, scale):  # pragma: no cover (compiled)
     return True
 
 
-@njit(cache=True, fastmath={"reassoc", "contract"})
+@njit(cache=True)
 def _normal_equations(
     img, rr, cc, r_lo, c_lo, params, ex, ey, jac, normal, rhs, root_w, fixed
 ):  # pragma: no cover
@@ -161,9 +161,14 @@ def _normal_equations(
 
     ``jac`` (n_par + 1, ≥ n_pix) receives the Jacobian, one row per parameter, and the
     residuals in its last row, each scaled by the pixel's √weight (``root_w``, n_pix);
-    each sum is then one dot product over the pixels, which the compiler vectorises
-    (hence the reassociation allowed here: the sums differ from the pixel-by-pixel order
-    only by rounding). ``fixed`` (n_pix): light of spots held fixed, DN, part of the model.
+    each sum is then one dot product over the pixels. ``fixed`` (n_pix): light of spots
+    held fixed, DN, part of the model.
+
+    No fastmath here, nor in :func:`_lone_spot_stats`: with reassociation allowed, the
+    code numba loads from its cache gave detections that differed in the last bits from
+    those of freshly compiled code, so that a run's results depended on which of its
+    processes had compiled the kernels (measured: up to 3·10⁻⁹ px on paper-10hz
+    images); without it, no slower (side by side on paper-10hz and 0.03 ppp images).
     """
     n_par = params.size
     n_spots = (n_par - 1) // 4
@@ -455,7 +460,7 @@ def _neighbour_products(rr, cc, resid, seen, grid):  # pragma: no cover (compile
     return total
 
 
-@njit(cache=True, fastmath={"reassoc", "contract"})
+@njit(cache=True)
 def _lone_spot_stats(img, rr, cc, params, work, fixed, out):  # pragma: no cover
     """:func:`refine_groups`' statistics of a lone spot (its 5 × 5 window, parameters
     A, x₀, y₀, s, B) into out[0], out[1] and out[4]: Σ r², Σ (1 − h_p)·m_p and the
