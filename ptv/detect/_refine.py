@@ -466,7 +466,7 @@ def _lone_spot_stats(img, rr, cc, params, work, fixed, out):  # pragma: no cover
     A, x₀, y₀, s, B) into out[0], out[1] and out[4]: Σ r², Σ (1 − h_p)·m_p and the
     products of adjacent residuals, as :func:`model_light`, :func:`_residual_light`
     and :func:`_neighbour_products` give them for any group, in one pass over the
-    pixels, about three times faster (most groups of a sparse image are lone spots).
+    pixels, about 1.5 times faster (most groups of a sparse image are lone spots).
 
     Σ_p h_p·m_p = tr((JᵀJ)⁻¹·Σ_p m_p·j_p·j_pᵀ), both matrices summed in the same pass
     (after Jacobi scaling, with JᵀJ = LLᵀ: the trace of W·M·Wᵀ, W = L⁻¹); Σ (1 − h_p)·m_p
