@@ -106,8 +106,8 @@ Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
    it is about that of an efficient detector resolving every pair from 1.0 px, at 0.01
    (0.074 px) and at 0.03 (0.139 px; it finds 0.952). The model test costs time even
    on sparse frames, where it splits about 1 % of the detections: about 60 % more on
-   those of benchmarks/bench_detect.py, 80 % more on paper-10hz's (15–16 → 28–29 ms per
-   image on one core, side by side).
+   those of benchmarks/bench_detect.py, 80–90 % more on paper-10hz's (15–16 → 28–31 ms
+   per image on one core, side by side).
 
 Measured on pixel-integrated Gaussian spots rendered with known centres (12-bit sensor,
 gain 0.4 DN/e⁻, 8 e⁻ read noise, 5 e⁻ background, k = 6), gauss / gauss3 / centroid:
