@@ -65,8 +65,8 @@ def close_pairs(xy: np.ndarray, radius: float) -> np.ndarray:  # pragma: no cove
     The points are sorted into square cells at least ``radius`` wide (wider where the
     points are sparse over a large extent, so that there are at most about twice as many
     cells as points), and each is compared with the points of its own cell and of the four
-    neighbouring cells after it: linear in the number of points, for 2000 detections a
-    tenth of the time of a KD-tree's build and pair query.
+    neighbouring cells after it: linear in the number of points; for the 2200 detections
+    of a paper-10hz image 0.14 ms, against 0.47 ms for a KD-tree's build and pair query.
 
     Parameters
     ----------
