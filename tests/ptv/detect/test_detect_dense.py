@@ -14,7 +14,16 @@ measured fraction and mean square error (sampling, on one 512 × 512 image).
 import numpy as np
 import pytest
 
-from benchmarks.bench_dense import SHAPE, bound, efficient_detector, match, record, render, spots
+from benchmarks.bench_dense import (
+    SHAPE,
+    bound,
+    efficient_detector,
+    match,
+    record,
+    rejecting_oracle,
+    render,
+    spots,
+)
 from ptv.detect import detect_particles
 
 
@@ -38,3 +47,13 @@ def test_dense_images_are_detected_as_an_efficient_detector_would(ppp):
         fine = efficient_detector([xy], [electrons], [limit], merge=1.2)
         margin = 3.0 * square.std() / np.sqrt(len(square))
         assert square.mean() <= fine["rms_px"] ** 2 + margin
+
+
+def test_the_rejecting_oracle_drops_exactly_the_particles_with_a_close_neighbour():
+    # Two particles 0.9 px apart, one 1.3 px from the nearer of them, one alone:
+    # dropping pairs closer than 1.2 px leaves the last two, closer than 1.5 px the last.
+    xy = np.array([[10.0, 10.0], [10.9, 10.0], [12.2, 10.0], [30.0, 30.0]])
+    limit = np.array([0.5, 0.5, 0.03, 0.04])
+    kept = rejecting_oracle([xy], [limit], merge=1.2)
+    assert kept == {"found": 0.5, "rms_px": round(float(np.sqrt((0.03**2 + 0.04**2) / 2)), 4)}
+    assert rejecting_oracle([xy], [limit], merge=1.5) == {"found": 0.25, "rms_px": 0.04}
