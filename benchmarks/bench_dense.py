@@ -262,18 +262,18 @@ def figure(rows: list, path: Path) -> None:
     ):
         values = [r["synptv"]["cramer_rao"][key] for r in rows]
         axes[2].plot(ppp, values, style, color="grey", label=label)
-    merge = f"{DRAWN_MERGE:g} px"
+    drawn = f"{DRAWN_MERGE:g} px"
     references = (  # (row key, entry, label, style, colour)
         (
             "efficient_detector",
-            f"pairs from {merge}",
+            f"pairs from {drawn}",
             "efficient detector resolving pairs from",
             "d-.",
             "tab:green",
         ),
         (
             "rejecting_oracle",
-            f"drops pairs closer than {merge}",
+            f"drops pairs closer than {drawn}",
             "oracle dropping pairs closer than",
             "x:",
             "tab:purple",
@@ -282,7 +282,7 @@ def figure(rows: list, path: Path) -> None:
     for name, entry, label, style, colour in references:
         for key, ax in (("found", axes[0]), ("rms_px", axes[2])):
             values = [r[name][entry][key] for r in rows]
-            ax.plot(ppp, values, style, color=colour, label=f"{label} {merge}")
+            ax.plot(ppp, values, style, color=colour, label=f"{label} {drawn}")
     axes[2].legend(fontsize=7)
     for ppp_max, rms_max, found_min in TARGETS:
         axes[0].plot([min(ppp), ppp_max], [found_min] * 2, "k:", lw=1)
@@ -357,9 +357,9 @@ def rejecting_oracle(truths: list, bounds: list, merge: float) -> dict:
     another closer than ``merge`` px, and drops them all (instead of reporting a blend),
     locating every other particle at its Cramér–Rao bound.
 
-    Trading found particles for accuracy in this way is the best any detector could do
-    with blends it cannot resolve; a real one cannot tell them from single spots, and
-    does worse. Returns the found fraction and the rms error, px.
+    A real detector cannot tell such blends from single spots (it would split them if it
+    could): it drops single particles with them, or keeps some of them. Returns the
+    found fraction and the rms error, px.
 
     Parameters
     ----------
