@@ -6,7 +6,7 @@ particles uniform in the 100 × 100 × 10 mm sheet, projected by the true camera
 0.1 px detection noise, shuffled per camera. ``match_rays_ms`` times the matching
 itself from the rays (candidate search, skew distances, assignment);
 ``pixel_to_ray_ms`` is the calibration's own cost of turning both cameras' pixels into
-rays, and ``match_ms`` the whole ``ptv.match.match`` call (both together). Best and
+rays, and ``match_ms`` the whole ``ptv.matching.stereo.match`` call (both together). Best and
 median over the repeats, after a warm-up call. Yield and ghost fraction are given
 against the truth (a true positive pairs the right detections and lies within 0.1 mm
 of its particle).
@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from ptv.calibration.model_free import PlaneObservation, calibrate_model_free
-from ptv.match import match, match_rays
+from ptv.matching.stereo import match, match_rays
 from simulator.particles import SHEET
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions

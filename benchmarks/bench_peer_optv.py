@@ -44,7 +44,7 @@ import numpy as np
 import tifffile
 
 from validation.cli import main as synptv
-from validation.export.command import export_dataset
+from validation.commands.export import export_dataset
 from validation.export.openptv import frame_number
 
 #: Dataset sizes: (particles, frame pairs per Δt, traverse positions).

@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from ptv.calibration.io import load_calibrations
-from ptv.dataset import open_dataset
+from ptv.io.dataset import open_dataset
 from ptv.triangulate import triangulate
 from validation.cli import main as synptv
 from validation.reference_particles import (
@@ -196,9 +196,9 @@ def openptv_check(folder: Path, calibration: str, frame: int = 10001) -> dict | 
         return None
     from scipy.spatial import cKDTree
 
-    from ptv.frames import ImageDetector
-    from ptv.images import read_image
-    from ptv.settings import load_settings
+    from ptv.io.images import read_image
+    from ptv.pipeline.frames import ImageDetector
+    from ptv.pipeline.settings import load_settings
 
     dataset = open_dataset(folder)
     detector = ImageDetector(dataset, load_settings(folder / "ptv.toml").detection)

@@ -1,21 +1,24 @@
-"""Tracer particles in a KS flow: seeding, RK4 trajectories and the sample truth.
+"""Tracer particles in a flow: seeding, trajectories and the sample truth.
 
-Every snapshot is an independent KS realization seeded afresh (docs/flow.md §6), so
-snapshots are independent samples. Particles are seeded uniformly in the illuminated
-slab padded by a margin larger than any particle travels during the snapshot; since the
-flow is incompressible the particle density inside the slab stays uniform at every
-time, so particles leaving the slab are replaced by particles entering it without
-biasing the sample (no particle is re-injected by hand). Whether a particle is in the
-slab or the analysis volume at a given time is a mask computed by the consumer.
+Every snapshot is an independent realization of the flow seeded afresh (docs/flow.md
+§6), so snapshots are independent samples. Particles are seeded uniformly in the
+illuminated slab padded by a margin larger than any particle travels during the
+snapshot; since the flow is incompressible the particle density inside the slab stays
+uniform at every time, so particles leaving the slab are replaced by particles entering
+it without biasing the sample (no particle is re-injected by hand). Whether a particle is
+in the slab or the analysis volume at a given time is a mask computed by the consumer.
 
-Trajectories are integrated with classical RK4 in float64, with steps no longer than
-min(Δt_min/2, 0.05 τ_η, 0.2/ω_N) (docs/flow.md §6).
+A flow is anything that follows one snapshot's tracers (:class:`TracerFlow`): the
+kinematic simulation (:class:`KSFlow`, one KS realization per snapshot, trajectories by
+classical RK4 in float64 with steps no longer than min(Δt_min/2, 0.05 τ_η, 0.2/ω_N),
+docs/flow.md §6) or a Navier–Stokes simulation (:mod:`simulator.dns.tracers`).
 """
 
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import pairwise
+from typing import Protocol
 
 import numpy as np
 
@@ -173,6 +176,72 @@ def integrate(field: KSField, x0: np.ndarray, times: np.ndarray, *, h_max: float
     )
 
 
+class TracerFlow(Protocol):
+    """What :func:`follow_snapshots` needs of a flow: one snapshot's tracers followed."""
+
+    @property
+    def u_rms(self) -> float:
+        """u′, m/s: sets the margin of the seeding box."""
+        ...
+
+    def follow_snapshot(
+        self, m: int, rng: np.random.Generator, seed_box: Box, n_seed: int, times: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Seed ``n_seed`` tracers uniformly in ``seed_box`` (with ``rng``) in snapshot
+        ``m`` and follow them over ``times`` (s after the snapshot's start, from 0).
+
+        Returns
+        -------
+        positions, velocity, acceleration : ndarray, shape (T, n_seed, 3)
+            Exact X(t), u(X(t), t) and Lagrangian acceleration, m, m/s, m/s².
+        """
+        ...
+
+
+@dataclass(frozen=True)
+class KSFlow:
+    """Kinematic simulation: each snapshot draws its own KS realization of a spectrum.
+
+    Attributes
+    ----------
+    spectrum : Spectrum
+        The flow's spectrum.
+    n_modes : int
+        KS modes.
+    unsteadiness : float
+        λ of the KS frequencies (:func:`simulator.flow.draw_ks_field`).
+    """
+
+    spectrum: Spectrum
+    n_modes: int = 200
+    unsteadiness: float = DEFAULT_UNSTEADINESS
+
+    @property
+    def u_rms(self) -> float:
+        """The spectrum's prescribed u′, m/s."""
+        return self.spectrum.parameters.u_rms
+
+    def follow_snapshot(
+        self, m: int, rng: np.random.Generator, seed_box: Box, n_seed: int, times: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A fresh realization drawn from ``rng``, then its tracers (:class:`TracerFlow`)."""
+        flow = draw_ks_field(
+            self.spectrum, n_modes=self.n_modes, unsteadiness=self.unsteadiness, rng=rng
+        )
+        x0 = seed_box.sample(n_seed, rng)
+        shape = (len(times), n_seed, 3)
+        positions, velocity, acceleration = np.empty(shape), np.empty(shape), np.empty(shape)
+        if len(times) > 1:
+            positions[:] = integrate(flow, x0, times, h_max=max_step(flow, np.diff(times).min()))
+        else:
+            positions[0] = x0
+        for f, t in enumerate(times):
+            u, _, _, a = flow.derivatives(positions[f], t)
+            velocity[f] = u
+            acceleration[f] = a
+        return positions, velocity, acceleration
+
+
 def _check_positive(name: str, values) -> np.ndarray:
     arr = np.atleast_1d(np.asarray(values, dtype=float))
     if arr.size == 0 or np.any(~np.isfinite(arr)) or np.any(arr <= 0):
@@ -187,14 +256,12 @@ def _check_count(name: str, value: int, minimum: int = 1) -> int:
 
 
 def follow_snapshots(
-    spectrum: Spectrum,
+    flow: TracerFlow,
     times: np.ndarray,
     *,
     particles: int,
     snapshots: int,
     region: Box = SHEET,
-    n_modes: int = 200,
-    unsteadiness: float = DEFAULT_UNSTEADINESS,
     rng: np.random.Generator | int | None = None,
     progress: Progress | None = None,
     first: int = 0,
@@ -204,8 +271,8 @@ def follow_snapshots(
 
     Parameters
     ----------
-    spectrum : PopeSpectrum or KolmogorovBandSpectrum
-        The flow's spectrum; each snapshot draws its own realization.
+    flow : TracerFlow
+        The flow (:class:`KSFlow`: each snapshot draws its own realization).
     times : array_like, shape (T,)
         Output times after the seeding, s, starting at 0 and increasing.
     particles : int
@@ -215,8 +282,6 @@ def follow_snapshots(
         Number of independent snapshots M.
     region : Box
         The illuminated volume.
-    n_modes, unsteadiness :
-        KS options, see :func:`simulator.flow.draw_ks_field`.
     rng : numpy.random.Generator, int or None
         Randomness; snapshot j uses the j-th of ``snapshots`` spawned children, so
         results do not depend on how snapshots are chunked (give an int seed, or a fresh
@@ -242,24 +307,16 @@ def follow_snapshots(
         raise ValueError(
             f"first = {first!r} and count = {count!r} must select snapshots of 0 … {snapshots - 1}"
         )
-    margin = MARGIN_IN_U_RMS * spectrum.parameters.u_rms * times[-1]
+    margin = MARGIN_IN_U_RMS * flow.u_rms * times[-1]
     seed_box = region.padded(margin)
     n_seed = round(particles * seed_box.volume / region.volume)
     children = np.random.default_rng(rng).spawn(snapshots)[first : first + count]
     shape = (count, len(times), n_seed, 3)
     positions, velocity, acceleration = np.empty(shape), np.empty(shape), np.empty(shape)
     for m, child in enumerate(children):
-        flow = draw_ks_field(spectrum, n_modes=n_modes, unsteadiness=unsteadiness, rng=child)
-        x0 = seed_box.sample(n_seed, child)
-        if len(times) > 1:
-            h_max = max_step(flow, float(np.diff(times).min()))
-            positions[m] = integrate(flow, x0, times, h_max=h_max)
-        else:
-            positions[m, 0] = x0
-        for f, t in enumerate(times):
-            u, _, _, a = flow.derivatives(positions[m, f], t)
-            velocity[m, f] = u
-            acceleration[m, f] = a
+        positions[m], velocity[m], acceleration[m] = flow.follow_snapshot(
+            first + m, child, seed_box, n_seed, times
+        )
         if progress is not None:
             progress(m + 1, count)
     travel = np.abs(positions - positions[:, :1]).max(initial=0.0)
@@ -272,14 +329,12 @@ def follow_snapshots(
 
 
 def double_frame(
-    spectrum: Spectrum,
+    flow: TracerFlow,
     dt: np.ndarray,
     *,
     particles: int,
     snapshots: int,
     region: Box = SHEET,
-    n_modes: int = 200,
-    unsteadiness: float = DEFAULT_UNSTEADINESS,
     rng: np.random.Generator | int | None = None,
     progress: Progress | None = None,
     first: int = 0,
@@ -308,13 +363,11 @@ def double_frame(
 
     runs = tuple(
         follow_snapshots(
-            spectrum,
+            flow,
             np.array([0.0, d]),
             particles=particles,
             snapshots=snapshots,
             region=region,
-            n_modes=n_modes,
-            unsteadiness=unsteadiness,
             rng=child,
             progress=step,
             first=first,
@@ -326,14 +379,12 @@ def double_frame(
 
 
 def shared_start(
-    spectrum: Spectrum,
+    flow: TracerFlow,
     dt: np.ndarray,
     *,
     particles: int,
     snapshots: int,
     region: Box = SHEET,
-    n_modes: int = 200,
-    unsteadiness: float = DEFAULT_UNSTEADINESS,
     rng: np.random.Generator | int | None = None,
     progress: Progress | None = None,
     first: int = 0,
@@ -361,13 +412,11 @@ def shared_start(
     if np.any(np.diff(dt) <= 0):
         raise ValueError(f"dt must increase strictly for a shared first frame, got {dt}")
     sample = follow_snapshots(
-        spectrum,
+        flow,
         np.concatenate([[0.0], dt]),
         particles=particles,
         snapshots=snapshots,
         region=region,
-        n_modes=n_modes,
-        unsteadiness=unsteadiness,
         rng=rng,
         progress=progress,
         first=first,

@@ -14,17 +14,17 @@ The picture shows, in the world frame of the rig:
 - the laser sheet: a translucent green slab;
 - optionally the calibration plate at one traverse position (a thin dark box with
   its dots) and particles (small spheres);
-- a small X (red), Y (green), Z (blue) axis triad, its arrows labelled.
+- the world frame's X (red), Y (green), Z (blue) axes, drawn from the world origin
+  (the sheet's centre, inside the tank) and labelled;
+- a caption in a white band at the top: the rig and what the axes show.
 
-It is a figure, not a measurement: the accuracy path is the analytic renderer.
+It is a figure, not a measurement: the accuracy path is the analytic renderer. The PNG
+is readable by everyone (mode 0644, as every figure synptv writes), not only its owner.
 """
 
 import itertools
 import logging
-import os
-import tempfile
-from dataclasses import dataclass
-from pathlib import Path
+from dataclasses import dataclass, replace
 
 import numpy as np
 import trimesh
@@ -65,7 +65,8 @@ class SceneOptions:
     frustum_length : float
         Length of the camera frusta along their corner rays, m.
     show_sheet, show_tank, show_rays, show_axes : bool
-        Draw the laser sheet, the tank, the traced corner rays, the axis triad.
+        Draw the laser sheet, the tank, the traced corner rays, the axes of the world
+        frame (with the caption).
     particle_radius : float
         Radius of the particle spheres, m (exaggerated so that they are visible).
     """
@@ -272,14 +273,22 @@ def _plate_items(plate, plane: int) -> list[_Item]:
     ]
 
 
+def axes_length(rig) -> float:
+    """Length of the drawn world axes, m: 1.2 times the sheet's larger side, so that the
+    arrowheads stand clear of the sheet (and of a plate on it) inside the tank."""
+    return 1.2 * float(max(rig.sheet.size[:2]))
+
+
 def _axes_items(origin: np.ndarray, length: float) -> list[_Item]:
+    """The X, Y, Z arrows from ``origin``, ``length`` long, arrowheads included."""
     items = []
+    head = 0.18 * length
     for k, colour in enumerate(AXIS_COLOURS):
-        tip = origin + length * np.eye(3)[k]
-        shaft = _segment(origin, tip, 0.002)
-        cone = trimesh.creation.cone(radius=0.006, height=0.015, sections=16)
+        base = origin + (length - head) * np.eye(3)[k]
+        shaft = _segment(origin, base, 0.03 * length)
+        cone = trimesh.creation.cone(radius=0.08 * length, height=head, sections=16)
         transform = trimesh.geometry.align_vectors([0.0, 0.0, 1.0], np.eye(3)[k])
-        transform[:3, 3] = tip
+        transform[:3, 3] = base
         cone.apply_transform(transform)
         items.append(_Item(trimesh.util.concatenate([shaft, cone]), (*colour, 1.0)))
     return items
@@ -315,16 +324,22 @@ def _scene_items(rig, plate, plate_plane, particles, options) -> tuple[list[_Ite
         slab.apply_translation(sheet.centre)
         items.append(_Item(slab, (*SHEET_COLOUR, 0.40), True))
     if options.show_axes:
-        # Beside the drawing, at the low front-left corner of the tank (or of the rest).
-        low = (_item_points(items) if vessel is None else vessel.vertices).min(axis=0)
-        high = (_item_points(items) if vessel is None else vessel.vertices).max(axis=0)
-        origin = np.array([low[0] - 0.06, low[1], high[2]])
-        items += _axes_items(origin, 0.08)
+        # At the world origin: the centre of the sheet, inside the tank.
+        origin, length = np.zeros(3), axes_length(rig)
+        items += _axes_items(origin, length)
         labels += [
-            _Label(axis, origin + 0.105 * np.eye(3)[k], rgb)
+            _Label(axis, origin + 1.15 * length * np.eye(3)[k], rgb)
             for k, (axis, rgb) in enumerate(zip("XYZ", AXIS_COLOURS, strict=True))
         ]
     return items, labels
+
+
+def caption(rig) -> str:
+    """The caption written on the picture (ASCII: the picture's font has no µ)."""
+    return (
+        f"rig {rig.name}: world axes X, Y, Z from the origin (centre of the laser sheet), "
+        f"{axes_length(rig) * 1e3:.0f} mm long"
+    )
 
 
 def _item_points(items: list[_Item]) -> np.ndarray:
@@ -401,6 +416,19 @@ def render_scene(
     ndarray, shape (H, W, 3), uint8
         The RGB picture (white background).
     """
+    band = _caption_band(options)
+    if not band:
+        return _drawing(rig, plate, plate_plane, particles, options)
+    # The drawing below a white band that holds the caption, the size unchanged.
+    width, height = options.size
+    body = replace(options, size=(width, height - band))
+    top = np.full((band, width, 3), 255, dtype=np.uint8)
+    _draw_caption(top, caption(rig))
+    return np.vstack([top, _drawing(rig, plate, plate_plane, particles, body)])
+
+
+def _drawing(rig, plate, plate_plane, particles, options: SceneOptions) -> np.ndarray:
+    """The picture of :func:`render_scene` without its caption, ``options.size``."""
     pyrender = import_pyrender()
     items, labels = _scene_items(rig, plate, plate_plane, particles, options)
     scene = pyrender.Scene(bg_color=[1.0, 1.0, 1.0, 1.0], ambient_light=[0.35, 0.35, 0.35])
@@ -454,6 +482,37 @@ def render_scene(
     return picture
 
 
+def _caption_band(options: SceneOptions) -> int:
+    """Height of the caption's band at the top of the picture, px (0: no caption: no
+    axes, or a picture too small to hold one)."""
+    height = options.size[1]
+    return round(0.05 * height) if options.show_axes and height >= 200 else 0
+
+
+def _draw_caption(band: np.ndarray, text: str) -> None:
+    """Write ``text`` in dark grey in the white ``band`` (in place), from its left,
+    shrunk to fit its width and height."""
+    import cv2
+
+    height, width = band.shape[:2]
+    margin = max(2, round(0.02 * width))
+    scale = 1.0
+    (w, h), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
+    scale = min(0.45 * height / h, (width - 2 * margin) / w)
+    (w, h), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
+    corner = (margin, round(0.5 * (height + h)))
+    cv2.putText(
+        band,
+        text,
+        corner,
+        cv2.FONT_HERSHEY_SIMPLEX,
+        scale,
+        (60, 60, 60),
+        max(1, round(1.4 * scale)),
+        cv2.LINE_AA,
+    )
+
+
 def _draw_labels(picture: np.ndarray, labels: list[_Label], view: np.ndarray, options) -> None:
     """Write each label at the picture position of its anchor (in place).
 
@@ -484,51 +543,3 @@ def _draw_labels(picture: np.ndarray, labels: list[_Label], view: np.ndarray, op
                 thickness,
                 cv2.LINE_AA,
             )
-
-
-def save_scene_png(
-    rig,
-    path: str | os.PathLike,
-    *,
-    plate=None,
-    plate_plane: int = 0,
-    particles: object = None,
-    options: SceneOptions = SceneOptions(),
-) -> Path:
-    """Render :func:`render_scene` and write it as a PNG (temporary name, then rename).
-
-    Parameters
-    ----------
-    rig, plate, plate_plane, particles, options
-        As for :func:`render_scene`.
-    path : str or PathLike
-        Destination ``.png`` file; its folder must exist.
-
-    Returns
-    -------
-    Path
-        The written file.
-    """
-    import cv2
-
-    path = Path(path)
-    if path.suffix.lower() != ".png":
-        raise ValueError(f"scene picture path must end in .png; got {str(path)!r}")
-    if not path.parent.is_dir():
-        raise ValueError(f"folder {str(path.parent)!r} for the scene picture does not exist")
-    rgb = render_scene(
-        rig, plate=plate, plate_plane=plate_plane, particles=particles, options=options
-    )
-    ok, encoded = cv2.imencode(".png", rgb[:, :, ::-1])
-    if not ok:  # pragma: no cover (OpenCV failure)
-        raise RuntimeError("OpenCV could not encode the scene picture as PNG")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(encoded.tobytes())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    logger.info("wrote the scene picture of rig %r to %s", rig.name, path)
-    return path

@@ -22,7 +22,7 @@ import h5py
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ptv.dataset import Dataset
+from ptv.io.dataset import Dataset
 
 __all__ = ["agreement", "read_myptv_particles", "read_rt_is", "synptv_frames"]
 

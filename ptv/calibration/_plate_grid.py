@@ -6,15 +6,12 @@ from __future__ import annotations
 
 import itertools
 import logging
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ptv.calibration.plate import PlateDescription
 from ptv.calibration.polynomial import fit_polynomial2d
-
-if TYPE_CHECKING:  # the plate description lives with the detector, which imports this
-    from ptv.calibration.targets import PlateDescription
 
 log = logging.getLogger("ptv.calibration.targets")
 

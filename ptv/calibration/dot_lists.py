@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ptv.calibration.targets import MIN_BLOBS, PlateDescription
+from ptv.calibration.blobs import MIN_BLOBS
+from ptv.calibration.plate import PlateDescription
 from ptv.camera_model import on_image
 from ptv.errors import DatasetError
 
@@ -135,7 +136,7 @@ def read_csv_dots(
     DotListError
         A missing column, a malformed row (naming its line), a repeated grid node, a
         node off the plate's extent, a pixel off the image, or fewer than
-        :data:`~ptv.calibration.targets.MIN_BLOBS` dots.
+        :data:`~ptv.calibration.blobs.MIN_BLOBS` dots.
     """
     if not path.is_file():
         raise FileNotFoundError(f"{path}: dot list missing")

@@ -1,7 +1,7 @@
 """Calibrate the cameras of a dataset folder from its plate images: no truth needed.
 
 What a real experiment provides is enough: experiment.json (checked against its schema
-up front, :mod:`ptv.experiment`) with the plate (``target``), the traverse readings
+up front, :mod:`ptv.io.experiment`) with the plate (``target``), the traverse readings
 (``traverse_z``), the plate images' pattern (``calibration_images``) and each camera's
 pixel pitch and focal length, optionally a mask per camera and seed dots (a CSV file,
 ``calibration_seeds``, :func:`read_seed_dots`) for plates without marks. Instead of
@@ -26,11 +26,12 @@ import numpy as np
 from ptv.calibration.dot_lists import read_csv_dots, read_openptv_dots
 from ptv.calibration.grid_errors import TraverseDots, nominal_positions
 from ptv.calibration.methods import CameraSheet, calibrate
-from ptv.calibration.targets import PlateDescription, find_dots
+from ptv.calibration.plate import PlateDescription
+from ptv.calibration.targets import find_dots
 from ptv.camera_model import CameraModel
-from ptv.dataset import DatasetError, camera_masks
-from ptv.experiment import read_experiment
-from ptv.images import read_image
+from ptv.io.dataset import DatasetError, camera_masks
+from ptv.io.experiment import read_experiment
+from ptv.io.images import read_image
 
 __all__ = [
     "PlateSetup",
@@ -98,7 +99,7 @@ def plate_setup(folder: str | Path) -> PlateSetup:
     ------
     FileNotFoundError
         No experiment.json, or a plate image or dot list missing.
-    ptv.experiment.DescriptionError
+    ptv.io.experiment.DescriptionError
         experiment.json breaks its schema or lacks a field calibrating needs (all the
         problems in one line).
     DatasetError
@@ -106,7 +107,7 @@ def plate_setup(folder: str | Path) -> PlateSetup:
         pattern, a plate image of the wrong size, two plate images alike or two dot
         lists at the same pixels (a stuck traverse), or a bad dot list
         (:class:`ptv.calibration.dot_lists.DotListError`).
-    ptv.images.ImageError
+    ptv.io.images.ImageError
         A plate image or a mask that cannot be read, or a mask of the wrong size.
     """
     folder = Path(folder)

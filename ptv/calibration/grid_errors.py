@@ -22,7 +22,7 @@ from ptv.triangulate import triangulate
 class TraverseDots:
     """Dots one camera saw at one traverse position, identified by their grid indices
     (what a calibration is fitted on and Table 1 is measured with; unlike
-    :class:`ptv.calibration.targets.PlaneDots`, it knows its traverse reading Z_j).
+    :class:`ptv.calibration.plate.PlaneDots`, it knows its traverse reading Z_j).
 
     Attributes
     ----------

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from ptv.calibration.model_free import calibrate_model_free
 from ptv.calibration.observations import PlaneObservation
-from ptv.calibration.pinhole import calibrate_pinhole
+from ptv.calibration.pinhole_fit import calibrate_pinhole
 from ptv.calibration.soloff import calibrate_soloff
 from ptv.calibration.tsai import calibrate_tsai
 from ptv.camera_model import CameraModel

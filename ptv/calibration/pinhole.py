@@ -7,49 +7,31 @@ then u = f_x x_t + c_x, v = f_y y_t + c_y. No skew (OpenCV has none). The princi
 point and f_x ≠ f_y are free. The model has no refraction: its error through oblique
 windows is what the paper measures (MLBAV Table 1).
 
-Fit (docs/calibration.md §5, §8):
-
-* all traverse planes form **one non-coplanar view** with the true (X, Y, Z_j), so a
-  single pose keeps the known traverse; OpenCV then needs an intrinsic guess
-  (``CALIB_USE_INTRINSIC_GUESS``): f/pitch and the image centre;
-* ``cv2.calibrateCamera`` stops early on oblique views, so every start is polished by
-  Levenberg–Marquardt (``scipy.optimize.least_squares``) on all reprojection errors;
-* OpenCV refuses a principal point outside the image, which the best fit through an
-  oblique window may need: such starts go straight to the scipy polish;
-* the richer models have local minima, so several starts are polished and the best
-  kept: OpenCV from the guess, a DLT with RQ decomposition, ``cv2.solvePnP`` with the
-  guessed intrinsics, and the nested simpler models (k1 only, then the untilted model)
-  used as starts for the richer one.
+The fit is :mod:`ptv.calibration.pinhole_fit`.
 
 ``pixel_to_ray`` undoes K and the tilt, inverts the distortion by a 2-D Newton
 iteration (to 1e-13 in normalised coordinates) and returns the straight ray from the
 camera centre C = −Rᵀt.
 """
 
-import logging
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from scipy.linalg import rq
-from scipy.optimize import least_squares
 
-from ptv.calibration.observations import PlaneObservation, stack_planes
 from ptv.camera_model import on_image
 from ptv.rays import Rays
-
-log = logging.getLogger(__name__)
 
 #: Distortion coefficients the model may fit, in OpenCV's naming.
 DISTORTION_TERMS = ("k1", "k2", "p1", "p2", "k3")
 
-# Layout of the full parameter vector.
-_FX, _FY, _CX, _CY = 0, 1, 2, 3
-_DIST_INDEX = {"k1": 4, "k2": 5, "p1": 6, "p2": 7, "k3": 8}
-_TAU_X, _TAU_Y = 9, 10
-_RVEC = slice(11, 14)
-_TVEC = slice(14, 17)
-_N_PARAMS = 17
+#: Layout of the full parameter vector (:data:`PARAMETER_NAMES`): indices and slices.
+FX, FY, CX, CY = 0, 1, 2, 3
+DIST_INDEX = {"k1": 4, "k2": 5, "p1": 6, "p2": 7, "k3": 8}
+TAU_X, TAU_Y = 9, 10
+RVEC = slice(11, 14)
+TVEC = slice(14, 17)
+N_PARAMS = 17
 PARAMETER_NAMES = (
     "fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "tau_x", "tau_y",
     "rx", "ry", "rz", "tx", "ty", "tz",
@@ -58,8 +40,6 @@ PARAMETER_NAMES = (
 #: Newton tolerance (normalised units) and iteration cap of the undistortion.
 _UNDISTORT_TOL = 1e-13
 _UNDISTORT_STEPS = 50
-#: Evaluation cap of one Levenberg–Marquardt polish.
-_LM_EVALUATIONS = 400
 
 
 @dataclass(frozen=True)
@@ -106,11 +86,11 @@ class PinholeModel:
     @property
     def free(self) -> np.ndarray:
         """Indices of the free entries of the full parameter vector (``PARAMETER_NAMES``)."""
-        centre = [] if self.fixed_principal_point else [_CX, _CY]
-        idx = [_FX, _FY, *centre, *(_DIST_INDEX[t] for t in self.distortion)]
+        centre = [] if self.fixed_principal_point else [CX, CY]
+        idx = [FX, FY, *centre, *(DIST_INDEX[t] for t in self.distortion)]
         if self.tilted:
-            idx += [_TAU_X, _TAU_Y]
-        idx += list(range(_RVEC.start, _TVEC.stop))
+            idx += [TAU_X, TAU_Y]
+        idx += list(range(RVEC.start, TVEC.stop))
         return np.array(idx)
 
     def opencv_flags(self) -> int:
@@ -132,11 +112,11 @@ class PinholeModel:
     def restrict(self, params: np.ndarray) -> np.ndarray:
         """A copy of a full parameter vector with this model's fixed terms set to zero."""
         out = np.array(params, dtype=float)
-        for term, i in _DIST_INDEX.items():
+        for term, i in DIST_INDEX.items():
             if term not in self.distortion:
                 out[i] = 0.0
         if not self.tilted:
-            out[[_TAU_X, _TAU_Y]] = 0.0
+            out[[TAU_X, TAU_Y]] = 0.0
         return out
 
 
@@ -212,17 +192,17 @@ def project_parameters(
         ``cv2.Rodrigues``' derivative).
     """
     p = np.asarray(params, dtype=float)
-    rot, drot = cv2.Rodrigues(p[_RVEC].reshape(3, 1))
-    cam = points @ rot.T + p[_TVEC]
+    rot, drot = cv2.Rodrigues(p[RVEC].reshape(3, 1))
+    cam = points @ rot.T + p[TVEC]
     z = cam[:, 2]
     ahead = z > 0
     z = np.where(np.abs(z) > 1e-300, z, 1e-300)
     x, y = cam[:, 0] / z, cam[:, 1] / z
     xd, yd, (j00, j01, j10, j11) = _distort(x, y, p)
     valid = ahead & (j00 * j11 - j01 * j10 > 0) & (x * x + y * y < radial_fold(p[4], p[5], p[8]))
-    tilted = p[_TAU_X] != 0.0 or p[_TAU_Y] != 0.0 or jacobian
+    tilted = p[TAU_X] != 0.0 or p[TAU_Y] != 0.0 or jacobian
     if tilted:
-        m = tilt_matrix(p[_TAU_X], p[_TAU_Y])
+        m = tilt_matrix(p[TAU_X], p[TAU_Y])
         w = m[2, 0] * xd + m[2, 1] * yd + m[2, 2]
         valid &= w > 0
         w = np.where(np.abs(w) > 1e-300, w, 1e-300)
@@ -230,16 +210,16 @@ def project_parameters(
         yt = (m[1, 0] * xd + m[1, 1] * yd + m[1, 2]) / w
     else:
         xt, yt = xd, yd
-    xy = np.column_stack([p[_FX] * xt + p[_CX], p[_FY] * yt + p[_CY]])
+    xy = np.column_stack([p[FX] * xt + p[CX], p[FY] * yt + p[CY]])
     if not jacobian:
         return xy, valid
     n = len(points)
-    jac = np.zeros((n, 2, _N_PARAMS))
-    jac[:, 0, _FX] = xt
-    jac[:, 1, _FY] = yt
-    jac[:, 0, _CX] = 1.0
-    jac[:, 1, _CY] = 1.0
-    focal = np.array([p[_FX], p[_FY]])
+    jac = np.zeros((n, 2, N_PARAMS))
+    jac[:, 0, FX] = xt
+    jac[:, 1, FY] = yt
+    jac[:, 0, CX] = 1.0
+    jac[:, 1, CY] = 1.0
+    focal = np.array([p[FX], p[FY]])
     # tilt: ∂(xt, yt)/∂(xd, yd) and ∂(xt, yt)/∂τ (central differences of M_τ, exact to ~1e-10)
     dt = np.empty((n, 2, 2))
     dt[:, 0, 0] = (m[0, 0] - xt * m[2, 0]) / w
@@ -247,10 +227,10 @@ def project_parameters(
     dt[:, 1, 0] = (m[1, 0] - yt * m[2, 0]) / w
     dt[:, 1, 1] = (m[1, 1] - yt * m[2, 1]) / w
     h = 1e-6
-    for col, (ex, ey) in ((_TAU_X, (h, 0.0)), (_TAU_Y, (0.0, h))):
+    for col, (ex, ey) in ((TAU_X, (h, 0.0)), (TAU_Y, (0.0, h))):
         dm = (
-            tilt_matrix(p[_TAU_X] + ex, p[_TAU_Y] + ey)
-            - tilt_matrix(p[_TAU_X] - ex, p[_TAU_Y] - ey)
+            tilt_matrix(p[TAU_X] + ex, p[TAU_Y] + ey)
+            - tilt_matrix(p[TAU_X] - ex, p[TAU_Y] - ey)
         ) / (2 * h)
         dw = dm[2, 0] * xd + dm[2, 1] * yd + dm[2, 2]
         jac[:, 0, col] = focal[0] * ((dm[0, 0] * xd + dm[0, 1] * yd + dm[0, 2]) - xt * dw) / w
@@ -275,8 +255,8 @@ def project_parameters(
     dproj[:, 1, 2] = -y / z
     to_cam = chain @ dd @ dproj  # ∂(u, v)/∂cam, (N, 2, 3)
     dcam_dr = np.einsum("kij,nj->nik", drot.reshape(3, 3, 3), points)  # (N, 3, 3)
-    jac[:, :, _RVEC] = to_cam @ dcam_dr
-    jac[:, :, _TVEC] = to_cam
+    jac[:, :, RVEC] = to_cam @ dcam_dr
+    jac[:, :, TVEC] = to_cam
     return xy, valid, jac
 
 
@@ -362,7 +342,7 @@ class PinholeCalibration:
     def camera_matrix(self) -> np.ndarray:
         """OpenCV K (3, 3), px."""
         p = self.params
-        return np.array([[p[_FX], 0.0, p[_CX]], [0.0, p[_FY], p[_CY]], [0.0, 0.0, 1.0]])
+        return np.array([[p[FX], 0.0, p[CX]], [0.0, p[FY], p[CY]], [0.0, 0.0, 1.0]])
 
     @property
     def dist_coeffs(self) -> np.ndarray:
@@ -370,28 +350,28 @@ class PinholeCalibration:
         p = self.params
         out = np.zeros(14)
         out[:5] = p[[4, 5, 6, 7, 8]]
-        out[12:] = p[[_TAU_X, _TAU_Y]]
+        out[12:] = p[[TAU_X, TAU_Y]]
         return out
 
     @property
     def rvec(self) -> np.ndarray:
         """Rotation vector world → camera (3,), rad."""
-        return self.params[_RVEC].copy()
+        return self.params[RVEC].copy()
 
     @property
     def tvec(self) -> np.ndarray:
         """Translation world → camera (3,), m."""
-        return self.params[_TVEC].copy()
+        return self.params[TVEC].copy()
 
     @property
     def rotation(self) -> np.ndarray:
         """R (3, 3): X_c = R X + t."""
-        return rodrigues(self.params[_RVEC])
+        return rodrigues(self.params[RVEC])
 
     @property
     def centre(self) -> np.ndarray:
         """Projection centre C = −Rᵀt in the world frame (3,), m."""
-        return -self.rotation.T @ self.params[_TVEC]
+        return -self.rotation.T @ self.params[TVEC]
 
     def parameters(self) -> dict[str, float]:
         """The free parameters by name (``PARAMETER_NAMES``)."""
@@ -416,10 +396,10 @@ class PinholeCalibration:
         """Undistorted normalised coordinates (X_c/Z_c, Y_c/Z_c) of pixels, shape (N, 2)."""
         p = self.params
         xy = np.asarray(xy, dtype=float)
-        u = (xy[:, 0] - p[_CX]) / p[_FX]
-        v = (xy[:, 1] - p[_CY]) / p[_FY]
+        u = (xy[:, 0] - p[CX]) / p[FX]
+        v = (xy[:, 1] - p[CY]) / p[FY]
         if self.model.tilted:
-            inv = np.linalg.inv(tilt_matrix(p[_TAU_X], p[_TAU_Y]))
+            inv = np.linalg.inv(tilt_matrix(p[TAU_X], p[TAU_Y]))
             w = inv[2, 0] * u + inv[2, 1] * v + inv[2, 2]
             with np.errstate(invalid="ignore", divide="ignore"):
                 w = np.where(w > 0, w, np.nan)
@@ -447,264 +427,3 @@ class PinholeCalibration:
         origins[~ok] = np.nan
         directions[~ok] = np.nan
         return Rays(origins, directions)
-
-
-# -- fitting ------------------------------------------------------------------------
-
-
-def _params(fx, fy, cx, cy, rvec, tvec, dist=None) -> np.ndarray:
-    p = np.zeros(_N_PARAMS)
-    p[[_FX, _FY, _CX, _CY]] = fx, fy, cx, cy
-    if dist is not None:
-        d = np.ravel(dist)
-        d = np.concatenate([d, np.zeros(14 - len(d))])
-        p[[4, 5, 6, 7, 8]] = d[:5]
-        p[[_TAU_X, _TAU_Y]] = d[12:14]
-    p[_RVEC] = np.ravel(rvec)
-    p[_TVEC] = np.ravel(tvec)
-    return p
-
-
-def _rms(params: np.ndarray, obj: np.ndarray, img: np.ndarray) -> float:
-    with np.errstate(invalid="ignore", over="ignore"):
-        xy, _ = project_parameters(params, obj)
-    value = float(np.sqrt(np.mean(np.sum((xy - img) ** 2, axis=1))))
-    return value if np.isfinite(value) else float("inf")
-
-
-def _dlt(obj: np.ndarray, img: np.ndarray) -> np.ndarray | None:
-    """Start from a normalised DLT and its RQ decomposition (skew dropped, no distortion)."""
-    c3, c2 = obj.mean(axis=0), img.mean(axis=0)
-    s3 = np.sqrt(3.0) / np.mean(np.linalg.norm(obj - c3, axis=1))
-    s2 = np.sqrt(2.0) / np.mean(np.linalg.norm(img - c2, axis=1))
-    t3 = np.diag([s3, s3, s3, 1.0])
-    t3[:3, 3] = -s3 * c3
-    t2 = np.diag([s2, s2, 1.0])
-    t2[:2, 2] = -s2 * c2
-    xw = np.column_stack([obj, np.ones(len(obj))]) @ t3.T
-    xi = (img - c2) * s2
-    a = np.zeros((2 * len(obj), 12))
-    a[0::2, 0:4] = xw
-    a[0::2, 8:12] = -xi[:, :1] * xw
-    a[1::2, 4:8] = xw
-    a[1::2, 8:12] = -xi[:, 1:] * xw
-    proj = np.linalg.inv(t2) @ np.linalg.svd(a, full_matrices=False)[2][-1].reshape(3, 4) @ t3
-    if np.linalg.det(proj[:, :3]) < 0:
-        proj = -proj
-    k, r = rq(proj[:, :3])
-    signs = np.sign(np.diag(k))
-    if np.any(signs == 0):
-        return None
-    k, r = k * signs, signs[:, None] * r
-    t = np.linalg.solve(k, proj[:, 3])
-    k = k / k[2, 2]
-    rvec = cv2.Rodrigues(r)[0]
-    return _params(k[0, 0], k[1, 1], k[0, 2], k[1, 2], rvec, t)
-
-
-def _pnp(obj: np.ndarray, img: np.ndarray, k0: np.ndarray) -> np.ndarray | None:
-    """Start from ``cv2.solvePnP`` with the guessed intrinsics and no distortion."""
-    try:
-        ok, rvec, tvec = cv2.solvePnP(obj, img, k0, None, flags=cv2.SOLVEPNP_ITERATIVE)
-    except cv2.error as exc:  # pragma: no cover - OpenCV's own failure
-        log.info("solvePnP start failed: %s", exc)
-        return None
-    if not ok:
-        return None
-    return _params(k0[0, 0], k0[1, 1], k0[0, 2], k0[1, 2], rvec, tvec)
-
-
-def _opencv(
-    obj: np.ndarray,
-    img: np.ndarray,
-    image_size: tuple[int, int],
-    start: np.ndarray,
-    model: PinholeModel,
-) -> np.ndarray | None:
-    """``cv2.calibrateCamera`` on one non-coplanar view, warm-started from ``start``."""
-    width, height = image_size
-    cx, cy = start[_CX], start[_CY]
-    if not (0 <= cx < width and 0 <= cy < height):
-        # OpenCV: "Principal point must be within the image"; the scipy polish takes it.
-        log.info("OpenCV start skipped: principal point (%.0f, %.0f) off the image", cx, cy)
-        return None
-    k0 = np.array([[start[_FX], 0.0, cx], [0.0, start[_FY], cy], [0.0, 0.0, 1.0]])
-    d0 = np.zeros(14 if model.tilted else 5)
-    d0[:5] = start[[4, 5, 6, 7, 8]]
-    if model.tilted:
-        d0[12:] = start[[_TAU_X, _TAU_Y]]
-    criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-15)
-    try:
-        _, k, dist, rvecs, tvecs = cv2.calibrateCamera(
-            [obj.astype(np.float32)],
-            [img.astype(np.float32)],
-            (int(width), int(height)),
-            k0,
-            d0,
-            flags=model.opencv_flags(),
-            criteria=criteria,
-        )
-    except cv2.error as exc:
-        log.info("OpenCV start failed: %s", exc)
-        return None
-    return model.restrict(_params(k[0, 0], k[1, 1], k[0, 2], k[1, 2], rvecs[0], tvecs[0], dist))
-
-
-def polish(params: np.ndarray, model: PinholeModel, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
-    """Levenberg–Marquardt on all reprojection errors over the model's free parameters.
-
-    Parameters
-    ----------
-    params : ndarray, shape (17,)
-        Start (any entries the model fixes are set to zero).
-    model : PinholeModel
-        Free parameters.
-    obj : ndarray, shape (N, 3)
-        World points, m.
-    img : ndarray, shape (N, 2)
-        Their observed pixels, px.
-
-    Returns
-    -------
-    ndarray, shape (17,)
-        The polished parameter vector.
-    """
-    base = model.restrict(params)
-    free = model.free
-
-    def residual(q: np.ndarray) -> np.ndarray:
-        p = base.copy()
-        p[free] = q
-        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            xy, _ = project_parameters(p, obj)
-        r = (xy - img).ravel()
-        return np.where(np.isfinite(r), r, 1e10)
-
-    def jacobian(q: np.ndarray) -> np.ndarray:
-        p = base.copy()
-        p[free] = q
-        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            jac = project_parameters(p, obj, jacobian=True)[2][:, :, free]
-        jac = jac.reshape(-1, len(free))
-        return np.where(np.isfinite(jac), jac, 0.0)
-
-    if not np.all(np.isfinite(residual(base[free]))):  # pragma: no cover - guarded above
-        return base
-    fit = least_squares(
-        residual,
-        base[free],
-        jac=jacobian,
-        method="lm",
-        x_scale="jac",
-        ftol=1e-15,
-        xtol=1e-15,
-        gtol=1e-15,
-        max_nfev=_LM_EVALUATIONS,
-    )
-    out = base.copy()
-    out[free] = fit.x
-    return out
-
-
-def _chain(model: PinholeModel) -> list[PinholeModel]:
-    """The nested models, simplest first, ending with ``model``."""
-    chain = []
-    fixed = model.fixed_principal_point
-    if "k1" in model.distortion and (len(model.distortion) > 1 or model.tilted):
-        chain.append(PinholeModel(("k1",), fixed_principal_point=fixed))
-    if model.tilted and len(model.distortion) > 1:
-        chain.append(PinholeModel(model.distortion, fixed_principal_point=fixed))
-    chain.append(model)
-    return chain
-
-
-def calibrate_pinhole(
-    observations: list[PlaneObservation],
-    image_size: tuple[int, int],
-    *,
-    model: PinholeModel | None = None,
-    focal_px: float | None = None,
-    principal_point: tuple[float, float] | None = None,
-) -> PinholeCalibration:
-    """Fit an OpenCV pinhole camera to all calibration planes as one non-coplanar view.
-
-    Parameters
-    ----------
-    observations : list of PlaneObservation
-        Identified dots per traverse plane; the world points are (X, Y, Z_j).
-    image_size : tuple of int
-        (width, height) of the images, px.
-    model : PinholeModel, optional
-        Free parameters; default k1, k2, p1, p2 with free principal point and f_x, f_y.
-    focal_px : float, optional
-        Guess of the principal distance in pixels (focal length / pixel pitch); default
-        from the DLT.
-    principal_point : tuple of float, optional
-        Guess of (c_x, c_y), px; default the image centre (where a model with
-        ``fixed_principal_point`` keeps it).
-
-    Returns
-    -------
-    PinholeCalibration
-        The best of the polished starts (lowest reprojection RMS).
-    """
-    model = PinholeModel() if model is None else model
-    if not observations:
-        raise ValueError("need calibration planes, got none")
-    obj, img = stack_planes(observations)
-    if len(obj) < 12:
-        raise ValueError(f"need at least 12 identified dots, got {len(obj)}")
-    if np.ptp(obj[:, 2]) == 0:
-        raise ValueError(
-            "a pinhole fit from one view needs non-coplanar points: "
-            f"all planes are at Z = {obj[0, 2]}"
-        )
-    width, height = image_size
-    centre = ((width - 1) / 2.0, (height - 1) / 2.0)
-    cx0, cy0 = centre if principal_point is None else principal_point
-
-    dlt = _dlt(obj, img)
-    if focal_px is None:
-        if dlt is None:
-            raise ValueError("the DLT failed; give a focal_px guess")
-        focal_px = float(np.sqrt(abs(dlt[_FX] * dlt[_FY])))
-    if not (np.isfinite(focal_px) and focal_px > 0):
-        raise ValueError(f"focal_px must be > 0, got {focal_px!r}")
-    k0 = np.array([[focal_px, 0.0, cx0], [0.0, focal_px, cy0], [0.0, 0.0, 1.0]])
-    guess = _params(focal_px, focal_px, cx0, cy0, np.zeros(3), np.zeros(3))
-    if dlt is not None and model.fixed_principal_point:
-        dlt[[_CX, _CY]] = cx0, cy0  # the polish keeps the guess
-    independent = {"dlt": dlt, "pnp": _pnp(obj, img, k0)}
-
-    best_of_level: dict[str, np.ndarray] = {}
-    results: dict[str, tuple[np.ndarray, float]] = {}
-    for level in _chain(model):
-        starts: dict[str, np.ndarray | None] = {
-            "opencv": _opencv(obj, img, image_size, guess, level)
-        }
-        starts.update(independent)
-        for name, previous in best_of_level.items():
-            starts[f"nested {name}"] = previous
-            starts[f"opencv from {name}"] = _opencv(obj, img, image_size, previous, level)
-        results = {}
-        for name, start in starts.items():
-            if start is None or _rms(level.restrict(start), obj, img) == float("inf"):
-                continue
-            polished = polish(start, level, obj, img)
-            results[name] = (polished, _rms(polished, obj, img))
-            log.debug("pinhole %s, start %s: rms %.4g px", level.name, name, results[name][1])
-        if not results:
-            raise RuntimeError(f"every start of the pinhole fit ({level.name}) failed")
-        winner = min(results, key=lambda n: results[n][1])
-        best_of_level = {level.name: results[winner][0]}
-        log.info("pinhole %s: best start %s, rms %.4g px", level.name, winner, results[winner][1])
-    params, rms = results[winner]
-    return PinholeCalibration(
-        image_size=(int(width), int(height)),
-        model=model,
-        params=params,
-        rms=rms,
-        start=winner,
-        start_rms={n: r for n, (_, r) in results.items()},
-        n_points=len(obj),
-    )

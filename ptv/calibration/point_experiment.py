@@ -27,9 +27,9 @@ from ptv.calibration.point_target import (
     calibrate_point_target,
 )
 from ptv.calibration.refractive_pinhole import FlatWindow
-from ptv.dataset import DatasetError, camera_masks
-from ptv.experiment import has_point_target, read_experiment
-from ptv.images import read_image
+from ptv.io.dataset import DatasetError, camera_masks
+from ptv.io.experiment import has_point_target, read_experiment
+from ptv.io.images import read_image
 from ptv.triangulate import triangulate
 
 __all__ = [
@@ -93,7 +93,7 @@ def point_target_setup(folder: str | Path) -> PointTargetSetup:
     ------
     FileNotFoundError
         No experiment.json, or a missing target file, seed file or image.
-    ptv.experiment.DescriptionError
+    ptv.io.experiment.DescriptionError
         experiment.json breaks its schema or lacks a field calibrating needs (every
         problem in one line).
     DatasetError

@@ -8,7 +8,7 @@ user located on the image (OpenPTV's manual orientation, MyPTV's ``manualPoints`
 
 Steps of :func:`calibrate_point_target`:
 
-1. **Dots.** :func:`ptv.calibration.targets.find_blobs` on the image: every dot-like
+1. **Dots.** :func:`ptv.calibration.blobs.find_blobs` on the image: every dot-like
    blob, specks and reflections included (they are sorted out in step 3).
 2. **Seed camera.** From the seeds (four or more): a pinhole with square pixels, the
    principal point at the image centre and no distortion. Its pose is solved by
@@ -20,7 +20,7 @@ Steps of :func:`calibrate_point_target`:
 3. **Association.** Every target point is projected; it takes the nearest blob within
    the tolerance, and that blob must have no nearer projected point (mutual nearest:
    a blob serves one point).
-4. **Fit.** :func:`ptv.calibration.pinhole.calibrate_pinhole` on the associated pairs,
+4. **Fit.** :func:`ptv.calibration.pinhole_fit.calibrate_pinhole` on the associated pairs,
    with the model the target asks for (by default k1, k2, p1, p2 with free principal
    point and focal lengths), started from the previous camera's principal distance.
 5. **Iterate** 3–4 until the associated set no longer changes. The tolerance starts at
@@ -47,19 +47,15 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
+from ptv.calibration.blobs import find_blobs
 from ptv.calibration.observations import PlaneObservation
-from ptv.calibration.pinhole import (
-    PinholeCalibration,
-    PinholeModel,
-    calibrate_pinhole,
-    project_parameters,
-)
+from ptv.calibration.pinhole import PinholeCalibration, PinholeModel, project_parameters
+from ptv.calibration.pinhole_fit import calibrate_pinhole
 from ptv.calibration.refractive_pinhole import (
     FlatWindow,
     RefractivePinholeCalibration,
     fit_refractive_pinhole,
 )
-from ptv.calibration.targets import find_blobs
 from ptv.camera_model import on_image
 
 __all__ = [

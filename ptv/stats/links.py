@@ -3,7 +3,7 @@
 A link is one particle measured at t and t + Δt: its position X(t) and displacement
 ΔX = X(t + Δt) − X(t). :class:`RunParticles` holds every link of the run at one Δt,
 snapshot after snapshot, with the flags the statistics select on (inside the analysis
-box by X(t), not an outlier). The PTV pipeline (:mod:`ptv.pipeline`) produces them from
+box by X(t), not an outlier). The PTV pipeline (:mod:`ptv.pipeline.double_frame`) produces them from
 images; anything else that yields positions at t and t + Δt (exact trajectories,
 truth-paired detections) can too, and the same statistics run on it.
 

@@ -9,7 +9,7 @@ docs/statistics.md §2):
   ⟨q⟩_k/Δt_k² per Δt and the noise term c2 = N(r) beside it. With a shared first frame
   (every Δt measured from the same frame a) S2 uses the particles linked at every Δt,
   less those whose displacements stray from a smooth path in Δt
-  (:func:`ptv.track.trajectory_residuals`), and the snapshots are resampled jointly over
+  (:func:`ptv.tracking.linking.trajectory_residuals`), and the snapshots are resampled jointly over
   the Δt; otherwise every run's links, each run resampled on its own;
 - ε(r) = (S2/C2)^{3/2}/r and the paper's uncorrected S2^{3/2}/r, and their plateau;
 - the same fit on the paper's Δt subsets (:func:`ptv.stats.multidt.dt_subsets`) and
@@ -46,7 +46,7 @@ from ptv.stats.mean_displacement import (
     shared_mean_displacement,
 )
 from ptv.stats.multidt import dt_subsets
-from ptv.stats.pairs import LogBins
+from ptv.stats.pairs import BINNINGS, LogBins
 from ptv.stats.snapshots import SnapshotSums
 from ptv.stats.structure import (
     StructureFunction,
@@ -54,7 +54,7 @@ from ptv.stats.structure import (
     structure_function,
     time_resolved_sums,
 )
-from ptv.track import trajectory_residuals
+from ptv.tracking.linking import trajectory_residuals
 
 __all__ = [
     "ANALYSIS_VOLUME",
@@ -83,6 +83,9 @@ class StatisticsSettings:
         Outer edges of the log-spaced separation bins, m (default 0.5 and 35 mm).
     n_bins : int
         Separation bins (default 24).
+    binning : {"start", "midpoint"}
+        A pair's separation for its bin and its direction: at t (default), or the chord
+        midpoint of t and t + Δt (docs/statistics.md §4; a shared first frame only).
     plateau : (float, float)
         Range of r over which ε(r) is averaged, m (default 2–20 mm).
     plateau_method : {"mean", "max"}
@@ -99,7 +102,7 @@ class StatisticsSettings:
     trajectory_threshold : float or None
         With a shared first frame and K ≥ 4 Δt: particles whose displacements stray
         from a smooth path in Δt by more than this many times the median residual of
-        all particles (:func:`ptv.track.trajectory_residuals`) are mislinked at some
+        all particles (:func:`ptv.tracking.linking.trajectory_residuals`) are mislinked at some
         Δt and left out of S2 (default 5; None keeps them).
     seed : int
         Seed of the bootstrap.
@@ -109,6 +112,7 @@ class StatisticsSettings:
     r_min: float = 0.5e-3
     r_max: float = 35e-3
     n_bins: int = 24
+    binning: str = "start"
     plateau: tuple[float, float] = (2e-3, 20e-3)
     plateau_method: str = "mean"
     kolmogorov_c2: float = DEFAULT_C2
@@ -124,6 +128,8 @@ class StatisticsSettings:
         )
         object.__setattr__(self, "kolmogorov_c2", positive("kolmogorov_c2", self.kolmogorov_c2))
         LogBins(self.r_min, self.r_max, self.n_bins)  # validates
+        if self.binning not in BINNINGS:
+            raise ValueError(f"binning must be one of {', '.join(BINNINGS)}, got {self.binning!r}")
         lo, hi = self.plateau
         if not 0 < lo < hi:
             raise ValueError(
@@ -389,7 +395,7 @@ def _shared_sample(
         )
         line = mean_displacement(usable)
     return _Sample(
-        sums=time_resolved_sums(joined, settings.bins),
+        sums=time_resolved_sums(joined, settings.bins, binning=settings.binning),
         n_snapshots=np.full(len(usable), len(joined), dtype=np.int64),
         mean_displacement=line,
         population=S2Population(
@@ -405,7 +411,7 @@ def _independent_sample(usable: Sequence[RunParticles], settings: StatisticsSett
     """Every run's own links (one independent experiment per Δt) and their pair sums."""
     per_run = [r.snapshot_arrays() for r in usable]
     return _Sample(
-        sums=double_frame_sums(per_run, settings.bins),
+        sums=double_frame_sums(per_run, settings.bins, binning=settings.binning),
         n_snapshots=np.array([len(p) for p in per_run], dtype=np.int64),
         mean_displacement=mean_displacement(usable),
         population=None,
@@ -428,7 +434,7 @@ def compute_statistics(
     settings : StatisticsSettings
         Analysis volume, bins, plateau range, C2, bootstrap, Eulerian cells.
     shared_first_frame : bool
-        The runs share their first frames (:attr:`ptv.dataset.Dataset.shared_first_frame`):
+        The runs share their first frames (:attr:`ptv.io.dataset.Dataset.shared_first_frame`):
         S2 then uses the particles linked at every Δt, with snapshots resampled jointly
         over all Δt (:func:`ptv.stats.links.shared_snapshots`,
         :func:`ptv.stats.structure.time_resolved_sums`); otherwise every run's links,

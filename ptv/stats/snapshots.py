@@ -30,6 +30,12 @@ __all__ = ["SnapshotSums", "cluster_mean"]
 logger = logging.getLogger(__name__)
 
 
+def _per_column(values, b: int, k: int) -> np.ndarray:
+    """Per-bin values (B,) repeated for the K columns, or per-column values (B, K)."""
+    values = np.asarray(values)
+    return values if values.ndim == 2 else np.broadcast_to(values[:, None], (b, k))
+
+
 @dataclass(frozen=True)
 class SnapshotSums:
     """Pair sums per snapshot, separation bin and Δt column.
@@ -80,7 +86,8 @@ class SnapshotSums:
         Parameters
         ----------
         sums : sequence of PairSums, length M ≥ 1
-            One per snapshot, each with count (B,) and sum_q (B, K).
+            One per snapshot, each with sum_q (B, K) and count (B,), or (B, K) when
+            the bins depend on the column (chord-midpoint binning).
         """
         if len(sums) == 0:
             raise ValueError("no snapshots given")
@@ -90,8 +97,8 @@ class SnapshotSums:
                 raise ValueError(
                     f"snapshot {m} has sum_q of shape {np.shape(s.sum_q)}, expected {(b, k)}"
                 )
-        count = np.stack([np.broadcast_to(np.asarray(s.count)[:, None], (b, k)) for s in sums])
-        sum_r = np.stack([np.broadcast_to(np.asarray(s.sum_r)[:, None], (b, k)) for s in sums])
+        count = np.stack([_per_column(s.count, b, k) for s in sums])
+        sum_r = np.stack([_per_column(s.sum_r, b, k) for s in sums])
         return cls(
             count=count.astype(np.int64),
             sum_q=np.stack([np.asarray(s.sum_q, dtype=np.float64) for s in sums]),
@@ -137,10 +144,10 @@ class SnapshotSums:
         sum_r = np.zeros((m_total, b, k))
         stratum = np.empty(m_total, dtype=np.int64)
         for m, (kk, s) in enumerate(rows):
-            count[m, :, kk] = s.count
+            count[m, :, kk] = np.reshape(s.count, b)
             sum_q[m, :, kk] = np.reshape(s.sum_q, b)
             sum_q2[m, :, kk] = np.reshape(s.sum_q2, b)
-            sum_r[m, :, kk] = s.sum_r
+            sum_r[m, :, kk] = np.reshape(s.sum_r, b)
             stratum[m] = kk
         return cls(count=count, sum_q=sum_q, sum_q2=sum_q2, sum_r=sum_r, stratum=stratum)
 

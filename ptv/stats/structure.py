@@ -94,19 +94,19 @@ class StructureFunction:
     s2_boot: np.ndarray | None = None
 
 
-def _snapshot_sums(x, d, bins: LogBins, *, shape: str, where: str) -> PairSums:
+def _snapshot_sums(x, d, bins: LogBins, *, shape: str, where: str, binning: str) -> PairSums:
     """Pair sums of one snapshot; errors name the snapshot (and the expected shape)."""
     d = np.asarray(d)
     if d.ndim != shape.count(",") + 1:
         raise ValueError(f"{where}: displacements must have shape {shape}, got {d.shape}")
     try:
-        return pair_sums(x, d, bins)
+        return pair_sums(x, d, bins, binning=binning)
     except ValueError as err:
         raise ValueError(f"{where}: {err}") from err
 
 
 def time_resolved_sums(
-    snapshots: Iterable[tuple[np.ndarray, np.ndarray]], bins: LogBins
+    snapshots: Iterable[tuple[np.ndarray, np.ndarray]], bins: LogBins, *, binning: str = "start"
 ) -> SnapshotSums:
     """Per-snapshot pair sums for time-resolved (skip-frame) data.
 
@@ -118,6 +118,9 @@ def time_resolved_sums(
         the K Δt (the same particles at every Δt, see docs/statistics.md §3.3).
     bins : LogBins
         Separation bins.
+    binning : {"start", "midpoint"}
+        Pairs binned by their separation at t, or by their chord midpoint
+        (:func:`ptv.stats.pairs.pair_sums`).
 
     Returns
     -------
@@ -125,7 +128,7 @@ def time_resolved_sums(
         M snapshots, one stratum.
     """
     sums = [
-        _snapshot_sums(x, d, bins, shape="(P, K, 3)", where=f"snapshot {m}")
+        _snapshot_sums(x, d, bins, shape="(P, K, 3)", where=f"snapshot {m}", binning=binning)
         for m, (x, d) in enumerate(snapshots)
     ]
     if not sums:
@@ -134,7 +137,10 @@ def time_resolved_sums(
 
 
 def double_frame_sums(
-    runs: Sequence[Iterable[tuple[np.ndarray, np.ndarray]]], bins: LogBins
+    runs: Sequence[Iterable[tuple[np.ndarray, np.ndarray]]],
+    bins: LogBins,
+    *,
+    binning: str = "start",
 ) -> SnapshotSums:
     """Per-snapshot pair sums for double-frame data, one run per Δt.
 
@@ -146,6 +152,8 @@ def double_frame_sums(
         and particle numbers may differ between runs.
     bins : LogBins
         Separation bins.
+    binning : {"start", "midpoint"}
+        As in :func:`time_resolved_sums`.
 
     Returns
     -------
@@ -154,7 +162,9 @@ def double_frame_sums(
     """
     out = [
         [
-            _snapshot_sums(x, d, bins, shape="(P, 3)", where=f"run {k}, snapshot {m}")
+            _snapshot_sums(
+                x, d, bins, shape="(P, 3)", where=f"run {k}, snapshot {m}", binning=binning
+            )
             for m, (x, d) in enumerate(run)
         ]
         for k, run in enumerate(runs)

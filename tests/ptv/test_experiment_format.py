@@ -11,11 +11,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from ptv.dataset import DatasetError, open_dataset
 from ptv.detect import Detections
-from ptv.experiment import DescriptionError, description_problems, read_experiment
-from ptv.frames import ImageDetector
-from ptv.images import ImageError, read_image
+from ptv.io.dataset import DatasetError, open_dataset
+from ptv.io.experiment import DescriptionError, description_problems, read_experiment
+from ptv.io.images import ImageError, read_image
+from ptv.pipeline.frames import ImageDetector
 
 PARTICLES = {
     "cameras": {"cam1": {"image_size": [64, 48]}, "cam2": {"image_size": [64, 48]}},

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ptv.calibration.model_free import PlaneObservation, calibrate_model_free
-from ptv.match import DEFAULT_TOLERANCE, Matches, match, match_rays
+from ptv.matching.stereo import DEFAULT_TOLERANCE, Matches, match, match_rays
 from ptv.rays import Rays
 from ptv.triangulate import closest_points
 from simulator.particles import SHEET

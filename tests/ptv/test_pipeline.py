@@ -20,9 +20,8 @@ from scipy.spatial import cKDTree
 
 from ptv.calibration.grid_errors import nominal_positions
 from ptv.calibration.io import load_calibrations
-from ptv.dataset import DatasetError, open_dataset
-from ptv.frames import ImageDetector
-from ptv.pipeline import (
+from ptv.io.dataset import DatasetError, open_dataset
+from ptv.pipeline.double_frame import (
     PipelineSettings,
     match_frame,
     measure_snapshot,
@@ -30,7 +29,8 @@ from ptv.pipeline import (
     median_test_outliers,
     run_pipeline,
 )
-from ptv.results import save_results
+from ptv.pipeline.frames import ImageDetector
+from ptv.pipeline.results import save_results
 from ptv.stats.links import RunParticles, shared_snapshots
 from ptv.stats.mean_displacement import shared_mean_displacement
 from ptv.stats.pairs import pair_sums
@@ -281,7 +281,7 @@ def test_an_empty_frame_skips_its_snapshot(rendered, tmp_path, caplog):
         shape = tifffile.imread(frame).shape
         frame.unlink()
         tifffile.imwrite(frame, np.zeros(shape, dtype=np.uint16))
-    with caplog.at_level(logging.WARNING, logger="ptv.pipeline"):
+    with caplog.at_level(logging.WARNING, logger="ptv.pipeline.double_frame"):
         res = run_pipeline(
             ImageDetector(open_dataset(copy)), calibrations, PipelineSettings(snapshots=2)
         )

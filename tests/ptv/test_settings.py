@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ptv.frames import DetectorSettings
-from ptv.pipeline import PipelineSettings
-from ptv.settings import (
+from ptv.pipeline.double_frame import PipelineSettings
+from ptv.pipeline.frames import DetectorSettings
+from ptv.pipeline.settings import (
     PtvSettings,
     SettingsError,
     load_settings,

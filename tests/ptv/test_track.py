@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from ptv.track import link, search_radius, trajectory_residuals
-from simulator.particles import SHEET, double_frame
+from ptv.tracking.linking import link, search_radius, trajectory_residuals
+from simulator.particles import SHEET, KSFlow, double_frame
 from simulator.presets import flow_preset
 from simulator.spectra import PopeSpectrum
 
@@ -27,7 +27,9 @@ def frames_from(positions, rng, region=SHEET):
 @pytest.fixture(scope="module")
 def largest_dt_pair():
     dt = float(PRESET.dt[-1])
-    sample = double_frame(PopeSpectrum(PRESET.parameters), [dt], particles=2000, snapshots=1, rng=0)
+    sample = double_frame(
+        KSFlow(PopeSpectrum(PRESET.parameters)), [dt], particles=2000, snapshots=1, rng=0
+    )
     frames, ids = frames_from(sample.runs[0].positions[0], np.random.default_rng(1))
     return dt, frames, ids
 

@@ -1,4 +1,4 @@
-"""Time-resolved tracks (``ptv.track.track_frames``) against trajectories known exactly.
+"""Time-resolved tracks (``ptv.tracking.linking.track_frames``) against trajectories known exactly.
 
 The trajectories are smooth random curves: a mean velocity plus, per component, three
 sinusoids of random amplitude, frequency and phase, so that every particle's position,
@@ -12,7 +12,7 @@ import itertools
 import numpy as np
 import pytest
 
-from ptv.track import Tracks, link, search_radius, track_frames
+from ptv.tracking.linking import Tracks, link, search_radius, track_frames
 
 #: Observed box (half sizes, m): 20 × 20 × 4 mm.
 OBSERVED = np.array([10e-3, 10e-3, 2e-3])
@@ -144,7 +144,7 @@ def test_particles_entering_and_leaving_start_and_end_tracks(sequence):
 def test_constant_velocity_prediction_beats_frame_to_frame_links():
     # Four times faster, on slower curves (2.5-10 Hz): u'τ = 0.4 mm per component, and a
     # first link searches 2 mm, more than the mean spacing: such links are often wrong,
-    # as are those of each pair of frames linked on its own (ptv.track.link, the same
+    # as are those of each pair of frames linked on its own (ptv.tracking.linking.link, the same
     # radius). Once a track has two points, its constant-velocity prediction misses by
     # aτ² + √6σ, inside r_p = 0.15 mm here, with n·(4/3)π r_p³ ≈ 0.3 % of particles
     # that close to it: those links are almost all right.

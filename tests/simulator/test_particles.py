@@ -8,6 +8,7 @@ from simulator.particles import (
     ANALYSIS_VOLUME,
     SHEET,
     Box,
+    KSFlow,
     double_frame,
     follow_snapshots,
     integrate,
@@ -74,12 +75,11 @@ def test_density_in_the_sheet_stays_uniform():
     # Over 2 τ_η about 20 % of the particles cross the faces of a 4 mm slab.
     slab = Box((0.02, 0.02, 0.004))
     sample = follow_snapshots(
-        SPECTRUM,
+        KSFlow(SPECTRUM, n_modes=100),
         np.array([0.0, 2 * PARAMS.tau_eta]),
         particles=4000,
         snapshots=6,
         region=slab,
-        n_modes=100,
         rng=4,
     )
     start = slab.contains(sample.positions[:, 0]).sum()
@@ -92,7 +92,8 @@ def test_density_in_the_sheet_stays_uniform():
 
 
 def test_double_frame_runs_are_independent_experiments_per_dt():
-    sample = double_frame(SPECTRUM, PRESET.dt[:2], particles=100, snapshots=3, n_modes=50, rng=5)
+    flow = KSFlow(SPECTRUM, n_modes=50)
+    sample = double_frame(flow, PRESET.dt[:2], particles=100, snapshots=3, rng=5)
     assert len(sample.runs) == 2
     first, second = sample.runs
     assert first.positions.shape[:2] == (3, 2)
@@ -108,10 +109,11 @@ def test_double_frame_runs_are_independent_experiments_per_dt():
 
 
 def test_same_seed_gives_identical_snapshots():
-    kw = dict(particles=40, region=ANALYSIS_VOLUME, n_modes=40, snapshots=3)
-    first = follow_snapshots(SPECTRUM, np.array([0.0, 1e-4]), rng=9, **kw)
-    again = follow_snapshots(SPECTRUM, np.array([0.0, 1e-4]), rng=9, **kw)
-    other = follow_snapshots(SPECTRUM, np.array([0.0, 1e-4]), rng=10, **kw)
+    kw = dict(particles=40, region=ANALYSIS_VOLUME, snapshots=3)
+    flow = KSFlow(SPECTRUM, n_modes=40)
+    first = follow_snapshots(flow, np.array([0.0, 1e-4]), rng=9, **kw)
+    again = follow_snapshots(flow, np.array([0.0, 1e-4]), rng=9, **kw)
+    other = follow_snapshots(flow, np.array([0.0, 1e-4]), rng=10, **kw)
     assert np.array_equal(first.positions, again.positions)
     assert np.array_equal(first.velocity, again.velocity)
     assert not np.array_equal(first.positions, other.positions)
@@ -120,21 +122,22 @@ def test_same_seed_gives_identical_snapshots():
 @pytest.mark.parametrize("dt", [[0.0], [-1e-4], [1e-4, -1e-4], [float("nan")]])
 def test_nonpositive_dt_is_rejected(dt):
     with pytest.raises(ValueError, match="dt"):
-        double_frame(SPECTRUM, dt, particles=10, snapshots=1)
+        double_frame(KSFlow(SPECTRUM), dt, particles=10, snapshots=1)
 
 
 def test_bad_sizes_are_rejected():
     with pytest.raises(ValueError, match="particles"):
-        follow_snapshots(SPECTRUM, np.array([0.0]), particles=0, snapshots=1)
+        follow_snapshots(KSFlow(SPECTRUM), np.array([0.0]), particles=0, snapshots=1)
     with pytest.raises(ValueError, match="box size"):
         Box((0.1, -0.1, 0.01))
 
 
 @pytest.fixture(scope="module")
 def shared():
-    kw = dict(particles=150, snapshots=3, n_modes=60, rng=21)
-    return shared_start(SPECTRUM, PRESET.dt, **kw), follow_snapshots(
-        SPECTRUM, np.concatenate([[0.0], PRESET.dt]), **kw
+    kw = dict(particles=150, snapshots=3, rng=21)
+    flow = KSFlow(SPECTRUM, n_modes=60)
+    return shared_start(flow, PRESET.dt, **kw), follow_snapshots(
+        flow, np.concatenate([[0.0], PRESET.dt]), **kw
     )
 
 
@@ -171,9 +174,9 @@ def test_shared_start_second_frames_are_the_same_particles_at_each_dt(shared):
 @pytest.mark.parametrize("dt", [[2e-4, 1e-4], [1e-4, 1e-4], [1e-4, 3e-4, 2e-4]])
 def test_shared_start_needs_strictly_increasing_dt(dt):
     with pytest.raises(ValueError, match="increase"):
-        shared_start(SPECTRUM, dt, particles=10, snapshots=1, n_modes=10)
+        shared_start(KSFlow(SPECTRUM, n_modes=10), dt, particles=10, snapshots=1)
 
 
 def test_shared_start_rejects_nonpositive_dt():
     with pytest.raises(ValueError, match="dt"):
-        shared_start(SPECTRUM, [0.0, 1e-4], particles=10, snapshots=1, n_modes=10)
+        shared_start(KSFlow(SPECTRUM, n_modes=10), [0.0, 1e-4], particles=10, snapshots=1)

@@ -8,8 +8,16 @@ import numpy as np
 import pytest
 
 from simulator.rigs import load_rig
-from simulator.scene import CAMERA_COLOURS, SceneOptions, render_scene, save_scene_png
+from simulator.scene import (
+    CAMERA_COLOURS,
+    SceneOptions,
+    _scene_items,
+    axes_length,
+    caption,
+    render_scene,
+)
 from simulator.target import PlateDesign, build_plate
+from validation.report.png import save_picture
 
 RIG = load_rig("paper-stereo")
 SMALL = SceneOptions(size=(400, 250), show_axes=False)
@@ -38,21 +46,22 @@ def test_picture_has_the_size_and_shows_rig_and_sheet():
 def test_plate_and_particles_are_drawn_and_the_png_is_written(tmp_path):
     plate = build_plate(PlateDesign(), [0.0, 1e-3])
     particles = RIG.sheet.sample(200, np.random.default_rng(0))
-    path = save_scene_png(
-        RIG, tmp_path / "scene.png", plate=plate, plate_plane=1, particles=particles, options=SMALL
-    )
+    rgb = render_scene(RIG, plate=plate, plate_plane=1, particles=particles, options=SMALL)
+    path = save_picture(rgb, tmp_path / "scene.png")
     assert path.exists() and [p.name for p in tmp_path.iterdir()] == ["scene.png"]
     bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
     assert bgr.shape == (250, 400, 3)
+    assert np.array_equal(bgr[:, :, ::-1], rgb)
+    assert path.stat().st_mode & 0o777 == 0o644  # as every figure synptv writes
     plain = render_scene(RIG, options=SMALL)
     # The dark plate changes the picture where the sheet is.
-    changed = np.abs(bgr[:, :, ::-1].astype(int) - plain.astype(int)).sum(axis=2) > 60
+    changed = np.abs(rgb.astype(int) - plain.astype(int)).sum(axis=2) > 60
     assert changed.sum() > 50
 
 
 def test_bad_arguments_are_rejected(tmp_path):
     with pytest.raises(ValueError, match="png"):
-        save_scene_png(RIG, tmp_path / "scene.jpg", options=SMALL)
+        save_picture(render_scene(RIG, options=SMALL), tmp_path / "scene.jpg")
     with pytest.raises(ValueError, match="size"):
         SceneOptions(size=(0, 100))
     with pytest.raises(ValueError, match="particles"):
@@ -81,3 +90,32 @@ def test_every_camera_of_a_box_rig_is_drawn_and_labelled(name):
     nameless = dataclasses.replace(rig, camera_names=("",) * len(rig.cameras))
     changed = np.abs(render_scene(nameless, options=options).astype(int) - rgb).sum(axis=2) > 60
     assert changed.sum() > 40 * len(rig.cameras)
+
+
+@pytest.mark.parametrize("name", ["paper-stereo", "box-3cam"])
+def test_the_axes_start_at_the_world_origin_inside_the_tank(name):
+    rig = load_rig(name)
+    with_axes = SceneOptions(size=(400, 250), show_axes=True)
+    items, labels = _scene_items(rig, None, 0, None, with_axes)
+    plain, _ = _scene_items(rig, None, 0, None, dataclasses.replace(with_axes, show_axes=False))
+    axes = items[len(plain) :]
+    assert len(axes) == 3
+    length = axes_length(rig)
+    # Each arrow from the origin (the sheet's centre) along its axis…
+    assert np.allclose(rig.sheet.centre, 0.0)
+    for k, item in enumerate(axes):
+        along = item.mesh.vertices[:, k]
+        across = np.delete(item.mesh.vertices, k, axis=1)
+        assert along.min() == pytest.approx(0.0, abs=1e-9)
+        assert along.max() == pytest.approx(length)
+        assert np.abs(across).max() <= 0.1 * length
+    points = np.vstack([item.mesh.vertices for item in axes])
+    # …to beyond the sheet, so that the arrowheads show…
+    assert length > 0.5 * max(rig.sheet.size[:2])
+    # …and inside the tank: within its inscribed sphere, or its box.
+    if rig.tank.kind == "icosahedron":
+        assert np.linalg.norm(points, axis=1).max() < rig.tank.inradius
+    else:
+        assert np.all(np.abs(points) < 0.5 * np.asarray(rig.tank.size))
+    assert [label.text for label in labels[-3:]] == ["X", "Y", "Z"]
+    assert "origin" in caption(rig) and rig.name in caption(rig)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import ptv.calibration.model_free as model_free
-import ptv.match as match
+import ptv.matching.stereo as match
 import ptv.stats.pairs as pairs
 import validation.claims.rendered_case as rendered_case
 from simulator.presets import flow_preset

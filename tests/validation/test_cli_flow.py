@@ -76,12 +76,12 @@ def test_bad_input_exits_2_with_one_line(capsys, args, message):
 
 
 def test_ctrl_c_is_one_line_and_exit_130(capsys, monkeypatch):
-    import validation.cli
+    import validation.commands.flow
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(validation.cli, "summarize_flow", interrupted)
+    monkeypatch.setattr(validation.commands.flow, "summarize_flow", interrupted)
     assert main(["flow", "--quiet"]) == 130
     err = capsys.readouterr().err
     assert err == "synptv flow: interrupted\n"  # one line: no blank line before it in a log

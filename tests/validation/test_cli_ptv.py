@@ -135,7 +135,7 @@ def test_a_failure_after_the_pipeline_leaves_the_earlier_output_untouched(
     assert main(argv) == 0
     before = {p.name: p.read_bytes() for p in out.iterdir()}
 
-    def fails(result, folder):
+    def fails(result, folder, **options):
         raise ValueError("a figure cannot be drawn")
 
     monkeypatch.setattr(validation.report.ptv_figures, "save_ptv_figures", fails)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import tifffile
 
-from ptv.experiment import description_problems
+from ptv.io.experiment import description_problems
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.cli import main

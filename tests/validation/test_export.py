@@ -353,6 +353,21 @@ def test_a_bad_experiment_field_is_named(capsys, tmp_path, dataset):
     assert "dt" in err
 
 
+def test_a_run_without_its_particle_images_says_keep_images(capsys, tmp_path, dataset):
+    """synptv run's dataset holds no particle images unless --keep-images."""
+    copy = tmp_path / "copy"
+    shutil.copytree(dataset, copy)
+    spec = experiment(copy)
+    spec["particle_images"] = None
+    (copy / "experiment.json").write_text(json.dumps(spec))
+    before = set(tmp_path.iterdir())
+    code, err = export(
+        capsys, "--dataset", str(copy), "--format", "openptv", "--out", str(tmp_path / "out")
+    )
+    assert_refused(code, err, "experiment.json", tmp_path, before)
+    assert "--keep-images" in err
+
+
 def test_dot_lists_instead_of_plate_images_are_refused(capsys, tmp_path, dataset):
     copy = tmp_path / "copy"
     shutil.copytree(dataset, copy)

@@ -250,7 +250,7 @@ def test_ptv_accepts_or_refuses_any_experiment_json(small_dataset, data, capsys,
         calibration.write_bytes(b"")
     with (
         _dataset_with(small_dataset, spec) as (root, copy),
-        mock.patch("ptv.pipeline.run_pipeline", _stop),
+        mock.patch("ptv.pipeline.double_frame.run_pipeline", _stop),
         mock.patch("ptv.calibration.io.load_calibrations", lambda path: {}),
     ):
         argv = ["ptv", "--dataset", str(copy), "--calibration", str(calibration)]

@@ -7,9 +7,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ptv.dataset import open_dataset
 from ptv.detect.store import DetectionStore, write_index
-from ptv.frames import DetectorSettings, ImageDetector
+from ptv.io.dataset import open_dataset
+from ptv.pipeline.frames import DetectorSettings, ImageDetector
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.dataset.render import DetectionOutput, RenderSettings, build_dataset, particle_job

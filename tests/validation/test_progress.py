@@ -1,7 +1,10 @@
 """Progress on a terminal redraws one line; in a log it writes a few plain lines."""
 
+import gc
 import io
+import time
 
+from validation.workflow import progress
 from validation.workflow.progress import ProgressBar
 
 
@@ -36,3 +39,48 @@ def test_quiet_writes_nothing():
     log = io.StringIO()
     ProgressBar("truth", stream=log, enabled=False)(1, 1)
     assert log.getvalue() == ""
+
+
+def _wait_for(predicate, seconds: float = 10.0) -> bool:
+    """Poll ``predicate`` until it holds or ``seconds`` pass (a behaviour, not a speed)."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(0.01)
+    return predicate()
+
+
+def test_a_log_gets_a_line_while_the_work_reports_nothing(monkeypatch):
+    monkeypatch.setattr(progress, "LOG_INTERVAL_S", 0.02)
+    log = io.StringIO()
+    bar = ProgressBar("statistics", stream=log)
+    assert _wait_for(lambda: "statistics: starting" in log.getvalue())
+    bar(3, 3)  # the chunks are done, the work goes on: still a line every interval
+    assert _wait_for(lambda: "statistics: 3/3" in log.getvalue().split("left\n")[-1])
+    assert "still working" in log.getvalue()
+    bar.close()
+    time.sleep(0.1)  # let a beat in flight finish
+    written = log.getvalue()
+    time.sleep(0.2)
+    assert log.getvalue() == written
+
+
+def test_a_dropped_bar_stops_writing(monkeypatch):
+    monkeypatch.setattr(progress, "LOG_INTERVAL_S", 0.02)
+    log = io.StringIO()
+    ProgressBar("render", stream=log)(1, 2)
+    gc.collect()
+    time.sleep(0.1)
+    written = log.getvalue()
+    time.sleep(0.2)
+    assert log.getvalue() == written
+
+
+def test_a_terminal_gets_no_still_working_lines(monkeypatch):
+    monkeypatch.setattr(progress, "LOG_INTERVAL_S", 0.02)
+    screen = _Terminal()
+    bar = ProgressBar("detect", stream=screen)
+    time.sleep(0.2)
+    assert screen.getvalue() == ""
+    bar(1, 1)

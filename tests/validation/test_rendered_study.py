@@ -10,7 +10,7 @@ from distributed import LocalCluster
 
 from validation.cli import main
 from validation.run.scenario import load_scenario
-from validation.studies.cli import run_study
+from validation.studies.study import run_study
 
 TINY = """\
 name = "tiny"

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ptv.stats.pairs import LogBins
-from simulator.particles import ANALYSIS_VOLUME, follow_snapshots
+from simulator.particles import ANALYSIS_VOLUME, KSFlow, follow_snapshots
 from simulator.presets import flow_preset
 from simulator.spectra import KolmogorovBandSpectrum, PopeSpectrum
 from simulator.truth import longitudinal_structure_function
@@ -18,7 +18,12 @@ def test_ensemble_sample_truth_matches_exact_dll_within_3_percent(kind):
     spectrum = kind(PARAMS)
     bins = LogBins(10 * PARAMS.eta, PARAMS.L_int / 2, 12)
     sample = follow_snapshots(
-        spectrum, np.array([0.0]), particles=1500, snapshots=300, region=ANALYSIS_VOLUME, rng=1
+        KSFlow(spectrum),
+        np.array([0.0]),
+        particles=1500,
+        snapshots=300,
+        region=ANALYSIS_VOLUME,
+        rng=1,
     )
     x, u = sample.positions[:, 0], sample.velocity[:, 0]
     halves = [
@@ -40,7 +45,12 @@ def test_ensemble_sample_truth_matches_exact_dll_at_full_size():
     spectrum = PopeSpectrum(PARAMS)
     bins = LogBins(10 * PARAMS.eta, PARAMS.L_int / 2, 24)
     sample = follow_snapshots(
-        spectrum, np.array([0.0]), particles=2000, snapshots=1500, region=ANALYSIS_VOLUME, rng=2
+        KSFlow(spectrum),
+        np.array([0.0]),
+        particles=2000,
+        snapshots=1500,
+        region=ANALYSIS_VOLUME,
+        rng=2,
     )
     total = sample_structure_function(
         sample.positions[:, 0], sample.velocity[:, 0], bins, region=ANALYSIS_VOLUME

@@ -17,6 +17,7 @@ from validation.studies.multi_dt import (
     study_sizes,
 )
 from validation.studies.multi_dt_figures import multi_dt_figure
+from validation.studies.study import _common_row
 from validation.workflow.files import as_json
 
 DEFAULT = load_scenario("default")
@@ -57,6 +58,13 @@ def test_tasks_give_rows_against_truth_and_curves(tmp_path):
     assert row["c2_over_4sigma2"] == pytest.approx(1.0, abs=0.1)  # c2 = 4σ² (white noise)
     assert abs(row["c1_error_100eta"]) < 5 * row["c1_se_100eta"]
     assert row["raw_over_truth_10eta"] > 2  # claim 6: the raw S2 is far off at small r
+    # In study.json each quantity is one column, under the name every chain uses.
+    common = _common_row(row, seed=0)
+    assert common["c1_rel_err"]["100"] == row["c1_error_100eta"]
+    assert common["c1_rel_se"]["100"] == row["c1_se_100eta"]
+    assert common["epsilon_rel_err"] == row["epsilon_error"]
+    assert not {"c1_error_100eta", "c1_se_100eta", "epsilon_error"} & set(common)
+    assert common["raw_over_truth_10eta"] == row["raw_over_truth_10eta"]  # its own, kept
 
     noise = [noise_task(SETTINGS, TINY, {"noise_um": s}) for s in (0.0, 10.0)]
     rows = [n["rows"][0] for n in noise]

@@ -10,7 +10,7 @@ share no code with the stack.
 import numpy as np
 from scipy.stats import chi2, poisson
 
-from ptv.frames import DetectorSettings
+from ptv.pipeline.frames import DetectorSettings
 from validation.claims.base import Claim, ClaimResult, result
 from validation.claims.context import ClaimContext
 from validation.claims.image_scores import (

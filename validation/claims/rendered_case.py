@@ -1,13 +1,14 @@
 """A small rendered double-frame case for the image-stack claims (docs/claims.md §3).
 
-The paper-stereo rig records a few snapshots of the 10 Hz flow at its largest Δt
-through the simulator's refracting cameras with sensor noise; the PTV stack then runs
-on the images exactly as in ``synptv run``: :func:`ptv.detect.detect_particles` with the
-default :class:`ptv.frames.DetectorSettings`, and :func:`ptv.pipeline.measure_snapshot`
-(matching, linking, median test) with the default :class:`ptv.pipeline.PipelineSettings`
-and the rig's true cameras, so that no calibration error enters. Everything the claims
-compare with comes from the simulator: the exact image of every particle centre, its
-spot's σ and photo-electrons, and the particles' true positions.
+The paper-stereo rig records a few snapshots of the 10 Hz flow at its largest Δt through
+the simulator's refracting cameras with sensor noise; the PTV stack then runs on the
+images exactly as in ``synptv run``: :func:`ptv.detect.detect_particles` with the
+default :class:`ptv.pipeline.frames.DetectorSettings`, and
+:func:`ptv.pipeline.double_frame.measure_snapshot` (matching, linking, median test) with
+the default :class:`ptv.pipeline.double_frame.PipelineSettings` and the rig's true
+cameras, so that no calibration error enters. Everything the claims compare with comes
+from the simulator: the exact image of every particle centre, its spot's σ and
+photo-electrons, and the particles' true positions.
 """
 
 from dataclasses import dataclass, field
@@ -16,9 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from ptv.detect import detect_particles
-from ptv.frames import ChunkDetections, DetectedCentres, DetectorSettings
-from ptv.pipeline import PipelineSettings, SnapshotMeasurement, measure_snapshot
-from simulator.particles import double_frame
+from ptv.pipeline.double_frame import PipelineSettings, SnapshotMeasurement, measure_snapshot
+from ptv.pipeline.frames import ChunkDetections, DetectedCentres, DetectorSettings
+from simulator.particles import KSFlow, double_frame
 from simulator.presets import flow_preset
 from simulator.render.camera_frames import ParticleFrame, ParticleLighting, record_particles
 from simulator.render.sensor import Sensor
@@ -98,7 +99,7 @@ def render_case(snapshots: int, *, seed: int) -> RenderedCase:
     preset = flow_preset(FLOW)
     dt = float(preset.dt[-1])
     sample = double_frame(
-        PopeSpectrum(preset.parameters),
+        KSFlow(PopeSpectrum(preset.parameters)),
         np.array([dt]),
         particles=PARTICLES,
         snapshots=snapshots,

@@ -35,7 +35,7 @@ from ptv.calibration.point_experiment import (
     target_errors,
 )
 from ptv.calibration.point_target import PointTargetFit
-from ptv.dataset import DatasetError
+from ptv.io.dataset import DatasetError
 from validation.workflow.files import staged_output
 
 Progress = Callable[[int, int], None]
@@ -211,7 +211,7 @@ def calibrate_dataset(
     FileNotFoundError
         ``folder`` holds no experiment.json.
     ValueError
-        An unknown method; or (:class:`ptv.dataset.DatasetError`) a bad field of
+        An unknown method; or (:class:`ptv.io.dataset.DatasetError`) a bad field of
         experiment.json, a plate image missing or unreadable, an unreadable truth.h5,
         all found before any dot is searched. Nothing is written unless every method
         calibrates.

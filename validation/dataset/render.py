@@ -36,8 +36,9 @@ import h5py
 import numpy as np
 
 from ptv.detect.store import chunk_name, write_chunk
-from ptv.frames import DetectorSettings
+from ptv.pipeline.frames import DetectorSettings
 from simulator.flow import DEFAULT_UNSTEADINESS
+from simulator.particles import KSFlow
 from simulator.presets import FlowPreset
 from simulator.render.camera_frames import ParticleLighting
 from simulator.render.plate import render_plate
@@ -235,14 +236,17 @@ def particle_job(
     """The :class:`validation.run.particle_chunks.ParticleJob` of a dataset's particles."""
     if settings.spectrum not in SPECTRA:
         raise ValueError(f"unknown spectrum {settings.spectrum!r}; known: {', '.join(SPECTRA)}")
+    flow = KSFlow(
+        SPECTRA[settings.spectrum](preset.parameters),
+        n_modes=settings.n_modes,
+        unsteadiness=settings.unsteadiness,
+    )
     return ParticleJob(
         rig=rig,
-        spectrum=SPECTRA[settings.spectrum](preset.parameters),
+        flow=flow,
         dt=np.asarray(preset.dt, dtype=float),
         frames=settings.frames,
         particles=settings.particles,
-        n_modes=settings.n_modes,
-        unsteadiness=settings.unsteadiness,
         lighting=settings.lighting,
         sensor=settings.sensor,
         shared_first_frame=settings.shared_first_frame,

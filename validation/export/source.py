@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ptv.calibration.experiment import nominal_grid, plate_setup
-from ptv.dataset import Dataset, open_dataset
-from ptv.experiment import read_experiment
+from ptv.io.dataset import Dataset, open_dataset
+from ptv.io.experiment import read_experiment
 from simulator.rigs import Rig
 from validation.dataset.truth_file import TruthFile
 
@@ -30,7 +30,7 @@ class ExportSource:
     ----------
     folder : Path
         The dataset folder.
-    dataset : ptv.dataset.Dataset
+    dataset : ptv.io.dataset.Dataset
         Cameras, image shapes, Δt values, frame pairs and the particle image paths.
     rig : simulator.rigs.Rig
         The rig of truth.h5: the nominal camera poses, lenses and windows.
@@ -80,7 +80,8 @@ def read_source(folder: str | Path) -> ExportSource:
     ------
     ValueError
         One line naming the file and the field: no such folder, no truth.h5, a
-        malformed experiment.json, a missing image, dot lists instead of plate images,
+        malformed experiment.json, no particle images (a run without --keep-images), a
+        missing image, dot lists instead of plate images,
         camera names that differ between experiment.json and truth.h5.
     """
     folder = Path(folder)
@@ -92,6 +93,14 @@ def read_source(folder: str | Path) -> ExportSource:
             "window from the rig a rendered dataset records there)"
         )
     try:
+        spec = read_experiment(folder)
+        if spec.get("particle_images", "") is None:
+            raise ValueError(
+                f"{folder / 'experiment.json'}: particle_images is null: this dataset was "
+                "written without its particle images (synptv run keeps them only with "
+                "--keep-images): run it again with --keep-images, or render one with "
+                "synptv render"
+            )
         dataset = open_dataset(folder)
         setup = plate_setup(folder)
     except FileNotFoundError as err:
@@ -108,7 +117,7 @@ def read_source(folder: str | Path) -> ExportSource:
             f"from experiment.json's {', '.join(dataset.cameras)}"
         )
     _, nominal = nominal_grid(setup, {})
-    bits = read_experiment(folder).get("bit_depth")
+    bits = spec.get("bit_depth")
     if bits is not None and bits > 16:
         raise ValueError(
             f"{folder / 'experiment.json'}: 'bit_depth' must be an integer 1 … 16, got {bits!r}"

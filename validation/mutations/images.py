@@ -1,4 +1,5 @@
-"""Mutations of detection, matching and linking (``ptv.detect``, ``ptv.match``, ``ptv.track``).
+"""Mutations of detection, matching and linking (``ptv.detect``, ``ptv.matching.stereo``,
+``ptv.tracking.linking``).
 
 Only the image-stack claims (``image.*``, on a small rendered case: detection against
 the Cramér–Rao bound and peak locking, matching against a brute-force matcher, linking)
@@ -9,7 +10,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from ptv import detect, match, track
+from ptv import detect
+from ptv.matching import stereo as match
+from ptv.tracking import linking as track
 from validation.mutations.base import Mutation
 from validation.mutations.patching import Patch, edited
 from validation.mutations.probes import POINTS, stereo_pair
@@ -81,7 +84,7 @@ IMAGE_MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "cameras-swapped-in-matching",
         "matching pairs each camera's detections with the other camera's calibration",
-        (Patch("ptv.match:match", _swapped),),
+        (Patch("ptv.matching.stereo:match", _swapped),),
         MATCHING,
         ("image",),
         _matched,
@@ -91,7 +94,7 @@ IMAGE_MUTATIONS: tuple[Mutation, ...] = (
         "linking searches a tenth of the radius it is given",
         (
             Patch(
-                "ptv.track:link",
+                "ptv.tracking.linking:link",
                 edited('r = _radius("radius", radius)', 'r = 0.1 * _radius("radius", radius)'),
             ),
         ),

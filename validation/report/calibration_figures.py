@@ -5,6 +5,7 @@ Each function returns a matplotlib Figure (Agg backend), for
 µm, as labelled.
 """
 
+import textwrap
 from collections.abc import Mapping, Sequence
 
 import matplotlib
@@ -45,6 +46,31 @@ _MAP_ROWS = (
 )
 
 
+#: Methods that fit polynomial maps to the dots with no optical model: with the same
+#: dots they come out alike (docs/calibration.md §3 and §6).
+POLYNOMIAL_METHODS = ("model-free", "soloff")
+#: Relative difference of Table 1 d under which :func:`error_maps` says two polynomial
+#: methods agree.
+AGREEMENT = 0.02
+
+
+def agreement_note(errors_by_method: Mapping[str, PositionErrors]) -> str:
+    """Why the model-free and Soloff columns of Fig. 3 look alike, when they do
+    (their Table 1 d within :data:`AGREEMENT`); "" otherwise."""
+    if not all(m in errors_by_method for m in POLYNOMIAL_METHODS):
+        return ""
+    d = [errors_by_method[m].d * 1e6 for m in POLYNOMIAL_METHODS]
+    if not (np.isfinite(d).all() and abs(d[0] - d[1]) <= AGREEMENT * max(d)):
+        return ""
+    return (
+        f"Model-free and Soloff agree (d = {d[0]:.4g} and {d[1]:.4g} µm): both fit "
+        "polynomial maps (cubic in X and Y) to the same detected dots, with no optical "
+        "model, and Table 1 triangulates those very dots, so both errors are the same "
+        "dot-centre noise (docs/calibration.md §3, §6, §7). The columns are computed "
+        "separately, not copied."
+    )
+
+
 def error_maps(errors_by_method: Mapping[str, PositionErrors], *, title: str = "") -> Figure:
     """The paper's Fig. 3: error of each dot site, mean over the planes, per method.
 
@@ -52,7 +78,8 @@ def error_maps(errors_by_method: Mapping[str, PositionErrors], *, title: str = "
     the 3-D error |Δ|, the others the signed components Δ_X, Δ_Y, Δ_Z. Every panel has
     a colour scale of its own (up to its 99th percentile; symmetric about zero for the
     components), so that a method's structure shows however large its errors are:
-    compare methods by the numbers, not by the colours.
+    compare methods by the numbers, not by the colours. Below the panels, a note says
+    so, and why model-free and Soloff agree when they do (:func:`agreement_note`).
     """
     methods = list(errors_by_method)
     figure, axes = plt.subplots(
@@ -92,6 +119,16 @@ def error_maps(errors_by_method: Mapping[str, PositionErrors], *, title: str = "
         )
     if title:
         figure.suptitle(title)
+    note = "Each panel has a colour scale of its own: compare the methods by the numbers."
+    agree = agreement_note(errors_by_method)
+    figure.text(
+        0.5,
+        0.0,
+        "\n".join(textwrap.wrap(f"{note} {agree}".strip(), 40 * len(methods) + 40)),
+        ha="center",
+        va="top",
+        fontsize=8.5,
+    )
     return figure
 
 

@@ -1,9 +1,14 @@
 """Figures of a PTV run (``synptv ptv``): the paper's Fig. 5a, 5b, 6a and 6b.
 
-Each function takes the :class:`ptv.pipeline.PtvResult` and returns a matplotlib
+Each function takes the :class:`ptv.pipeline.double_frame.PtvResult` and returns a matplotlib
 Figure; :func:`save_ptv_figures` writes the four PNGs with
 :func:`validation.report.png.save_figure`. Separations are shown in mm (η is not known on
 real data), displacements in µm, Δt in ms; S2 in m²/s² and ε in m²/s³.
+
+Every figure's suptitle says whose measurement it is (``label``: in ``synptv run`` the
+scenario, its seed and the rung; by default the folder of the data measured), so that
+the figures of different rungs or runs cannot be taken for one another outside their
+folders.
 """
 
 import os
@@ -15,15 +20,18 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.container import ErrorbarContainer
 from matplotlib.figure import Figure
 from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
 
-from ptv.pipeline import PtvResult
+from ptv.pipeline.double_frame import PtvResult
 from validation.report.png import save_figure
+from validation.report.value_error import value_error
 
 __all__ = [
     "FIGURE_FILES",
     "epsilon_figure",
+    "measurement_label",
     "q_versus_dt2_figure",
     "raw_structure_figure",
     "save_ptv_figures",
@@ -39,6 +47,18 @@ FIGURE_FILES = {
 }
 
 Reference = tuple[np.ndarray, np.ndarray, str]
+
+
+def measurement_label(result: PtvResult) -> str:
+    """What a figure of ``result`` names when it is given no label: the folder of the
+    data measured (a dataset, or a run's detection store)."""
+    folder = getattr(result.source, "folder", None)
+    return "measurement" if folder is None else f"measurement of {Path(folder).name}"
+
+
+def _titled(figure: Figure, result: PtvResult, label: str | None) -> None:
+    """The figure's suptitle: whose measurement it is."""
+    figure.suptitle(measurement_label(result) if label is None else label, fontsize=10)
 
 
 def _colours(n: int) -> list:
@@ -137,11 +157,14 @@ def _r_mm(result: PtvResult) -> np.ndarray:
     return np.where(np.isfinite(r), r, st.bins.centres) * 1e3
 
 
-def raw_structure_figure(result: PtvResult, *, limits: Limits = None) -> Figure:
+def raw_structure_figure(
+    result: PtvResult, *, limits: Limits = None, label: str | None = None
+) -> Figure:
     """Fig. 5a: raw ⟨(δΔX·e)²⟩/Δt² for every Δt against r, with the multi-Δt S2.
 
     Small separations show the noise: the raw estimate at the smallest Δt lies highest.
-    ``limits`` (mm, m²/s²) fixes the axes, points beyond them marked on the edge.
+    ``limits`` (mm, m²/s²) fixes the axes, points beyond them marked on the edge;
+    ``label`` is the suptitle (default: :func:`measurement_label`).
     """
     st = result.statistics
     sf = st.structure
@@ -175,6 +198,7 @@ def raw_structure_figure(result: PtvResult, *, limits: Limits = None) -> Figure:
     ax.set_title("Raw S2 of the displacements per Δt (Fig. 5a)", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
+    _titled(figure, result, label)
     return figure
 
 
@@ -195,16 +219,20 @@ def q_versus_dt2_figure(
     n_separations: int = 6,
     separations: np.ndarray | None = None,
     q_limit: float | None = None,
+    label: str | None = None,
 ) -> Figure:
     """Fig. 5b: ⟨q⟩ against Δt² at a few separations, with the fitted lines c1Δt² + c2.
 
-    Left, the paper's view: ⟨q⟩ and the lines (slope: the noise-free S2). Right, a zoom
-    on the two smallest Δt, where the intercepts c2 (the noise term) can be seen even
-    when the noise is small; its y axis follows this rung's own intercepts.
+    Left, the paper's view: ⟨q⟩ and the lines (slope: the noise-free S2), the legend
+    giving each intercept c2 ± its standard error. Right, a zoom on Δt → 0, where the
+    intercepts c2 (the noise term, ◆ with ±1 s.e.) can be seen even when the noise is
+    small: its y axis follows this rung's own intercepts (they fill its lower half),
+    the points of the smallest Δt above it marked ▲ on its edge.
 
     ``separations`` (bool per bin) are the bins to choose the separations from, so that
     every rung of a run shows the same ones; ``q_limit`` (µm²) fixes the top of the left
-    panel, points above it marked on the edge.
+    panel, points above it marked on the edge; ``label`` is the suptitle (default:
+    :func:`measurement_label`).
     """
     st = result.statistics
     sf = st.structure
@@ -227,11 +255,25 @@ def q_versus_dt2_figure(
             "-",
             color=colour,
             lw=1.2,
-            label=f"r = {r[b]:.2f} mm: c2 = {c2:.0f} ± {se_c2:.0f} µm²",
+            label=f"r = {r[b]:.2f} mm: c2 = {value_error(c2, se_c2, 'µm²')}",
         )
         ax_res.errorbar(x_ms2, q, yerr=se, fmt="o", ms=4, color=colour, capsize=2)
         ax_res.plot(line, sf.s2[b] * line * 1e6 + c2, "-", color=colour, lw=1.2)
-        ax_res.plot(0.0, c2, "D", ms=6, color=colour, clip_on=False, zorder=5)
+        # The intercept on top of the lines and the axis, outlined so that it shows
+        # where the lines meet.
+        ax_res.errorbar(
+            0.0,
+            c2,
+            yerr=se_c2 if np.isfinite(se_c2) else None,
+            fmt="D",
+            ms=7,
+            color=colour,
+            mec="black",
+            mew=0.8,
+            capsize=3,
+            clip_on=False,
+            zorder=10,
+        )
         if q_limit is not None:
             mark_off_axis(ax, x_ms2, q, (-np.inf, q_limit), colour)
     for a in (ax, ax_res):
@@ -242,31 +284,44 @@ def q_versus_dt2_figure(
     if q_limit is not None:
         ax.set_ylim(top=q_limit)
     ax.set_ylabel("⟨(δΔX·e)²⟩  (µm²)")
-    ax.set_title("⟨q⟩ = c1 Δt² + c2 at six separations (Fig. 5b)", fontsize=10)
-    ax.legend(fontsize=7.5, loc="upper left")
-    # Zoom on the two smallest Δt, where the intercepts show.
-    x_zoom = 1.25 * np.sort(x_ms2)[min(1, x_ms2.size - 1)]
-    near = x_ms2 <= x_zoom
+    ax.set_title(f"⟨q⟩ = c1 Δt² + c2 at {len(bins)} separations (Fig. 5b)", fontsize=10)
+    ax.legend(fontsize=7.5, loc="upper left", title="intercept c2 ± 1 s.e.", title_fontsize=7.5)
+    # Zoom on the intercepts: they fill the lower half of the y axis, whatever the size
+    # of the noise; the points of the smallest Δt above it are marked on its edge.
+    x_zoom = 1.25 * np.min(x_ms2)
     if len(bins):
-        q_near = sf.raw_s2[bins][:, near] * dt2[near] * 1e12
         c2_all = sf.noise[bins] * 1e12
-        top = np.nanmax(np.r_[q_near.ravel(), c2_all]) * 1.15
-        bottom = min(0.0, np.nanmin(c2_all) * 1.3)
-        if np.isfinite(top) and np.isfinite(bottom) and top > bottom:
+        se_all = np.nan_to_num(sf.se_noise[bins] * 1e12)
+        bottom = min(0.0, np.nanmin(c2_all - 1.5 * se_all))
+        high = np.nanmax(c2_all + 1.5 * se_all)
+        top = high + max(high - bottom, 1e-3)
+        if np.isfinite(top) and np.isfinite(bottom):
             ax_res.set_ylim(bottom, top)
+            for b, colour in zip(bins, _colours(len(bins)), strict=True):
+                q = sf.raw_s2[b] * dt2 * 1e12
+                mark_off_axis(ax_res, x_ms2, q, (bottom, top), colour, x_limits=(0, x_zoom))
     ax_res.set_xlim(0.0, x_zoom)
     ax_res.set_ylabel("⟨(δΔX·e)²⟩  (µm²)")
-    ax_res.set_title("zoom on the smallest Δt: the intercepts c2 (noise term, ◆)", fontsize=10)
+    ax_res.set_title(
+        "zoom on Δt → 0: the intercepts c2 (noise term, ◆ ± 1 s.e.); ▲ points above",
+        fontsize=9.5,
+    )
+    _titled(figure, result, label)
     return figure
 
 
 def structure_figure(
-    result: PtvResult, *, reference: Reference | None = None, limits: Limits = None
+    result: PtvResult,
+    *,
+    reference: Reference | None = None,
+    limits: Limits = None,
+    label: str | None = None,
 ) -> Figure:
     """Fig. 6a: the noise-free S2(r) with bootstrap errors and a r^{2/3} guide.
 
     ``reference`` = (r in m, S2 in m²/s², label) adds a curve (e.g. a ground truth);
-    ``limits`` (mm, m²/s²) fixes the axes, points beyond them marked on the edge.
+    ``limits`` (mm, m²/s²) fixes the axes, points beyond them marked on the edge;
+    ``label`` is the suptitle (default: :func:`measurement_label`).
     """
     sf = result.statistics.structure
     r = _r_mm(result)
@@ -283,9 +338,9 @@ def structure_figure(
         label="S2 = c1 (multi-Δt fit), ±1 s.e.",
     )
     if reference is not None:
-        rr, s2, label = reference
+        rr, s2, name = reference
         ok = np.isfinite(s2) & (s2 > 0)
-        ax.plot(np.asarray(rr)[ok] * 1e3, np.asarray(s2)[ok], "-", color="C3", lw=1.2, label=label)
+        ax.plot(np.asarray(rr)[ok] * 1e3, np.asarray(s2)[ok], "-", color="C3", lw=1.2, label=name)
     if fit.any():
         # Guide through the geometric middle of the fitted points.
         r0 = np.exp(np.mean(np.log(r[fit])))
@@ -300,6 +355,7 @@ def structure_figure(
     ax.set_title("Noise-free longitudinal structure function (Fig. 6a)", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
+    _titled(figure, result, label)
     return figure
 
 
@@ -309,20 +365,31 @@ def epsilon_figure(
     reference: Reference | None = None,
     levels: Sequence[tuple[float, str]] = (),
     limits: Limits = None,
+    label: str | None = None,
 ) -> Figure:
     """Fig. 6b: ε(r) = (S2/C2)^{3/2}/r and the paper's S2^{3/2}/r, with the plateau.
 
-    The plateau range is shaded; the band is the plateau ε ± 1 s.e. ``reference`` =
-    (r in m, S2 in m²/s², label) adds the ε(r) of that S2 through the same C2 (e.g. of
-    the exact D_LL); each of ``levels`` = (ε in m²/s³, label) a horizontal line (e.g.
-    the input ε); ``limits`` (mm, m²/s³) fixes the axes, points beyond them marked.
+    The plateau range is shaded grey; the plateau ε is a line across it, its ±1 s.e.
+    band shaded in its colour (often thinner than the line: the legend gives the
+    value and its error). ``reference`` = (r in m, S2 in m²/s², label) adds the ε(r)
+    of that S2 through the same C2 (e.g. of the exact D_LL); each of ``levels`` = (ε in
+    m²/s³, label) a horizontal line (e.g. the input ε); ``limits`` (mm, m²/s³) fixes the
+    axes, points beyond them marked; ``label`` is the suptitle (default:
+    :func:`measurement_label`). The legend lies below the axes, in a panel of its own,
+    so that the axes are as large as those of Figs. 5a and 6a.
     """
     st = result.statistics
     prof = st.profile
     r = _r_mm(result)
     ok = np.isfinite(prof.epsilon)
     c2 = prof.kolmogorov_c2
-    figure, ax = plt.subplots(figsize=(6.0, 4.6), layout="constrained")
+    figure, (ax, ax_legend) = plt.subplots(
+        2,
+        1,
+        figsize=(6.0, 6.0),
+        layout="constrained",
+        gridspec_kw={"height_ratios": [3.7, 1.35]},
+    )
     ax.errorbar(
         r[ok],
         prof.epsilon[ok],
@@ -332,7 +399,7 @@ def epsilon_figure(
         lw=1.0,
         color="C0",
         capsize=2,
-        label=f"(S2/C2)^(3/2)/r, C2 = {c2:g}",
+        label=f"(S2/C2)^(3/2)/r, C2 = {c2:g}, ±1 s.e.",
     )
     ax.plot(
         r[ok],
@@ -344,21 +411,29 @@ def epsilon_figure(
         label=f"S2^(3/2)/r (paper's caption, no C2: ×{c2**1.5:.2f})",
     )
     lo, hi = (v * 1e3 for v in result.settings.statistics.plateau)
-    ax.axvspan(lo, hi, color="0.93", zorder=0, label="plateau range")
+    ax.axvspan(lo, hi, color="0.93", zorder=0, label=f"plateau range {lo:g}–{hi:g} mm")
     p = st.plateau
-    if p is not None and np.isfinite(p.epsilon) and np.isfinite(p.se_epsilon):
-        ax.fill_between(
+    if p is not None and np.isfinite(p.epsilon):
+        if np.isfinite(p.se_epsilon):
+            ax.fill_between(
+                [lo, hi],
+                p.epsilon - p.se_epsilon,
+                p.epsilon + p.se_epsilon,
+                color="C0",
+                alpha=0.25,
+                lw=0,
+            )
+        ax.plot(
             [lo, hi],
-            p.epsilon - p.se_epsilon,
-            p.epsilon + p.se_epsilon,
+            [p.epsilon, p.epsilon],
             color="C0",
-            alpha=0.25,
-            lw=0,
-            label=f"plateau ε = {p.epsilon:.3g} ± {p.se_epsilon:.2g} m²/s³ ({p.method})",
+            lw=2.0,
+            alpha=0.6,
+            label=f"plateau ε ({p.method} over the range) = "
+            f"{value_error(p.epsilon, p.se_epsilon, 'm²/s³')}",
         )
-        ax.plot([lo, hi], [p.epsilon, p.epsilon], color="C0", lw=1.0)
     if reference is not None:
-        rr, s2, label = np.asarray(reference[0]), np.asarray(reference[1]), reference[2]
+        rr, s2, name = np.asarray(reference[0]), np.asarray(reference[1]), reference[2]
         shown = np.isfinite(s2) & (s2 > 0) & np.isfinite(rr) & (rr > 0)
         ax.plot(
             rr[shown] * 1e3,
@@ -366,10 +441,10 @@ def epsilon_figure(
             "-",
             color="C3",
             lw=1.2,
-            label=label,
+            label=name,
         )
-    for (value, label), style in zip(levels, (":", "-."), strict=False):
-        ax.axhline(value, color="0.3", lw=1.1, ls=style, label=f"{label}: {value:.3g}")
+    for (value, name), style in zip(levels, (":", "-."), strict=False):
+        ax.axhline(value, color="0.3", lw=1.1, ls=style, label=f"{name}: {value:.3g} m²/s³")
     if limits is not None:
         mark_off_axis(ax, r[ok], prof.epsilon[ok], limits[1], "C0", x_limits=limits[0])
     _loglog(ax, limits)
@@ -377,7 +452,14 @@ def epsilon_figure(
     ax.set_ylabel("ε(r) (m²/s³)")
     ax.set_title("Dissipation rate from the noise-free S2 (Fig. 6b)", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
+    ax_legend.axis("off")
+    # The measurement first (matplotlib lists error bars last).
+    entries = sorted(
+        zip(*ax.get_legend_handles_labels(), strict=True),
+        key=lambda entry: not isinstance(entry[0], ErrorbarContainer),
+    )
+    ax_legend.legend(*zip(*entries, strict=True), fontsize=8, loc="upper center", frameon=False)
+    _titled(figure, result, label)
     return figure
 
 
@@ -392,22 +474,29 @@ def save_ptv_figures(
     epsilon_limits: Limits = None,
     separations: np.ndarray | None = None,
     q_limit: float | None = None,
+    label: str | None = None,
 ) -> dict[str, Path]:
     """Write the four PNGs of :data:`FIGURE_FILES` into ``folder``; returns their paths.
 
     ``s2_limits`` go to Figs. 5a and 6a, ``separations`` and ``q_limit`` to Fig. 5b,
     ``reference_s2`` to Fig. 6a, ``epsilon_reference``, ``epsilon_levels`` and
     ``epsilon_limits`` to Fig. 6b (see :func:`raw_structure_figure`,
-    :func:`q_versus_dt2_figure`, :func:`structure_figure` and :func:`epsilon_figure`).
+    :func:`q_versus_dt2_figure`, :func:`structure_figure` and :func:`epsilon_figure`);
+    ``label``, the suptitle of every figure, says whose measurement it is (default:
+    :func:`measurement_label`, the folder of the data measured).
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     figures = {
-        "fig5a": raw_structure_figure(result, limits=s2_limits),
-        "fig5b": q_versus_dt2_figure(result, separations=separations, q_limit=q_limit),
-        "fig6a": structure_figure(result, reference=reference_s2, limits=s2_limits),
+        "fig5a": raw_structure_figure(result, limits=s2_limits, label=label),
+        "fig5b": q_versus_dt2_figure(result, separations=separations, q_limit=q_limit, label=label),
+        "fig6a": structure_figure(result, reference=reference_s2, limits=s2_limits, label=label),
         "fig6b": epsilon_figure(
-            result, reference=epsilon_reference, levels=epsilon_levels, limits=epsilon_limits
+            result,
+            reference=epsilon_reference,
+            levels=epsilon_levels,
+            limits=epsilon_limits,
+            label=label,
         ),
     }
     return {key: save_figure(fig, folder / FIGURE_FILES[key]) for key, fig in figures.items()}

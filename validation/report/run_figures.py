@@ -15,11 +15,12 @@ from validation.report.ptv_figures import mark_off_axis, plain_log_axis
 from validation.run.checks import NoisePrediction
 
 
-def peak_locking_figure(locking: Mapping[str, PeakLocking]) -> Figure:
+def peak_locking_figure(locking: Mapping[str, PeakLocking], *, label: str = "") -> Figure:
     """Histograms of the fractional detected positions per camera and axis (flat: no bias).
 
     The legend gives the fitted bias amplitude a (what the report's check judges) and
     the χ² probability of a flat histogram; the footnote says why the two can disagree.
+    ``label`` (e.g. the run and rung) follows the title.
     """
     figure, axes = plt.subplots(
         1, len(locking), figsize=(4.2 * len(locking), 3.6), squeeze=False, layout="constrained"
@@ -52,7 +53,10 @@ def peak_locking_figure(locking: Mapping[str, PeakLocking]) -> Figure:
         ax.set_title(f"{name}: {pl.n} detections", fontsize=10)
         ax.legend(fontsize=7, loc="lower center")
     axes[0, 0].set_ylabel("count / flat count")
-    figure.suptitle("Peak-locking diagnostic", fontsize=11)
+    figure.suptitle(
+        "Peak-locking diagnostic of the detected centres" + (f"\n{label}" if label else ""),
+        fontsize=10,
+    )
     n = min(pl.n for pl in locking.values())
     figure.text(
         0.5,
@@ -74,7 +78,11 @@ BUDGET_AXIS = (0.8, 1.2)
 
 
 def budget_figure(
-    r: np.ndarray, ratios: Mapping[str, np.ndarray], check_range: tuple[float, float]
+    r: np.ndarray,
+    ratios: Mapping[str, np.ndarray],
+    check_range: tuple[float, float],
+    *,
+    label: str = "",
 ) -> Figure:
     """c1 / sample-truth S2 against r for each rung of the error budget.
 
@@ -86,6 +94,8 @@ def budget_figure(
         c1/S2 per variant (NaN where not fitted).
     check_range : (float, float)
         r range of the c1 check, m (shaded).
+    label : str
+        Which run (second title line).
     """
     low, high = BUDGET_AXIS
     figure, ax = plt.subplots(figsize=(7.0, 4.4), layout="constrained")
@@ -104,7 +114,11 @@ def budget_figure(
     ax.set_ylim(low, high)
     ax.set_xlabel("r (mm)")
     ax.set_ylabel("c1 / sample-truth S2 of its pairs")
-    ax.set_title("Error budget: noise-free S2 of each measurement against the truth", fontsize=10)
+    ax.set_title(
+        "Error budget: noise-free S2 of each measurement against the truth"
+        + (f"\n{label}" if label else ""),
+        fontsize=10,
+    )
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, ncol=2)
     return figure
@@ -115,6 +129,9 @@ def noise_figure(
     c2: Mapping[str, tuple[np.ndarray, np.ndarray]],
     prediction: NoisePrediction,
     check_range: tuple[float, float],
+    *,
+    label: str = "",
+    predicted_for: str = "",
 ) -> Figure:
     """The fitted noise term c2(r) of each measurement against the measured noise.
 
@@ -128,6 +145,10 @@ def noise_figure(
         c2 predicted from the displacement noise measured against the truth.
     check_range : (float, float)
         r range of the checks, m (shaded).
+    label : str
+        Which run (second title line).
+    predicted_for : str
+        The measurement whose noise ``prediction`` is (named in the legend).
     """
     figure, ax = plt.subplots(figsize=(7.0, 4.4), layout="constrained")
     um2 = 1e12
@@ -139,7 +160,8 @@ def noise_figure(
         prediction.c2[ok] * um2,
         color="k",
         alpha=0.15,
-        label="from the measured noise",
+        label="from the measured noise"
+        + (f" ({predicted_for}'s particles)" if predicted_for else ""),
     )
     for i, (name, (value, se)) in enumerate(c2.items()):
         fit = ok & np.isfinite(value)
@@ -158,7 +180,11 @@ def noise_figure(
     ax.set_ylim(bottom=0)
     ax.set_xlabel("r (mm)")
     ax.set_ylabel("c2 (µm²)")
-    ax.set_title("Noise term c2 of the multi-Δt fit against the measured noise", fontsize=10)
+    ax.set_title(
+        "Noise term c2 of the multi-Δt fit against the measured noise"
+        + (f"\n{label}" if label else ""),
+        fontsize=10,
+    )
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, ncol=2)
     return figure

@@ -17,7 +17,7 @@ from validation.report.html_parts import number, table
 from validation.report.png import save_figure
 from validation.report.run_figures import budget_figure, noise_figure
 from validation.run.checks import compare_variant, error_budget, float_array, predicted_noise
-from validation.run.experiment import REFERENCE_VARIANTS, ExperimentStages
+from validation.run.experiment import REFERENCE_VARIANTS, ExperimentStages, run_label
 from validation.run.scenario import Scenario, pipeline_settings
 from validation.run.verdict import (
     calibration_check,
@@ -101,6 +101,7 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     )
     box = scenario.ptv.analysis_volume
     noise = {"detection": predicted_noise(detection, settings.bins, box)}
+    noise_source = {"detection": "detection"}  # whose particles' noise each prediction is
     summaries, comparisons, matching, populations = {}, {}, {}, {}
     for variant, stage in stages.ptv.items():
         summary = _read(stage.folder / "summary.json")
@@ -119,6 +120,7 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
             if measured
             else noise["detection"]
         )
+        noise_source[variant] = variant if measured else "detection"
         comparisons[variant] = compare_variant(
             summary,
             truth,
@@ -135,14 +137,20 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     figures.mkdir(exist_ok=True)
     r = float_array(truth["r"])
     ratios = {v: float_array(c["c1_over_truth"]) for v, c in comparisons.items()}
-    save_figure(budget_figure(r, ratios, check_range), figures / "error_budget.png")
+    label = run_label(scenario)
+    save_figure(budget_figure(r, ratios, check_range, label=label), figures / "error_budget.png")
     c2 = {
         v: (float_array(sf["noise"]), float_array(sf["se_noise"]))
         for v, s in summaries.items()
         if v != "exact"
         for sf in [s["structure_function"]]
     }
-    save_figure(noise_figure(r, c2, noise[main], check_range), figures / "noise.png")
+    save_figure(
+        noise_figure(
+            r, c2, noise[main], check_range, label=label, predicted_for=noise_source[main]
+        ),
+        figures / "noise.png",
+    )
     calibration = _read(stages.calibrations.folder / "table1.json")
     table1 = calibration["table1"]
     checks, must_hold = verdict(

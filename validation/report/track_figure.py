@@ -17,7 +17,7 @@ import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
-from ptv.recording import RecordingTracks
+from ptv.tracking.linking import RecordingTracks
 from validation.report.png import save_figure
 
 __all__ = ["MAX_DRAWN", "TRACKS_FIGURE", "save_tracks_figure", "tracks_figure"]

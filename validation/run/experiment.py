@@ -25,7 +25,7 @@ chunks are joined in snapshot order, so the results do not depend on the executo
 dataset, detection and rung stages keep their finished chunks when interrupted and the
 next run goes on from there.
 
-Each PTV folder holds ``results.h5`` and ``summary.json`` (:mod:`ptv.results`: the links
+Each PTV folder holds ``results.h5`` and ``summary.json`` (:mod:`ptv.pipeline.results`: the links
 kept are those in the analysis volume) and the paper's Fig. 5a/b and 6a/b with the truth
 overlaid.
 """
@@ -42,12 +42,12 @@ from pathlib import Path
 import numpy as np
 
 from ptv.calibration.io import load_calibrations
-from ptv.dataset import open_dataset
 from ptv.detect.peaklocking import peak_locking
 from ptv.detect.store import DetectionStore, chunk_name, write_chunk, write_index
-from ptv.frames import DetectorSettings, ImageDetector
-from ptv.pipeline import PtvResult
-from ptv.results import save_results
+from ptv.io.dataset import open_dataset
+from ptv.pipeline.double_frame import PtvResult
+from ptv.pipeline.frames import DetectorSettings, ImageDetector
+from ptv.pipeline.results import save_results
 from ptv.stats.run_statistics import compute_statistics
 from simulator.render.camera_frames import ParticleLighting, local_magnification
 from simulator.render.sensor import Sensor
@@ -139,7 +139,27 @@ def render_detections_chunk(snapshots: tuple[int, int], *, job, folder: Path):
     return chunk_detections(render_chunk(snapshots, job=job), job, folder)
 
 
-def _ptv_figures(result: PtvResult, folder: Path, truth: dict) -> None:
+def run_label(scenario: Scenario) -> str:
+    """Which run a figure comes from: the scenario and its seed."""
+    return f"scenario {scenario.name} (seed {scenario.seed})"
+
+
+def rung_label(scenario: Scenario, variant: str, calibrations: Path | None = None) -> str:
+    """The suptitle of a rung's figures: the run and the rung (a reference rung, or the
+    PTV stack with a calibration method; ``calibrations``: its folder, named when it is
+    not the run's own, e.g. a study's calibration from fewer planes)."""
+    what = {
+        "exact": "true trajectories (no detection, no calibration)",
+        "detection": "detected centres, truth-paired, through the true cameras",
+        "true-cameras": "the PTV stack with the true cameras",
+    }.get(variant, f"the PTV stack with the {variant} calibration")
+    if variant not in REFERENCE_VARIANTS and calibrations is not None:
+        if calibrations.name != "calibrations":
+            what += f" ({calibrations.name})"
+    return f"{run_label(scenario)}, rung {variant}: {what}"
+
+
+def _ptv_figures(result: PtvResult, folder: Path, truth: dict, label: str) -> None:
     def column(key: str) -> np.ndarray:
         return np.array([np.nan if v is None else v for v in truth[key]])
 
@@ -163,6 +183,7 @@ def _ptv_figures(result: PtvResult, folder: Path, truth: dict) -> None:
         epsilon_limits=(r_axis, (eps / 5, eps * 5)),
         separations=known,
         q_limit=q_limit,
+        label=label,
         reference_s2=(r, s2, "sample truth (exact velocities)"),
         epsilon_reference=(r, column("s2_exact"), "ε(r) of the exact D_LL"),
         epsilon_levels=[
@@ -348,7 +369,11 @@ class ExperimentRun:
                 {"table1": result.table1, "max_plane_residual_px": result.max_plane_residual_px},
             )
             maps = {m: e["nominal"] for m, e in result.errors.items()}
-            title = "Triangulated dots against their nominal positions (the paper's Fig. 3)"
+            title = (
+                "Triangulated dots against their nominal positions (the paper's Fig. 3)\n"
+                f"{run_label(self.scenario)}, calibrated from "
+                + ("every plane" if planes is None else f"planes {_plane_list(planes)}")
+            )
             save_figure(error_maps(maps, title=title), target / "fig3_error_maps.png")
 
         inputs = {"dataset": dataset.key, "methods": list(methods)}
@@ -434,18 +459,19 @@ class RungBuilder:
         target.mkdir(exist_ok=True)
         cache = target / "chunks"
         tick = self.run.bar(f"ptv {variant}")
+        label = rung_label(self.run.scenario, variant, calibrations)
         if variant == "exact":
             runs = exact_runs(self.truth, self.run.chunks, self.unlinked, progress=tick)
             result = self.reference_result(runs)
-            self.save(result, target, "none: true trajectories")
+            self.save(result, target, "none: true trajectories", label)
         elif variant == "detection":
-            self.detection(target, cache, tick)
+            self.detection(target, cache, tick, label)
         else:
             if variant == "true-cameras":
-                cams, label = self.true_cameras, "true cameras"
+                cams, described = self.true_cameras, "true cameras"
             else:
                 path = calibrations / f"{variant}.h5"
-                cams, label = load_calibrations(path), str(path)
+                cams, described = load_calibrations(path), str(path)
             ordered = [cams[name] for name in self.store.cameras]
             result, frame_a = ptv_rung(
                 self.store,
@@ -456,7 +482,7 @@ class RungBuilder:
                 cache=cache,
                 progress=tick,
             )
-            self.save(result, target, label)
+            self.save(result, target, described, label)
             scored = self.truth.runs(0, len(frame_a))[0]
             quality = score_matching(
                 frame_a, scored, self.store.cameras, self.run.settings, voxel=self.voxel
@@ -465,7 +491,7 @@ class RungBuilder:
             self.save_population(result, target, quality.rotation, quality.translation)
         shutil.rmtree(cache, ignore_errors=True)
 
-    def detection(self, target: Path, cache: Path, tick) -> None:
+    def detection(self, target: Path, cache: Path, tick, label: str) -> None:
         """Detected centres, truth-paired, through the true cameras."""
         cams = [self.true_cameras[name] for name in self.store.cameras]
         chunks = map_chunks(
@@ -480,14 +506,16 @@ class RungBuilder:
         )
         runs, quality = detected_runs(chunks, self.truth.dt, self.store.cameras)
         result = self.reference_result(runs)
-        self.save(result, target, "true cameras, truth-paired detections")
-        _save_detection(quality, target)
+        self.save(result, target, "true cameras, truth-paired detections", label)
+        _save_detection(quality, target, label)
         self.save_population(result, target)
 
-    def save(self, result: PtvResult, folder: Path, calibration: str) -> None:
+    def save(self, result: PtvResult, folder: Path, calibration: str, label: str) -> None:
+        """results.h5 and summary.json (``calibration``: what they say the cameras
+        were), and the figures, titled ``label``."""
         links = self.run.scenario.output.links
         save_results(result, folder, calibration=calibration, links=links)
-        _ptv_figures(result, folder, self.truth_dict)
+        _ptv_figures(result, folder, self.truth_dict, label)
 
     def save_population(self, result: PtvResult, folder: Path, rotation=None, translation=None):
         """population.json: the sample truth over the pairs this measurement's S2 used
@@ -547,8 +575,14 @@ def run_stages(
     return ExperimentStages(dataset, detections, truth_stage, calibrations, ptv, run.seconds)
 
 
-def _save_detection(quality, folder: Path) -> None:
-    """detection.json and the fractional-position histograms (peak-locking diagnostic)."""
+def _plane_list(planes: list[int]) -> str:
+    """Plane indices as a short list: "0, 6, 12"."""
+    return ", ".join(str(j) for j in planes)
+
+
+def _save_detection(quality, folder: Path, label: str) -> None:
+    """detection.json and the fractional-position histograms (peak-locking diagnostic),
+    the figure titled ``label``."""
     locking = {name: peak_locking(sums) for name, sums in quality.fractions.items()}
     _write_json(
         folder / "detection.json",
@@ -576,4 +610,4 @@ def _save_detection(quality, folder: Path) -> None:
             },
         },
     )
-    save_figure(peak_locking_figure(locking), folder / "peak_locking.png")
+    save_figure(peak_locking_figure(locking, label=label), folder / "peak_locking.png")

@@ -4,7 +4,7 @@ The unit of work of a rendered run is a range of snapshots m0 … m1 − 1 at ev
 (:func:`snapshot_chunks`). :func:`render_chunk` simulates their particles, records every
 exposure of every camera (:func:`simulator.render.camera_frames.record_particles`),
 optionally writes the images as TIFF in the dataset layout and detects the particles in
-memory (:class:`ptv.frames.ChunkDetections`). The images are lossless 16-bit, so the
+memory (:class:`ptv.pipeline.frames.ChunkDetections`). The images are lossless 16-bit, so the
 detections are those that reading the TIFF files back would give.
 
 Everything random is seeded from the run's seed and the item it draws for (the
@@ -21,12 +21,11 @@ import numpy as np
 import tifffile
 
 from ptv.detect import detect_particles
-from ptv.frames import ChunkDetections, DetectedCentres, DetectorSettings, exposures
-from simulator.particles import double_frame, shared_start
+from ptv.pipeline.frames import ChunkDetections, DetectedCentres, DetectorSettings, exposures
+from simulator.particles import TracerFlow, double_frame, shared_start
 from simulator.render.camera_frames import ParticleLighting, record_particles
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig
-from simulator.spectra import Spectrum
 from validation.dataset.truth_file import TruthRun
 
 #: Largest number of snapshots in a chunk.
@@ -89,18 +88,14 @@ class ParticleJob:
     ----------
     rig : Rig
         Cameras and laser sheet.
-    spectrum : Spectrum
-        The flow.
+    flow : TracerFlow
+        The flow the tracers follow (:mod:`simulator.particles`).
     dt : ndarray, shape (K,)
         Frame separations, s.
     frames : int
         Snapshots M per Δt.
     particles : int
         Mean number of particles in the sheet.
-    n_modes : int
-        KS modes.
-    unsteadiness : float
-        λ of the KS frequencies (:func:`simulator.flow.draw_ks_field`).
     lighting : ParticleLighting
         Tracers and laser sheet.
     sensor : Sensor
@@ -117,12 +112,10 @@ class ParticleJob:
     """
 
     rig: Rig
-    spectrum: Spectrum
+    flow: TracerFlow
     dt: np.ndarray
     frames: int
     particles: int
-    n_modes: int
-    unsteadiness: float
     lighting: ParticleLighting
     sensor: Sensor
     shared_first_frame: bool
@@ -142,7 +135,7 @@ class RenderedChunk:
     truth : list of K TruthRun
         The chunk's particles per Δt (``first`` = m0).
     detections : dict or None
-        :attr:`ptv.frames.ChunkDetections.found` of the chunk (None without a detector).
+        :attr:`ptv.pipeline.frames.ChunkDetections.found` of the chunk (None without a detector).
     """
 
     snapshots: tuple[int, int]
@@ -154,13 +147,11 @@ def simulate_chunk(job: ParticleJob, m0: int, m1: int):
     """The exact particles of snapshots m0 … m1 − 1 (a DoubleFrameSample)."""
     simulate = shared_start if job.shared_first_frame else double_frame
     return simulate(
-        job.spectrum,
+        job.flow,
         job.dt,
         particles=job.particles,
         snapshots=job.frames,
         region=job.rig.sheet,
-        n_modes=job.n_modes,
-        unsteadiness=job.unsteadiness,
         rng=job.seed,
         first=m0,
         count=m1 - m0,
@@ -241,7 +232,7 @@ def _write_exposure(folder: Path, n_dt: int, k: int, camera: str, m: int, frame:
 
 
 def chunk_detections(chunk: RenderedChunk, job: ParticleJob, folder: Path) -> ChunkDetections:
-    """The detections of a rendered chunk as :class:`ptv.frames.ChunkDetections` of the
+    """The detections of a rendered chunk as :class:`ptv.pipeline.frames.ChunkDetections` of the
     dataset at ``folder``."""
     return ChunkDetections(
         folder=folder,

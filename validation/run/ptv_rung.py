@@ -1,12 +1,13 @@
 """The whole PTV stack on a run's stored detections, one chunk of snapshots per task.
 
-Each chunk is matched, linked and tested (:func:`ptv.pipeline.measure_snapshots`) on its
-own; only the links whose X(t) lies in the analysis volume are kept (the only ones the
-statistics use: a paper-size run would otherwise carry 10⁷ links per rung), with the
-counts of every detection, match and link. The matched points of frame a of the first
-snapshots come back too, for the matching score (:mod:`validation.truth.matching`).
-The chunks are joined in snapshot order, so the result does not depend on which worker
-measured which chunk.
+Each chunk is matched, linked and tested
+(:func:`ptv.pipeline.double_frame.measure_snapshots`) on its own; only the links whose
+X(t) lies in the analysis volume are kept (the only ones the statistics use: a
+paper-size run would otherwise carry 10⁷ links per rung), with the counts of every
+detection, match and link. The matched points of frame a of the first snapshots come
+back too, for the matching score (:mod:`validation.truth.matching`). The chunks are
+joined in snapshot order, so the result does not depend on which worker measured which
+chunk.
 """
 
 from collections.abc import Callable, Sequence
@@ -17,8 +18,7 @@ import numpy as np
 
 from ptv.camera_model import CameraModel
 from ptv.detect.store import DetectionStore
-from ptv.frames import ChunkDetections
-from ptv.pipeline import (
+from ptv.pipeline.double_frame import (
     MatchedPoints,
     PipelineSettings,
     PtvResult,
@@ -27,6 +27,7 @@ from ptv.pipeline import (
     measure_snapshots,
     run_particles,
 )
+from ptv.pipeline.frames import ChunkDetections
 from ptv.stats.run_statistics import compute_statistics
 from validation.workflow.chunk_map import map_chunks
 from validation.workflow.parallel import Executor

@@ -43,7 +43,7 @@ import numpy as np
 
 from ptv.calibration.methods import CALIBRATION_METHODS
 from ptv.names import FILE_NAME_RULE, is_file_name
-from ptv.pipeline import PipelineSettings
+from ptv.pipeline.double_frame import PipelineSettings
 from ptv.stats.run_statistics import StatisticsSettings
 from simulator.flow import DEFAULT_UNSTEADINESS
 from simulator.presets import FLOW_PRESETS, FlowPreset, flow_preset

@@ -24,7 +24,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simulator.particles import SHEET
+from simulator.particles import Box
 
 #: The columns every positions file needs.
 COLUMNS = ("dt", "snapshot", "frame", "x", "y", "z")
@@ -232,7 +232,7 @@ def _read_hdf5(path: Path, columns: tuple[str, ...]) -> Positions:
     )
 
 
-def check_positions(positions: Positions, *, n_dt: int, snapshots: int) -> None:
+def check_positions(positions: Positions, *, n_dt: int, snapshots: int, sheet: Box) -> None:
     """Check the rows against the dataset: Δt and snapshot indices, units, track ids.
 
     Parameters
@@ -243,6 +243,8 @@ def check_positions(positions: Positions, *, n_dt: int, snapshots: int) -> None:
         Δt of the dataset, K.
     snapshots : int
         Snapshots per Δt, M.
+    sheet : Box
+        The dataset's laser sheet, m (its rig's ``[sheet]``).
 
     Raises
     ------
@@ -262,7 +264,7 @@ def check_positions(positions: Positions, *, n_dt: int, snapshots: int) -> None:
                 f"{positions.where(bad[0], column)}: {values[bad[0]]} is not an index of the "
                 f"dataset, which has {count} {what} (0 … {count - 1})"
             )
-    _check_units(positions)
+    _check_units(positions, sheet)
     if positions.track is not None:
         key = np.stack([positions.k, positions.snapshot, positions.frame, positions.track], axis=1)
         _, first, count = np.unique(key, axis=0, return_index=True, return_counts=True)
@@ -276,13 +278,13 @@ def check_positions(positions: Positions, *, n_dt: int, snapshots: int) -> None:
             )
 
 
-def _check_units(positions: Positions) -> None:
+def _check_units(positions: Positions, sheet: Box) -> None:
     """Refuse positions that are not in metres (see :func:`check_positions`)."""
-    half = np.asarray(SHEET.size) / 2
-    reach = np.max(np.abs(positions.xyz - np.asarray(SHEET.centre)) / half, axis=1)
+    half = np.asarray(sheet.size) / 2
+    reach = np.max(np.abs(positions.xyz - np.asarray(sheet.centre)) / half, axis=1)
     median = float(np.median(reach))
     if np.all(reach > 1) and median > UNIT_SLIP:
-        size = " × ".join(f"{v * 1e3:g}" for v in SHEET.size)
+        size = " × ".join(f"{v * 1e3:g}" for v in sheet.size)
         raise ValueError(
             f"{positions.where(0, 'x, y, z')}: no position lies in the {size} mm laser "
             f"sheet and half of them lie over {median:.3g} times its half-size from its "

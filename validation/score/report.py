@@ -123,19 +123,39 @@ def render_html(result: dict) -> str:
     return "\n".join(parts)
 
 
+def _short(path: str, limit: int = 50) -> str:
+    """``path`` as a figure title can hold it: whole up to ``limit`` characters, else
+    its last three components."""
+    if len(path) <= limit:
+        return path
+    return str(Path("…", *Path(path).parts[-3:]))
+
+
 def score_figure(result: dict, errors: np.ndarray) -> Figure:
     """Yield and ghosts per Δt, the position errors, c1 over the sample truth.
+
+    The suptitle names the positions scored and the dataset. The histograms of the
+    position errors stop at the 99.5th percentile of |error| (so that the core shows);
+    the legend says how many errors of each component lie beyond. Points of c1/S2
+    beyond its axis are marked by triangles on the edge, explained in the legend.
 
     Parameters
     ----------
     result : dict
-        The score (``per_dt``, ``statistics``).
+        The score (``per_dt``, ``statistics``, ``settings``).
     errors : ndarray, shape (N, 3)
         Position errors of the true positives, m.
     """
     figure, (ax_yield, ax_error, ax_c1) = plt.subplots(
-        1, 3, figsize=(14.0, 4.0), layout="constrained"
+        1, 3, figsize=(14.0, 4.3), layout="constrained"
     )
+    settings = result.get("settings", {})
+    if "positions" in settings:
+        figure.suptitle(
+            f"synptv score: positions {_short(settings['positions'])} against the truth "
+            f"of {_short(settings.get('dataset', '?'))}",
+            fontsize=10,
+        )
     labels = [f"{1e3 * s['dt_s']:.3g}" for s in result["per_dt"]]
     at = np.arange(len(labels))
     ax_yield.bar(at - 0.2, [s["yield"] for s in result["per_dt"]], 0.4, label="yield")
@@ -151,17 +171,22 @@ def score_figure(result: dict, errors: np.ndarray) -> Figure:
         fontsize=10,
     )
     ax_yield.legend(fontsize=8, loc="center right")
+    title = "Position errors of the true positives"
     if len(errors):
         reach = max(float(np.percentile(np.abs(errors), 99.5)) * 1e6, 1.0)
         edges = np.linspace(-reach, reach, 61)
         rms = result["position_rms_um"]
         for axis, column in zip("xyz", errors.T * 1e6, strict=True):
-            label = f"{axis}: RMS {rms[axis]:.3g} µm"
+            beyond = int(np.count_nonzero(np.abs(column) > reach))
+            label = f"{axis}: RMS {rms[axis]:.3g} µm; {beyond} beyond ±{reach:.3g} µm not shown"
             ax_error.stairs(np.histogram(column, edges)[0], edges, label=label)
-        ax_error.legend(fontsize=8)
+        ax_error.set_xlim(-reach, reach)
+        ax_error.set_ylim(0, 1.35 * ax_error.get_ylim()[1])  # room for the legend
+        ax_error.legend(fontsize=8, loc="upper center")
+        title += f"\n(of {len(errors)}; the axis stops at the 99.5th percentile of |error|)"
     ax_error.set_xlabel("position − true particle (µm)")
     ax_error.set_ylabel("true positives")
-    ax_error.set_title("Position errors of the true positives", fontsize=10)
+    ax_error.set_title(title, fontsize=10)
     statistics = result["statistics"]
     if statistics["computed"]:
         r = float_array(statistics["sample_truth"]["r"])
@@ -171,7 +196,9 @@ def score_figure(result: dict, errors: np.ndarray) -> Figure:
         ax_c1.axhspan(0.95, 1.05, color="C2", alpha=0.12, label="±5 %")
         ok = np.isfinite(ratio) & np.isfinite(r)
         ax_c1.plot(r[ok] * 1e3, ratio[ok], "o-", ms=3.5, lw=1.0, label="c1 / sample-truth S2")
-        mark_off_axis(ax_c1, r * 1e3, ratio, BUDGET_AXIS, "C0")
+        if mark_off_axis(ax_c1, r * 1e3, ratio, BUDGET_AXIS, "C0"):
+            low, high = BUDGET_AXIS
+            ax_c1.plot([], [], "^", color="C0", ms=7, label=f"off the axis ({low:g}–{high:g})")
         ax_c1.set_xscale("log")
         plain_log_axis(ax_c1.xaxis, ax_c1.get_xlim())
         ax_c1.set_ylim(*BUDGET_AXIS)

@@ -3,8 +3,8 @@ with the truth as ``synptv run``'s error budget compares its rungs.
 
 The positions of frames a and b of each snapshot at each Δt are linked: by their track
 ids when the file has tracks, else by synptv's double-frame linker
-(:func:`ptv.track.link`, radius max_speed·Δt + 5σ_b); a normalised median test flags
-mislinks (:func:`ptv.pipeline.median_test_outliers`), as for synptv's own links. The
+(:func:`ptv.tracking.linking.link`, radius max_speed·Δt + 5σ_b); a normalised median test flags
+mislinks (:func:`ptv.pipeline.double_frame.median_test_outliers`), as for synptv's own links. The
 links in the analysis volume go through :func:`ptv.stats.run_statistics.compute_statistics`
 (with a shared first frame when the dataset has one and the file gives the same
 frame-a positions at every Δt). Then, as in ``synptv run`` (:mod:`validation.run.checks`):
@@ -14,17 +14,17 @@ estimator on the exact D_LL.
 
 import numpy as np
 
-from ptv.pipeline import (
+from ptv.pipeline.double_frame import (
     PipelineSettings,
     SnapshotMeasurement,
     link_radius,
     median_test_outliers,
     run_particles,
 )
-from ptv.results import statistics_summary
+from ptv.pipeline.results import statistics_summary
 from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import compute_statistics
-from ptv.track import link
+from ptv.tracking.linking import link
 from validation.dataset.truth_file import TruthFile
 from validation.run.checks import compare_variant, predicted_noise
 from validation.run.particle_chunks import snapshot_chunks
@@ -36,7 +36,7 @@ from validation.truth.flow import flow_truth, population_truth
 
 def _pairs(positions: Positions, a: np.ndarray, b: np.ndarray, radius: float | None):
     """Row indices (into ``a`` and ``b``) of the links of one snapshot: by track id when
-    ``radius`` is None, else by :func:`ptv.track.link`."""
+    ``radius`` is None, else by :func:`ptv.tracking.linking.link`."""
     if radius is None:
         in_b = {t: j for j, t in enumerate(positions.track[b].tolist())}
         pairs = [(i, in_b[t]) for i, t in enumerate(positions.track[a].tolist()) if t in in_b]
@@ -154,7 +154,7 @@ def score_statistics(
         ``raw_s2``, ``mean_linear``, ``subsets``, ``c1_over_truth``; ``c1_reference``:
         which sample truth c1 is compared with), ``sample_truth`` (the sample truth and
         exact D_LL, :class:`validation.truth.flow.FlowTruth`), ``population`` and
-        ``summary`` (:func:`ptv.results.statistics_summary`).
+        ``summary`` (:func:`ptv.pipeline.results.statistics_summary`).
     """
     runs = link_runs(positions, scored, truth.dt, settings)
     if not runs:

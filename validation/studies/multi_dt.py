@@ -28,7 +28,7 @@ from dataclasses import replace
 import numpy as np
 
 from ptv.stats.structure import StructureFunction
-from simulator.particles import Box, DoubleFrameSample, double_frame
+from simulator.particles import Box, DoubleFrameSample, KSFlow, double_frame
 from simulator.presets import FlowPreset
 from simulator.rigs import load_rig
 from simulator.spectra import SPECTRA, Spectrum
@@ -123,13 +123,11 @@ def _simulate(
     """Exact runs of the scenario's flow at the preset's Δt set (seeded per study)."""
     _, spectrum, region = _flow(scenario)
     return double_frame(
-        spectrum,
+        KSFlow(spectrum, n_modes=scenario.flow.modes, unsteadiness=scenario.flow.unsteadiness),
         preset.dt,
         particles=particles,
         snapshots=snapshots,
         region=region,
-        n_modes=scenario.flow.modes,
-        unsteadiness=scenario.flow.unsteadiness,
         rng=seed_sequence(scenario.seed, study, "flow"),
     )
 

@@ -19,7 +19,7 @@ from ptv.stats.multidt import dt_subsets
 from ptv.stats.pairs import LogBins, PairSums, pair_sums
 from ptv.stats.snapshots import SnapshotSums
 from ptv.stats.structure import StructureFunction, double_frame_sums, structure_function
-from simulator.particles import ANALYSIS_VOLUME, Box, DoubleFrameSample, double_frame
+from simulator.particles import ANALYSIS_VOLUME, Box, DoubleFrameSample, KSFlow, double_frame
 from simulator.presets import FlowPreset
 from simulator.spectra import C_KOLMOGOROV, KolmogorovBandSpectrum, PopeSpectrum, Spectrum
 from simulator.truth import longitudinal_structure_function
@@ -154,7 +154,7 @@ def simulate(
     parameters); pass the same one to :func:`analyse`.
     """
     return double_frame(
-        PopeSpectrum(preset.parameters) if spectrum is None else spectrum,
+        KSFlow(PopeSpectrum(preset.parameters) if spectrum is None else spectrum),
         preset.dt,
         particles=particles,
         snapshots=snapshots,

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ptv.calibration.io import load_calibrations
-from ptv.results import load_runs
+from ptv.pipeline.results import load_runs
 from ptv.stats.run_statistics import compute_statistics
 from ptv.triangulate import triangulate
 from simulator.render.sensor import Sensor

@@ -12,7 +12,8 @@ One row per point, seed and calibration method, with the swept parameter and
 (null where a chain does not measure a quantity: the ideal chain's calibration studies
 see no particles, its multi-Δt studies no images). The figure shows each quantity
 against the parameter: the mean over the seeds, with error bars of the scatter between
-seeds where there are several, else of the bootstrap standard error.
+seeds where there are several, else of the bootstrap standard error; a note under the
+panels says which.
 """
 
 import csv
@@ -170,7 +171,22 @@ def study_figure(study: str, rows: Sequence[Mapping], *, title: str = "") -> Fig
             ax.text(0.5, 0.5, "not measured on this chain", ha="center", transform=ax.transAxes)
     if title:
         figure.suptitle(title, fontsize=9)
+    figure.text(0.5, 0.0, error_bar_note(rows), ha="center", va="top", fontsize=8)
     return figure
+
+
+def error_bar_note(rows: Sequence[Mapping]) -> str:
+    """What the error bars of :func:`study_figure` are, for these rows."""
+    seeds = len({r.get("seed") for r in rows})
+    if seeds >= 2:
+        return (
+            f"Points: mean over {seeds} seeds; error bars: ±1 standard error of that mean "
+            f"(the seeds' scatter / √{seeds})."
+        )
+    return (
+        "One seed: error bars are ±1 bootstrap standard error of c₁ and ε "
+        "(c1_rel_se, epsilon_rel_se); the calibration errors and the matching have none."
+    )
 
 
 def _plot(ax, xs, mean, err, label, categories, colour, style, marker="o") -> None:

@@ -1,6 +1,6 @@
 """Two-camera stereo matching by brute force, in plain NumPy and SciPy.
 
-The reference the image-stack claims compare :func:`ptv.match.match` with. It solves
+The reference the image-stack claims compare :func:`ptv.matching.stereo.match` with. It solves
 the same problem with none of its code (no candidate pre-search, no sparse
 assignment):
 

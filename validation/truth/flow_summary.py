@@ -6,7 +6,7 @@ import numpy as np
 
 from ptv.stats.pairs import LogBins
 from simulator.flow import DEFAULT_UNSTEADINESS
-from simulator.particles import ANALYSIS_VOLUME, Box, Progress, follow_snapshots
+from simulator.particles import ANALYSIS_VOLUME, Box, KSFlow, Progress, follow_snapshots
 from simulator.spectra import SPECTRA, Spectrum, discretise
 from simulator.truth import longitudinal_structure_function
 from simulator.turbulence import TurbulenceParameters
@@ -93,13 +93,11 @@ def summarize_flow(settings: FlowSettings, *, progress: Progress | None = None) 
             progress(done, total_steps)
 
     sample = follow_snapshots(
-        spectrum,
+        KSFlow(spectrum, n_modes=settings.n_modes, unsteadiness=settings.unsteadiness),
         np.array([0.0]),
         particles=settings.particles,
         snapshots=settings.snapshots,
         region=settings.region,
-        n_modes=settings.n_modes,
-        unsteadiness=settings.unsteadiness,
         rng=settings.seed,
         progress=lambda done, _total: report(done),
     )

@@ -1,7 +1,9 @@
 """A text progress bar on stderr for long work (no third-party dependency)."""
 
 import sys
+import threading
 import time
+import weakref
 from typing import TextIO
 
 #: Seconds between redraws on a terminal, and between lines in a log file.
@@ -11,7 +13,12 @@ LOG_INTERVAL_S = 10.0
 
 class ProgressBar:
     """Callable ``(done, total)`` that redraws one line on a terminal; written to a file
-    or a pipe (a log), one plain line every :data:`LOG_INTERVAL_S` and one at the end.
+    or a pipe (a log), one plain line at least every :data:`LOG_INTERVAL_S` while the bar
+    lives, and one at the end.
+
+    In a log, a line comes every :data:`LOG_INTERVAL_S` even when the work reports
+    nothing (a long chunk, the statistics after the last chunk): a background thread
+    writes ``still working`` lines until the bar is closed or dropped.
 
     Parameters
     ----------
@@ -28,31 +35,70 @@ class ProgressBar:
         self.stream = stream if stream is not None else sys.stderr
         self.enabled = enabled
         self.start = time.monotonic()
-        self._last = 0.0
+        self._last = self.start
+        self._state: tuple[int, int] | None = None
+        self._lock = threading.Lock()
         isatty = getattr(self.stream, "isatty", None)
         self.terminal = bool(isatty and isatty())
+        self._stop = threading.Event()
+        if enabled and not self.terminal:
+            weakref.finalize(self, self._stop.set)
+            threading.Thread(
+                target=_keep_alive, args=(weakref.ref(self), self._stop), daemon=True
+            ).start()
 
     def __call__(self, done: int, total: int) -> None:
         if not self.enabled:
             return
         now = time.monotonic()
         interval = TERMINAL_INTERVAL_S if self.terminal else LOG_INTERVAL_S
-        if done < total and now - self._last < interval:
+        with self._lock:
+            self._state = (done, total)
+            if done < total and now - self._last < interval and self._last > self.start:
+                return
+            self._last = now
+            elapsed = now - self.start
+            eta = elapsed / done * (total - done) if done else float("nan")
+            timing = f"{done}/{total} {elapsed:5.0f} s elapsed, {eta:4.0f} s left"
+            if self.terminal:
+                width = 30
+                filled = int(width * done / max(total, 1))
+                bar = f"[{'#' * filled}{'.' * (width - filled)}]"
+                self.stream.write(f"\r{self.label} {bar} {timing}")
+                if done >= total:
+                    self.stream.write("\n")
+            else:
+                self.stream.write(f"{self.label}: {timing}\n")
+            self.stream.flush()
+
+    def beat(self) -> None:
+        """In a log, a ``still working`` line when none was written for
+        :data:`LOG_INTERVAL_S` (the background thread calls this)."""
+        with self._lock:
+            now = time.monotonic()
+            if self._stop.is_set() or now - self._last < LOG_INTERVAL_S:
+                return
+            self._last = now
+            done = "starting" if self._state is None else "{}/{}".format(*self._state)
+            self.stream.write(
+                f"{self.label}: {done} {now - self.start:5.0f} s elapsed, still working\n"
+            )
+            self.stream.flush()
+
+    def close(self) -> None:
+        """Stop the ``still working`` lines (also done when the bar is dropped)."""
+        self._stop.set()
+
+
+def _keep_alive(bar: "weakref.ref[ProgressBar]", stop: threading.Event) -> None:
+    """The background loop of a log's bar: a beat every quarter interval until stopped
+    or the bar is gone (it holds the bar only weakly)."""
+    while not stop.wait(LOG_INTERVAL_S / 4):
+        alive = bar()
+        if alive is None:
             return
-        self._last = now
-        elapsed = now - self.start
-        eta = elapsed / done * (total - done) if done else float("nan")
-        timing = f"{done}/{total} {elapsed:5.0f} s elapsed, {eta:4.0f} s left"
-        if self.terminal:
-            width = 30
-            filled = int(width * done / max(total, 1))
-            bar = f"[{'#' * filled}{'.' * (width - filled)}]"
-            self.stream.write(f"\r{self.label} {bar} {timing}")
-            if done >= total:
-                self.stream.write("\n")
-        else:
-            self.stream.write(f"{self.label}: {timing}\n")
-        self.stream.flush()
+        alive.beat()
+        del alive
 
 
 def say_interrupted(line: str, stream: TextIO | None = None) -> None:

@@ -8,12 +8,8 @@ from hypothesis import strategies as st
 
 from ptv.calibration.grid_errors import table1_errors
 from ptv.calibration.model_free import PlaneObservation, calibrate_model_free
-from ptv.calibration.pinhole import (
-    PARAMETER_NAMES,
-    PinholeModel,
-    calibrate_pinhole,
-    project_parameters,
-)
+from ptv.calibration.pinhole import PARAMETER_NAMES, PinholeModel, project_parameters
+from ptv.calibration.pinhole_fit import calibrate_pinhole
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions
 from validation.truth.calibration_errors import synthetic_plane_dots, true_positions

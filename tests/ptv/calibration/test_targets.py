@@ -15,16 +15,15 @@ import pytest
 from scipy.spatial import cKDTree
 
 from ptv.calibration.model_free import PlaneObservation, calibrate_model_free
+from ptv.calibration.plate import FLAG_MARK, PlateDescription
 from ptv.calibration.targets import (
-    FLAG_MARK,
     MarkersNotFoundError,
     NoTargetError,
-    PlateDescription,
     SeedDotsError,
     find_dots,
     observations_from_images,
 )
-from ptv.experiment import description_problems
+from ptv.io.experiment import description_problems
 from simulator.render.plate import render_plate
 from simulator.render.sensor import Sensor
 from simulator.rigs import load_rig

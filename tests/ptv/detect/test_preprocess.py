@@ -8,9 +8,9 @@ import pytest
 import tifffile
 from scipy.special import erf
 
-from ptv.dataset import open_dataset
 from ptv.detect.preprocess import invert, median_background, tophat
-from ptv.frames import DetectorSettings, ImageDetector
+from ptv.io.dataset import open_dataset
+from ptv.pipeline.frames import DetectorSettings, ImageDetector
 
 SHAPE = (96, 128)
 

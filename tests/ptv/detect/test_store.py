@@ -15,7 +15,7 @@ from ptv.detect.store import (
     write_chunk,
     write_index,
 )
-from ptv.frames import ChunkDetections, exposures
+from ptv.pipeline.frames import ChunkDetections, exposures
 
 CAMERAS = ("cam1", "cam2")
 

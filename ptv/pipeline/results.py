@@ -1,4 +1,5 @@
-"""Results of :func:`ptv.pipeline.run_pipeline` on disk: HDF5 arrays and a JSON summary.
+"""Results of :func:`ptv.pipeline.double_frame.run_pipeline` on disk: HDF5 arrays and a
+JSON summary.
 
 ``results.h5`` (format ``synptv-ptv-results``, version :data:`FORMAT_VERSION`; every
 dataset has a ``units`` attribute)::
@@ -76,12 +77,12 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ptv.pipeline import MatchedPoints, PtvResult, link_radius
-from ptv.recording import RecordingTracks
+from ptv.pipeline.double_frame import MatchedPoints, PtvResult, link_radius
 from ptv.stats.dissipation import Plateau
 from ptv.stats.links import RunParticles
 from ptv.stats.mean_displacement import MeanDisplacement
 from ptv.stats.run_statistics import PtvStatistics
+from ptv.tracking.linking import RecordingTracks
 
 __all__ = [
     "FORMAT_NAME",
@@ -139,6 +140,8 @@ def _settings_dict(result: PtvResult) -> dict:
         "r_min": st.r_min,
         "r_max": st.r_max,
         "n_bins": st.n_bins,
+        # written only when not the default, so that runs before it keep their files
+        **({} if st.binning == "start" else {"binning": st.binning}),
         "plateau": list(st.plateau),
         "plateau_method": st.plateau_method,
         "kolmogorov_c2": st.kolmogorov_c2,
@@ -519,7 +522,7 @@ def save_results(
     Parameters
     ----------
     result : PtvResult
-        What :func:`ptv.pipeline.run_pipeline` returned.
+        What :func:`ptv.pipeline.double_frame.run_pipeline` returned.
     folder : path-like
         Output folder.
     calibration : str, optional

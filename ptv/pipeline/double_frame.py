@@ -1,14 +1,14 @@
 """Double-frame 3D-PTV, from detected particles to links, then to S2(r), ε and u′.
 
-The particles detected on every frame come from a :class:`ptv.frames.FrameDetections`
+The particles detected on every frame come from a :class:`ptv.pipeline.frames.FrameDetections`
 source (detected from a dataset's images, or read from a detection store). For every
 Δt_k and every snapshot m:
 
-1. match the cameras in frame a and in frame b (:func:`ptv.match.match`) inside the
+1. match the cameras in frame a and in frame b (:func:`ptv.matching.stereo.match`) inside the
    measurement volume (default: the 100 × 100 × 10 mm sheet plus 1 mm) with the stereo
    tolerance (default 0.15 mm, 2–3× the calibration error); with a shared first frame,
    frame a of snapshot m is matched once for every Δt;
-2. link frame a to frame b one-to-one (:func:`ptv.track.link`) within the radius
+2. link frame a to frame b one-to-one (:func:`ptv.tracking.linking.link`) within the radius
    r_k = max_speed·Δt_k + 5σ_b (max_speed: the largest speed expected, default
    1.5 m/s; σ_b: the position noise, default 30 µm): the Δt-scaled threshold of
    docs/ptv.md §4, which also rejects mismatches with |ΔX| beyond it;
@@ -34,14 +34,13 @@ Snapshots are independent of one another, so :func:`measure_snapshots` measures 
 range of them on its own (a chunk of a parallel run) and :func:`run_particles` joins
 the chunks. The statistics of the links are :func:`ptv.stats.run_statistics.compute_statistics`.
 
-Nothing here reads a ground truth, plots or prints; :mod:`ptv.results` writes the
+Nothing here reads a ground truth, plots or prints; :mod:`ptv.pipeline.results` writes the
 results, ``validation`` draws and compares.
 """
 
 import logging
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -49,15 +48,12 @@ from scipy.spatial import cKDTree
 from ptv._checks import positive
 from ptv.box import Box, check_box, inside_box
 from ptv.camera_model import CameraModel
-from ptv.dataset import cameras_in_order
-from ptv.frames import FrameDetections
-from ptv.match import match
+from ptv.io.dataset import cameras_in_order
+from ptv.matching.stereo import match
+from ptv.pipeline.frames import FrameDetections
 from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import PtvStatistics, StatisticsSettings, compute_statistics
-from ptv.track import link, search_radius
-
-if TYPE_CHECKING:  # ptv.recording builds on this module
-    from ptv.recording import RecordingTracks
+from ptv.tracking.linking import RecordingTracks, link, search_radius
 
 __all__ = [
     "MEASUREMENT_VOLUME",
@@ -102,7 +98,7 @@ class PipelineSettings:
     max_acceleration : float
         Largest particle acceleration expected, m/s²: sets the radius around a track's
         constant-velocity prediction in a time-resolved recording
-        (:func:`ptv.recording.track_radii`; default 100, about 5 times the rms of one
+        (:func:`ptv.tracking.recording.track_radii`; default 100, about 5 times the rms of one
         component in the paper's flows).
     outlier_threshold : float or None
         Threshold of the normalised median test on the displacements (default 4; None
@@ -548,7 +544,7 @@ class PtvResult:
         every Δt, frame a repeated at each Δt that shares it).
     recording : RecordingTracks or None
         The tracks through every frame of a time-resolved recording
-        (:func:`ptv.recording.run_recording`; None otherwise).
+        (:func:`ptv.tracking.recording.run_recording`; None otherwise).
     """
 
     source: FrameDetections
@@ -557,7 +553,7 @@ class PtvResult:
     runs: list[RunParticles]
     statistics: PtvStatistics | None
     matched: MatchedPoints | None = None
-    recording: "RecordingTracks | None" = None
+    recording: RecordingTracks | None = None
 
 
 def run_pipeline(
@@ -573,7 +569,7 @@ def run_pipeline(
     Parameters
     ----------
     frames : FrameDetections
-        E.g. :class:`ptv.frames.ImageDetector` of :func:`ptv.dataset.open_dataset`.
+        E.g. :class:`ptv.pipeline.frames.ImageDetector` of :func:`ptv.io.dataset.open_dataset`.
     calibrations : mapping of camera name to CameraModel
         E.g. :func:`ptv.calibration.io.load_calibrations`; must name exactly the
         dataset's cameras.

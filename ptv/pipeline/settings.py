@@ -7,7 +7,7 @@ Sections and the dataclass fields they fill (SI units: m, s, m/s, m/s²)::
     [matching]     PipelineSettings: volume, tolerance, min_cameras
     [linking]      PipelineSettings: max_speed, position_noise, max_acceleration,
                    outlier_threshold, outlier_neighbours
-    [statistics]   StatisticsSettings: analysis_volume, r_min, r_max, n_bins, plateau,
+    [statistics]   StatisticsSettings: analysis_volume, r_min, r_max, n_bins, binning, plateau,
                    plateau_method, kolmogorov_c2, n_boot, eulerian_cells,
                    min_cell_count, trajectory_threshold, seed
     [run]          PipelineSettings: snapshots
@@ -25,8 +25,8 @@ import math
 import tomllib
 from pathlib import Path
 
-from ptv.frames import DetectorSettings
-from ptv.pipeline import PipelineSettings
+from ptv.pipeline.double_frame import PipelineSettings
+from ptv.pipeline.frames import DetectorSettings
 from ptv.stats.run_statistics import StatisticsSettings
 
 __all__ = ["PtvSettings", "SettingsError", "load_settings", "settings_from_dict", "settings_toml"]
@@ -78,6 +78,7 @@ _COMMENTS = {
     "r_min": "smallest separation bin edge, m",
     "r_max": "largest separation bin edge, m",
     "n_bins": "log-spaced separation bins",
+    "binning": 'pairs binned by their separation at t, "start", or by the chord "midpoint"',
     "plateau": "r range of the plateau ε, m",
     "plateau_method": '"mean" of ε(r) over the plateau range, or its "max"',
     "kolmogorov_c2": "C2 in S2 = C2 (εr)^(2/3)",

@@ -24,7 +24,6 @@ runs) go to ``<out>/work/``, where every study of ``<out>`` finds them. Output, 
 """
 
 import os
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib.metadata import version
@@ -34,7 +33,7 @@ from matplotlib.figure import Figure
 
 from validation.report.calibration_figures import obliquity_curves, plane_count_curves
 from validation.report.png import save_figure
-from validation.run.scenario import Scenario, load_scenario, scenario_from_dict, scenario_presets
+from validation.run.scenario import Scenario, load_scenario, scenario_from_dict
 from validation.studies.calibration_methods import relative_to_most_planes
 from validation.studies.calibration_sweeps import obliquity_sweep, planes_sweep
 from validation.studies.multi_dt import (
@@ -50,13 +49,11 @@ from validation.studies.runner import Sweep, load_point, run_sweep
 from validation.studies.table import csv_text, study_figure
 from validation.workflow.files import (
     as_json,
-    check_output_folder,
-    hold_output_folder,
     write_json_atomic,
     write_text_atomic,
 )
 from validation.workflow.parallel import Executor, check_parallel_options, dask_client, executor
-from validation.workflow.progress import ProgressBar, say_interrupted
+from validation.workflow.progress import ProgressBar
 
 
 @dataclass(frozen=True)
@@ -172,26 +169,31 @@ def _title(sweep: Sweep) -> str:
     )
 
 
-def _common_row(study: str, row: dict, seed: int) -> dict:
+def _common_row(row: dict, seed: int) -> dict:
     """An ideal-chain row with the columns of every study table (null where the chain
-    does not measure them; see :mod:`validation.studies.table`), its own columns kept."""
+    does not measure them; see :mod:`validation.studies.table`), its other columns kept.
+
+    A quantity the sweeps give under a name of their own goes to its common column
+    alone, not repeated under both names: the calibration sweeps' ``model_d_um`` (the
+    mean 3-D error at random points) is ``model_error_um``, the multi-Δt sweeps'
+    ``c1_error_<n>eta`` and ``c1_se_<n>eta`` are ``c1_rel_err`` and ``c1_rel_se``
+    ``{"<n>": …}``, their ``epsilon_error`` is ``epsilon_rel_err``.
+    """
+    row = dict(row)
     common = {
         "seed": seed,
-        "table1_d_um": row.get("table1_d_um"),
-        "model_error_um": row.get("model_d_um", row.get("model_d_um_mean")),
+        "table1_d_um": row.pop("table1_d_um", None),
+        "model_error_um": row.pop("model_d_um", None),
         "yield": None,
         "ghosts": None,
         "c1_rel_err": None,
         "c1_rel_se": None,
-        "epsilon_rel_err": row.get("epsilon_error"),
+        "epsilon_rel_err": row.pop("epsilon_error", None),
         "epsilon_rel_se": None,
     }
     if "c1_error_10eta" in row:
-        common["c1_rel_err"] = {str(n): row[f"c1_error_{n}eta"] for n in R_OVER_ETA}
-        common["c1_rel_se"] = {str(n): row[f"c1_se_{n}eta"] for n in R_OVER_ETA}
-    if study == "obliquity":
-        common["table1_d_um"] = row.get("table1_d_um")
-        common["model_error_um"] = row.get("model_d_um")
+        common["c1_rel_err"] = {str(n): row.pop(f"c1_error_{n}eta") for n in R_OVER_ETA}
+        common["c1_rel_se"] = {str(n): row.pop(f"c1_se_{n}eta") for n in R_OVER_ETA}
     return {**common, **row}
 
 
@@ -228,7 +230,7 @@ def _run_ideal(
         )
         results = list(outcome.results.values())
         table = spec.table([row for result in results for row in result["rows"]])
-        rows += [_common_row(study, row, seeded.seed) for row in table]
+        rows += [_common_row(row, seeded.seed) for row in table]
         computed += [f"seed-{seeded.seed}/{p}" for p in outcome.computed]
         reused += [f"seed-{seeded.seed}/{p}" for p in outcome.reused]
         if figure is None:
@@ -313,8 +315,12 @@ def _run_rendered(
     title = (
         f"study {study} on rendered images: scenario {scenario.name} "
         f"(flow {scenario.flow.label}, {scenario.particles.count} tracers, "
-        f"{scenario.particles.frames} frame pairs per Δt), seeds {scenario.seed}…"
-        f"{scenario.seed + seeds - 1}"
+        f"{scenario.particles.frames} frame pairs per Δt), "
+        + (
+            f"seed {scenario.seed}"
+            if seeds == 1
+            else f"seeds {scenario.seed}…{scenario.seed + seeds - 1}"
+        )
     )
     return table, study_figure(study, table, title=title), tuple(computed), tuple(reused)
 
@@ -433,115 +439,3 @@ def run_study(
         computed=computed,
         reused=reused,
     )
-
-
-def _values(text: str | None, study: str) -> list | None:
-    """--planes "3,5,7,13" or --dt-subsets "0,1,2,3,4;2,3,4;0,4" as a list."""
-    if text is None:
-        return None
-    try:
-        if study == "planes":
-            return [int(v) for v in text.split(",")]
-        return [[int(v) for v in part.split(",")] for part in text.split(";")]
-    except ValueError:
-        raise ValueError(
-            f"cannot read the values {text!r}: integers separated by , (and ;)"
-        ) from None
-
-
-def _run_study_command(args) -> int:
-    settings = StudySettings(
-        dot_noise_px=args.noise, position_noise_um=args.position_noise, snapshots=args.snapshots
-    )
-    given = {"planes": args.planes, "dt": args.dt_subsets}
-    extra = [name for name, v in given.items() if v is not None and name != args.study]
-    if extra:
-        option = "--planes" if "planes" in extra else "--dt-subsets"
-        raise ValueError(f"{option} is an option of the {extra[0]} study, not of {args.study}")
-    check_output_folder(args.out)
-    try:
-        with hold_output_folder(args.out, f"synptv study {args.study}") as took_over:
-            if took_over:
-                print(f"synptv study: {took_over}", file=sys.stderr)
-            files = run_study(
-                args.study,
-                args.scenario,
-                Path(args.out),
-                chain=args.chain,
-                seeds=args.seeds,
-                values=_values(given.get(args.study), args.study),
-                settings=settings,
-                workers=args.workers,
-                scheduler=args.scheduler,
-                quiet=args.quiet,
-            )
-    except KeyboardInterrupt:
-        say_interrupted(
-            f"synptv study: interrupted; finished points are saved under "
-            f"{Path(args.out) / args.study / 'points'}: run the same command to resume"
-        )
-        return 130
-    print(
-        f"{len(files.computed)} points computed, {len(files.reused)} reused; table written to "
-        f"{files.table} and {files.csv}, figure to {files.figure}"
-    )
-    return 0
-
-
-def add_study_parser(subparsers) -> None:
-    """Add the ``study`` subcommand to the ``synptv`` parser's subparsers."""
-    about = "; ".join(f"{name}: {s.about}" for name, s in STUDIES.items())
-    study = subparsers.add_parser(
-        "study",
-        help="parameter sweeps (planes, obliquity, dt, noise, seeding): table + figure",
-        description="Sweep one parameter of a scenario, on rendered images (--chain "
-        "rendered, default: every point renders or reuses images, detects, calibrates, "
-        "matches and compares with the truth) or on the fast stand-in without images "
-        f"(--chain ideal: {about}). Each point is saved as it finishes (run again to "
-        "resume); --seeds K repeats every point with independent seeds.",
-    )
-    study.add_argument("study", metavar="STUDY", help=f"one of {', '.join(STUDIES)}")
-    study.add_argument(
-        "--scenario",
-        default="default",
-        help=f"{', '.join(scenario_presets())} or a .toml file (rig, flow, sizes, seed)",
-    )
-    study.add_argument(
-        "--workers", type=int, help="local Dask worker processes (default: one per CPU)"
-    )
-    study.add_argument(
-        "--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786"
-    )
-    study.add_argument("--out", default="synptv-study", help="output folder")
-    study.add_argument(
-        "--chain",
-        default="rendered",
-        choices=("rendered", "ideal"),
-        help="through images (default) or the fast stand-in without images",
-    )
-    study.add_argument(
-        "--seeds", type=int, default=1, help="independent seeds per point (error bars)"
-    )
-    study.add_argument(
-        "--planes", help="plane counts of the planes study, e.g. 3,5,7,13 (rendered chain)"
-    )
-    study.add_argument(
-        "--dt-subsets",
-        help="Δt index subsets of the dt study, e.g. '0,1,2,3,4;2,3,4;0,4' (rendered chain)",
-    )
-    study.add_argument(
-        "--noise", type=float, default=0.05, help="dot-centre noise, px (planes, obliquity)"
-    )
-    study.add_argument(
-        "--position-noise",
-        type=float,
-        default=DEFAULT_NOISE_UM,
-        help="position noise per component, um (dt, seeding)",
-    )
-    study.add_argument(
-        "--snapshots",
-        type=int,
-        help="snapshots per dt (dt, noise, seeding; default: the scenario's frames, at most 100)",
-    )
-    study.add_argument("--quiet", action="store_true", help="no progress bar")
-    study.set_defaults(run=_run_study_command)

@@ -383,3 +383,44 @@ def trajectory_residuals(dt, displacements) -> np.ndarray:
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     residual = (y - design @ coef).reshape(dt.size, len(d), 3)
     return np.sqrt(np.mean(residual**2, axis=(0, 2)))
+
+
+@dataclass(frozen=True, eq=False)
+class RecordingTracks:
+    """The tracks through consecutive frames of a recording.
+
+    Attributes
+    ----------
+    numbers : ndarray of int, shape (F,)
+        Frame numbers n of the frames tracked (``tracks.frame`` indexes them).
+    frame_rate : float
+        Frames per second, Hz; frame n was taken at n / frame_rate.
+    detections : ndarray of int, shape (F, C)
+        Particles detected per frame and camera.
+    tracks : Tracks
+        Every matched point of every frame, with its track.
+    radius, predicted_radius : float
+        The search radii used (:func:`ptv.tracking.recording.track_radii`), m.
+    """
+
+    numbers: np.ndarray
+    frame_rate: float
+    detections: np.ndarray
+    tracks: Tracks
+    radius: float
+    predicted_radius: float
+
+    @property
+    def frame_number(self) -> np.ndarray:
+        """Frame number n of every tracked point, shape (K,)."""
+        return self.numbers[self.tracks.frame]
+
+    @property
+    def time(self) -> np.ndarray:
+        """Time n / frame_rate of every tracked point, s, shape (K,)."""
+        return self.frame_number / self.frame_rate
+
+    @property
+    def matches(self) -> np.ndarray:
+        """Matched points per frame, shape (F,)."""
+        return np.bincount(self.tracks.frame, minlength=len(self.numbers))

@@ -1,10 +1,10 @@
 """Particle detections of a double-frame dataset, frame by frame: what the pipeline reads.
 
-The PTV pipeline (:mod:`ptv.pipeline`) needs, for every Δt_k and snapshot m, the
+The PTV pipeline (:mod:`ptv.pipeline.double_frame`) needs, for every Δt_k and snapshot m, the
 particle image centres of frame a (time t) and frame b (t + Δt_k) on every camera. They
 come from a :class:`FrameDetections` source:
 
-- :class:`ImageDetector` reads the images of a dataset folder (:mod:`ptv.dataset`) and
+- :class:`ImageDetector` reads the images of a dataset folder (:mod:`ptv.io.dataset`) and
   detects the particles on them (:func:`ptv.detect.detect_particles`);
 - :class:`ptv.detect.store.DetectionStore` reads detections saved earlier
   (:func:`ptv.detect.store.write_detections`), so that several analyses of the same
@@ -26,10 +26,10 @@ from typing import Protocol
 import numpy as np
 
 from ptv._checks import positive
-from ptv.dataset import Dataset, DatasetError
 from ptv.detect import Detections, detect_particles
 from ptv.detect.background import BackgroundEstimate, estimate_background
 from ptv.detect.preprocess import BACKGROUND_REMOVALS, invert, median_background, tophat
+from ptv.io.dataset import Dataset, DatasetError
 
 __all__ = [
     "ChunkDetections",
@@ -257,7 +257,7 @@ class ImageDetector:
     Parameters
     ----------
     dataset : Dataset
-        The folder (:func:`ptv.dataset.open_dataset`).
+        The folder (:func:`ptv.io.dataset.open_dataset`).
     settings : DetectorSettings
         Threshold; its saturation, when None, is the dataset's declared one.
 

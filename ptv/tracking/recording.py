@@ -1,16 +1,16 @@
 """Every frame of a time-resolved recording: matched points linked into tracks.
 
-A recording (experiment.json ``time_resolved``, :mod:`ptv.sequence`) holds consecutive
+A recording (experiment.json ``time_resolved``, :mod:`ptv.io.sequence`) holds consecutive
 frames n = first … last, τ = 1 / frame rate apart. :func:`run_recording`
 
 1. detects the particles on every frame of every camera (all of them, or those the
    first ``snapshots`` frame pairs span) and matches the cameras in each frame
-   (:func:`ptv.pipeline.match_frame`): the 3-D points of every frame;
-2. links them frame to frame into tracks (:func:`ptv.track.track_frames`): the first
+   (:func:`ptv.pipeline.double_frame.match_frame`): the 3-D points of every frame;
+2. links them frame to frame into tracks (:func:`ptv.tracking.linking.track_frames`): the first
    link of a track within r = max_speed·τ + 5σ_b (the double-frame link radius at
    Δt = τ), a longer track within r_p = max_acceleration·τ² + 5√3·σ_b of its
    constant-velocity prediction (:func:`track_radii`);
-3. processes the frame pairs of the multi-Δt method (:func:`ptv.pipeline.run_pipeline`)
+3. processes the frame pairs of the multi-Δt method (:func:`ptv.pipeline.double_frame.run_pipeline`)
    from the same detections, so that no image is read or detected twice.
 
 Why 5√3·σ_b: the prediction 2X_f − X_{f−1} and the point it meets carry the noise of
@@ -26,15 +26,20 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ptv.camera_model import CameraModel
-from ptv.dataset import cameras_in_order
 from ptv.errors import DatasetError
-from ptv.frames import ChunkDetections, DetectedCentres, ImageDetector, exposures
-from ptv.pipeline import PipelineSettings, PtvResult, link_radius, match_frame, run_pipeline
-from ptv.track import Tracks, track_frames
+from ptv.io.dataset import cameras_in_order
+from ptv.pipeline.double_frame import (
+    PipelineSettings,
+    PtvResult,
+    link_radius,
+    match_frame,
+    run_pipeline,
+)
+from ptv.pipeline.frames import ChunkDetections, DetectedCentres, ImageDetector, exposures
+from ptv.tracking.linking import RecordingTracks, track_frames
 
 __all__ = [
     "RecordedFrames",
-    "RecordingTracks",
     "measure_recording",
     "pair_detections",
     "run_recording",
@@ -123,7 +128,7 @@ def pair_detections(
 
 
 def track_radii(frame_rate: float, settings: PipelineSettings) -> tuple[float, float]:
-    """The search radii of :func:`ptv.track.track_frames` at a frame rate, m.
+    """The search radii of :func:`ptv.tracking.linking.track_frames` at a frame rate, m.
 
     Returns
     -------
@@ -134,47 +139,6 @@ def track_radii(frame_rate: float, settings: PipelineSettings) -> tuple[float, f
     tau = 1.0 / frame_rate
     predicted = settings.max_acceleration * tau**2 + 5 * np.sqrt(3) * settings.position_noise
     return link_radius(tau, settings), float(predicted)
-
-
-@dataclass(frozen=True, eq=False)
-class RecordingTracks:
-    """The tracks through consecutive frames of a recording.
-
-    Attributes
-    ----------
-    numbers : ndarray of int, shape (F,)
-        Frame numbers n of the frames tracked (``tracks.frame`` indexes them).
-    frame_rate : float
-        Frames per second, Hz; frame n was taken at n / frame_rate.
-    detections : ndarray of int, shape (F, C)
-        Particles detected per frame and camera.
-    tracks : Tracks
-        Every matched point of every frame, with its track.
-    radius, predicted_radius : float
-        The search radii used (:func:`track_radii`), m.
-    """
-
-    numbers: np.ndarray
-    frame_rate: float
-    detections: np.ndarray
-    tracks: Tracks
-    radius: float
-    predicted_radius: float
-
-    @property
-    def frame_number(self) -> np.ndarray:
-        """Frame number n of every tracked point, shape (K,)."""
-        return self.numbers[self.tracks.frame]
-
-    @property
-    def time(self) -> np.ndarray:
-        """Time n / frame_rate of every tracked point, s, shape (K,)."""
-        return self.frame_number / self.frame_rate
-
-    @property
-    def matches(self) -> np.ndarray:
-        """Matched points per frame, shape (F,)."""
-        return np.bincount(self.tracks.frame, minlength=len(self.numbers))
 
 
 def run_recording(

@@ -8,7 +8,7 @@ can be put in it (lengths in m, times in s)::
     particles/dt<k>/<camera>/<mmmmmm>_a.tif      frame pair m of the run at Δt_k: frame a
     particles/dt<k>/<camera>/<mmmmmm>_b.tif      at t, frame b at t + Δt_k
 
-``experiment.json`` is checked against its JSON Schema first (:mod:`ptv.experiment`,
+``experiment.json`` is checked against its JSON Schema first (:mod:`ptv.io.experiment`,
 docs/experiment.md: every problem named in one line). Keys used here: ``cameras``
 ({name: {"image_size": [width, height], "mask": optional image path}}), ``dt`` (list
 of s), ``frames_per_dt`` (an int, or one int per Δt),
@@ -19,11 +19,11 @@ pairs; the statistics then follow the same particles over every Δt) and
 ``particle_images`` (optional pattern, default
 ``particles/dt{k}/{camera}/{m:06d}_{a|b}.tif``; null for a dataset without particle
 images, which cannot be processed here). A time-resolved recording gives instead
-``time_resolved`` (frame rate, frame-number pattern, steps; :mod:`ptv.sequence`), from
+``time_resolved`` (frame rate, frame-number pattern, steps; :mod:`ptv.io.sequence`), from
 which the Δt values, the frame pairs and the shared first frame follow; every frame of
 it is read by its number (:meth:`Dataset.read_recorded`) for tracking. Images are
 8- or 16-bit TIFF or PNG
-(:mod:`ptv.images`); a camera's mask (pixels at 0 are not used) must have its image
+(:mod:`ptv.io.images`); a camera's mask (pixels at 0 are not used) must have its image
 size. Nothing else of the folder (plate images, a ground truth) is read.
 
 :func:`open_dataset` checks the description and that every image file exists, so a
@@ -40,10 +40,10 @@ from pathlib import Path
 import numpy as np
 
 from ptv.errors import DatasetError
-from ptv.experiment import read_experiment
-from ptv.images import read_image, read_mask
+from ptv.io.experiment import read_experiment
+from ptv.io.images import read_image, read_mask
+from ptv.io.sequence import TimeResolved
 from ptv.names import FILE_NAME_RULE, is_file_name
-from ptv.sequence import TimeResolved
 
 __all__ = [
     "DEFAULT_PARTICLE_IMAGES",
@@ -181,7 +181,7 @@ class Dataset:
         FileNotFoundError
             The file is missing.
         DatasetError
-            Not readable as an image (:class:`ptv.images.ImageError`), not 2-D, of the
+            Not readable as an image (:class:`ptv.io.images.ImageError`), not 2-D, of the
             wrong size, not grey levels, or with NaN or infinite pixels.
         """
         return self._read(self.frame_path(k, camera, m, frame), camera)

@@ -1,0 +1,214 @@
+"""``synptv ptv``: the PTV stack on a dataset folder, rendered or real (docs/ptv.md §7)."""
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+
+from validation.commands.common import COUNT, UsageError, say_took_over
+from validation.workflow.files import check_output_folder, hold_output_folder, staged_output
+from validation.workflow.progress import ProgressBar
+
+
+def _ptv_settings(args: argparse.Namespace):
+    """The settings file's options (defaults without one), with the command line's
+    --max-speed, --snapshots and --min-cameras over them."""
+    from ptv.pipeline.settings import PtvSettings, load_settings
+
+    settings = PtvSettings() if args.settings is None else load_settings(args.settings)
+    given = {
+        name: getattr(args, name)
+        for name in ("max_speed", "snapshots", "min_cameras")
+        if getattr(args, name) is not None
+    }
+    return dataclasses.replace(settings, pipeline=dataclasses.replace(settings.pipeline, **given))
+
+
+def run_ptv(args: argparse.Namespace) -> int:
+    from ptv.calibration.io import load_calibrations
+    from ptv.io.dataset import open_dataset
+    from ptv.pipeline.double_frame import run_pipeline
+    from ptv.pipeline.frames import ImageDetector
+    from ptv.pipeline.results import save_results, save_tracks_csv, summary
+    from ptv.pipeline.settings import settings_toml
+    from ptv.tracking.recording import run_recording
+    from validation.report.ptv_figures import save_ptv_figures
+    from validation.report.track_figure import save_tracks_figure
+
+    if args.print_settings:
+        print(settings_toml(_ptv_settings(args)), end="")
+        return 0
+    missing = [f"--{name}" for name in ("dataset", "calibration", "out") if not getattr(args, name)]
+    if missing:
+        raise UsageError(f"the following arguments are required: {', '.join(missing)}")
+    out = check_output_folder(args.out)
+    settings = _ptv_settings(args)
+    try:
+        dataset = open_dataset(args.dataset)
+        calibrations = load_calibrations(args.calibration)
+    except FileNotFoundError as err:
+        raise UsageError(str(err)) from None
+    if args.tracks and dataset.sequence is None:
+        raise UsageError(
+            f"--tracks needs a time-resolved recording ('time_resolved' in experiment.json, "
+            f"docs/experiment.md §5), but {args.dataset} holds frame pairs"
+        )
+    if settings.pipeline.min_cameras > len(dataset.cameras):
+        raise UsageError(
+            f"min_cameras is {settings.pipeline.min_cameras} but the dataset has "
+            f"{len(dataset.cameras)} cameras"
+        )
+    bar = ProgressBar("ptv", enabled=not args.quiet)
+    run = run_recording if args.tracks else run_pipeline
+    tracked = []  # tracks.csv and tracks.png, with --tracks
+    with hold_output_folder(out, "synptv ptv") as took_over:
+        say_took_over("ptv", took_over)
+        try:
+            result = run(
+                ImageDetector(dataset, settings.detection),
+                calibrations,
+                settings.pipeline,
+                progress=bar,
+                statistics=not args.positions_only,
+            )
+        except FileNotFoundError as err:
+            raise UsageError(str(err)) from None
+        with staged_output(out) as staging:  # results and figures replace the old together
+            written = list(save_results(result, staging, calibration=str(args.calibration)))
+            if not args.positions_only:
+                label = (
+                    f"dataset {Path(args.dataset).name}, calibration {Path(args.calibration).name}"
+                )
+                written += save_ptv_figures(result, staging, label=label).values()
+            if args.tracks:
+                tracked = [
+                    save_tracks_csv(result, staging),
+                    save_tracks_figure(result.recording, staging),
+                ]
+    h5_path, json_path, *figures = (out / path.name for path in written)
+    s = summary(result, calibration=str(args.calibration))
+    for line in s["warnings"]:
+        print(f"synptv ptv: warning: {line}", file=sys.stderr)
+    _print_counts(s)
+    if args.tracks:
+        csv_path, png_path = (out / path.name for path in tracked)
+        _print_tracks(s["tracks"])
+        print(f"tracks written to {csv_path} and {h5_path} (/tracks), drawn in {png_path}")
+    if args.positions_only:
+        print(f"positions and links written to {h5_path} and {json_path}")
+        return 0
+    _print_statistics(s)
+    print(f"results written to {h5_path} and {json_path}")
+    print(f"figures written to {', '.join(str(p) for p in figures)}")
+    return 0
+
+
+def _print_tracks(t: dict) -> None:
+    """The tracks of a ``synptv ptv --tracks`` summary: counts and lengths."""
+    first, last = t["frames"]
+    mean = "-" if t["mean_length"] is None else f"{t['mean_length']:.1f}"
+    print(
+        f"tracks          {t['tracks']} through frames {first} … {last} "
+        f"({t['points_per_frame']:.0f} points per frame), mean length {mean} points"
+    )
+    edges, count = t["length_histogram"]["edges"], t["length_histogram"]["count"]
+    bins = [
+        f"{lo}: {n}" if hi == lo + 1 else f"{lo}-{hi - 1}: {n}"
+        for lo, hi, n in zip(edges[:-1], edges[1:], count, strict=True)
+    ]
+    print(f"                lengths {', '.join(bins)}")
+
+
+def _print_counts(s: dict) -> None:
+    """The counts per Δt of a ``synptv ptv`` summary."""
+    print(
+        f"{'dt (ms)':>8s} {'snap':>5s} {'detections':>11s} {'matches':>8s} {'links':>7s} "
+        f"{'outliers':>8s} {'used':>6s}"
+    )
+    for c in s["counts"]:
+        det = sum(d["a"] + d["b"] for d in c["detections"].values())
+        print(
+            f"{c['dt'] * 1e3:8.4f} {c['snapshots_kept']:5d} {det:11d} "
+            f"{c['matches']['a'] + c['matches']['b']:8d} {c['links']:7d} "
+            f"{c['outliers']:8d} {c['links_used']:6d}"
+        )
+
+
+def _print_statistics(s: dict) -> None:
+    """u', the plateau ε, its Δt subsets and the mean displacement of a summary."""
+    up = s["u_prime"]
+    if up is not None and up["value"] is not None:
+        print(f"u' (Eulerian variance fit)        {up['value']:.4g} ± {up['se']:.2g} m/s")
+    p = s["epsilon"]["plateau"]
+    if p is not None:
+        print(
+            f"epsilon plateau ({p['r_min'] * 1e3:g}-{p['r_max'] * 1e3:g} mm, C2 = "
+            f"{s['epsilon']['kolmogorov_c2']:g}) {p['epsilon']:.4g} ± {p['se_epsilon']:.2g} "
+            f"m^2/s^3  (paper's S2^1.5/r: {p['epsilon_paper_caption']:.4g})"
+        )
+    else:
+        print("epsilon plateau                  none (no fitted bin in the plateau range)")
+    for name, sub in s["subsets"].items():
+        if sub["plateau"] is not None:
+            print(
+                f"  {name:30s} {sub['plateau']['epsilon']:.4g} ± "
+                f"{sub['plateau']['se_epsilon']:.2g} m^2/s^3"
+            )
+    md = s["mean_displacement"]
+    offset = ", ".join(
+        f"{o * 1e6:.2f} ± {e * 1e6:.2f}"
+        for o, e in zip(md["offset"], md["se_offset_scaled"], strict=True)
+    )
+    print(f"mean displacement vs dt: offset (X, Y, Z) {offset} um")
+
+
+def add_ptv_parser(sub) -> None:
+    """The ``synptv ptv`` subcommand."""
+    ptv = sub.add_parser(
+        "ptv",
+        help="run 3D-PTV on a dataset: particles, links, multi-dt S2, epsilon, u'",
+        description="Detect particles in every frame pair of a dataset folder, match them "
+        "between cameras with a calibration file, link frame a to frame b, and compute the "
+        "noise-free S2(r) by the multi-dt fit, epsilon(r) and its plateau, the dt subsets, "
+        "the mean-displacement linearity check and u'. Writes results.h5, summary.json and "
+        "the paper's Fig. 5a, 5b, 6a and 6b as PNG. On a time-resolved recording, --tracks "
+        "also matches every frame and links the points into tracks: tracks.csv, /tracks in "
+        "results.h5, tracks.png.",
+    )
+    ptv.add_argument("--dataset", help="folder in the synptv render layout (required)")
+    ptv.add_argument("--calibration", help="calibration file, synptv calibrate's (required)")
+    ptv.add_argument("--out", help="output folder, created if needed (required)")
+    ptv.add_argument(
+        "--settings",
+        help="TOML file of every option: detection, matching, linking, statistics "
+        "(--print-settings shows them)",
+    )
+    ptv.add_argument(
+        "--print-settings",
+        action="store_true",
+        help="print the settings as a TOML file (the defaults, or --settings with the "
+        "options below over it) and exit",
+    )
+    ptv.add_argument(
+        "--max-speed", type=float, help="largest particle speed, m/s (link radius; default 1.5)"
+    )
+    ptv.add_argument("--snapshots", type=COUNT, help="process the first N snapshots per dt")
+    ptv.add_argument(
+        "--min-cameras",
+        type=int,
+        help="fewest cameras a match must use (default 2; matches seen by more are preferred)",
+    )
+    ptv.add_argument(
+        "--positions-only",
+        action="store_true",
+        help="write the matched positions and the links only: no statistics and none of "
+        "their figures",
+    )
+    ptv.add_argument(
+        "--tracks",
+        action="store_true",
+        help="a time-resolved recording only: also match every frame and link the points "
+        "frame to frame into tracks (tracks.csv, /tracks in results.h5, tracks.png)",
+    )
+    ptv.add_argument("--quiet", action="store_true", help="no progress bar")
+    ptv.set_defaults(run=run_ptv)

@@ -1,0 +1,79 @@
+"""``synptv run``: a scenario end to end, against the truth (docs/run.md)."""
+
+import argparse
+import json
+
+from validation.commands.common import SEED, add_parallel_options, say_took_over
+from validation.workflow.files import check_output_folder, hold_output_folder
+from validation.workflow.progress import ProgressBar, say_interrupted
+
+
+def run_experiment(args: argparse.Namespace) -> int:
+    """Run the scenario's stages, write the report, print the verdict; exit status 1
+    when a check that must hold fails."""
+    from validation.report.run_report import write_report
+    from validation.run.experiment import run_stages
+    from validation.run.scenario import load_scenario
+    from validation.run.verdict import summary_lines
+    from validation.workflow.parallel import check_parallel_options, executor
+
+    check_parallel_options(args.workers, args.scheduler)
+    scenario = load_scenario(args.scenario)
+    if args.seed is not None:
+        scenario = scenario.with_seed(args.seed)
+    out = check_output_folder(args.out if args.out is not None else f"synptv-{scenario.name}")
+    print(scenario.flow.describe())
+
+    def bar(stage: str) -> ProgressBar:
+        return ProgressBar(stage, enabled=not args.quiet)
+
+    with hold_output_folder(out, "synptv run") as took_over:
+        say_took_over("run", took_over)
+        try:
+            with executor(workers=args.workers, scheduler=args.scheduler) as ex:
+                stages = run_stages(
+                    scenario, out, progress=bar, executor=ex, keep_images=args.keep_images
+                )
+        except KeyboardInterrupt:
+            say_interrupted(
+                f"synptv run: interrupted; finished stages and chunks are kept in {out}: "
+                "run the same command to resume"
+            )
+            return 130
+        html_path, json_path = write_report(scenario, stages, out)
+    results = json.loads(json_path.read_text())
+    for line in summary_lines(results):
+        print(line)
+    print(f"report written to {html_path}")
+    print(f"every figure in {json_path}")
+    return 0 if all(check["passed"] for check in results["must_hold"]) else 1
+
+
+def add_run_parser(sub) -> None:
+    """The ``synptv run`` subcommand."""
+    run = sub.add_parser(
+        "run",
+        help="a whole virtual experiment: simulate, render, calibrate, PTV, report vs truth",
+        description="Run a scenario end to end: simulate the flow and render the plate and "
+        "particle images, calibrate with every method, run 3D-PTV with the model-free and "
+        "Tsai calibrations (and the true cameras, for the error budget), compare S2, epsilon "
+        "and u' with the truth and write report.html and results.json. Finished stages are "
+        "reused when their inputs are unchanged. Exit status 1 when a check against the "
+        "truth fails.",
+    )
+    run.add_argument(
+        "--scenario",
+        default="default",
+        help="a preset (default, ci, box-3cam, paper-8hz, paper-10hz, paper-12hz) or a scenario "
+        ".toml file",
+    )
+    run.add_argument("--out", help="output folder (default ./synptv-<scenario>)")
+    run.add_argument("--seed", type=SEED, help="override the scenario's seed")
+    run.add_argument(
+        "--keep-images",
+        action="store_true",
+        help="also write the particle images (16-bit TIFF) into DIR/dataset",
+    )
+    add_parallel_options(run)
+    run.add_argument("--quiet", action="store_true", help="no progress bars")
+    run.set_defaults(run=run_experiment)
