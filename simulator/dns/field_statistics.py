@@ -11,10 +11,12 @@ of docs/flow.md §3.1; exact for the realization, whatever its anisotropy, becau
 direction average of each mode depends on k alone). The modes are grouped by their
 |k|² (integer in units of (2π/L)²), so the sums run over a few thousand shells.
 
-**Along the axes.** Increments of the gridded field over r = mΔx along x, y and z (by
-periodic shifts, exact on the grid): the longitudinal δu_L = u_i(x + r e_i) − u_i(x),
-its second and third moments S2(r), S3(r), and, with the Lagrangian acceleration field
-a, the flux terms ⟨δu·δa⟩(r) and ⟨δu_L δa_L⟩(r), averaged over the three axes.
+**Along grid directions.** Increments of the gridded field over whole grid steps (by
+periodic shifts, exact on the grid): the longitudinal δu_L = (u(x + r e) − u(x))·e, its
+second and third moments S2(r), S3(r), and, with the Lagrangian acceleration field a,
+the flux terms ⟨δu·δa⟩(r) and ⟨δu_L δa_L⟩(r), averaged over 13 directions with the
+weights of an isotropic rule (the cubic 2/3-rule cut makes the smallest scales
+anisotropic: along the axes alone S2 reads 2–3 % low and S3 10–15 % low).
 
 **Kármán–Howarth.** For stationary forced turbulence (stationarity kills ∂B_LL/∂t),
 integrating r⁴ times the equation for B_LL from 0 to r gives
@@ -135,10 +137,48 @@ def forcing_flux(
     return out
 
 
-def axis_increments(
+#: The 13 directions (up to sign) of Lebedev's 26-point rule on the sphere, exact for
+#: polynomials of degree 7, as integer grid steps, and the weight of each direction (its
+#: two signs together): the axes 2/21, the face diagonals 8/105, the body diagonals 9/140.
+DIRECTIONS = (
+    *(((1, 0, 0), (0, 1, 0), (0, 0, 1))),
+    (1, 1, 0), (1, -1, 0), (1, 0, 1), (1, 0, -1), (0, 1, 1), (0, 1, -1),
+    (1, 1, 1), (1, 1, -1), (1, -1, 1), (1, -1, -1),
+)  # fmt: skip
+WEIGHTS = (2 / 21,) * 3 + (8 / 105,) * 6 + (9 / 140,) * 4
+
+#: Powers of r by which each moment is divided before the families of directions are
+#: interpolated to a common r (their small-r behaviour, so the ratio is smooth).
+_POWERS = {"s2": 2, "s3": 3, "du_da": 2, "dul_dal": 2}
+
+
+def _family_moments(velocity, acceleration, step, shifts) -> dict[str, np.ndarray]:
+    """Moments of the increments along one direction of grid steps ``step``, at
+    separations m·step, m in ``shifts``."""
+    unit = np.asarray(step, dtype=float) / np.linalg.norm(step)
+    out = {name: np.zeros(len(shifts)) for name in _POWERS}
+    for i, m in enumerate(shifts):
+        shift = tuple(-int(m) * s for s in step)
+        du = np.roll(velocity, shift, axis=(1, 2, 3)) - velocity
+        longitudinal = np.tensordot(unit, du, axes=1)
+        out["s2"][i] = np.mean(longitudinal**2)
+        out["s3"][i] = np.mean(longitudinal**3)
+        if acceleration is not None:
+            da = np.roll(acceleration, shift, axis=(1, 2, 3)) - acceleration
+            out["du_da"][i] = np.mean(np.sum(du * da, axis=0))
+            out["dul_dal"][i] = np.mean(longitudinal * np.tensordot(unit, da, axes=1))
+    return out
+
+
+def direction_increments(
     velocity: np.ndarray, shifts: np.ndarray, *, acceleration: np.ndarray | None = None
 ) -> dict[str, np.ndarray]:
-    """Moments of the longitudinal increments along the three grid axes.
+    """Moments of the longitudinal increments, averaged over the 13 directions of
+    :data:`DIRECTIONS` with their weights: the direction average of an isotropic rule
+    (the grid's axes alone would carry the anisotropy of the cubic 2/3-rule cut).
+
+    Each direction's moments are taken at its own separations m·|step|Δx, divided by r^p
+    (p their small-r power) and interpolated linearly to r = mΔx.
 
     Parameters
     ----------
@@ -153,21 +193,17 @@ def axis_increments(
     -------
     dict of ndarray, shape (R,)
         ``s2`` ⟨δu_L²⟩ (m²/s²), ``s3`` ⟨δu_L³⟩ (m³/s³); with ``acceleration`` also
-        ``du_da`` ⟨δu·δa⟩ and ``dul_dal`` ⟨δu_L δa_L⟩ (m²/s³); each the mean over the
-        three axes and every grid point.
+        ``du_da`` ⟨δu·δa⟩ and ``dul_dal`` ⟨δu_L δa_L⟩ (m²/s³).
     """
-    out = {name: np.zeros(len(shifts)) for name in ("s2", "s3")}
-    if acceleration is not None:
-        out["du_da"] = np.zeros(len(shifts))
-        out["dul_dal"] = np.zeros(len(shifts))
-    for axis in range(3):
-        for i, m in enumerate(shifts):
-            du = np.roll(velocity, -int(m), axis=axis + 1) - velocity
-            longitudinal = du[axis]
-            out["s2"][i] += np.mean(longitudinal**2) / 3
-            out["s3"][i] += np.mean(longitudinal**3) / 3
-            if acceleration is not None:
-                da = np.roll(acceleration, -int(m), axis=axis + 1) - acceleration
-                out["du_da"][i] += np.mean(np.sum(du * da, axis=0)) / 3
-                out["dul_dal"][i] += np.mean(longitudinal * da[axis]) / 3
+    shifts = np.asarray(shifts)
+    target = shifts.astype(float)
+    names = list(_POWERS) if acceleration is not None else ["s2", "s3"]
+    out = {name: np.zeros(len(shifts)) for name in names}
+    for step, weight in zip(DIRECTIONS, WEIGHTS, strict=True):
+        moments = _family_moments(velocity, acceleration, step, shifts)
+        r = shifts * float(np.linalg.norm(step))
+        for name in names:
+            power = _POWERS[name]
+            scaled = np.interp(target, r, moments[name] / r**power)
+            out[name] += weight * scaled * target**power
     return out

@@ -310,3 +310,57 @@ def _read_parameters(path: Path, f: h5py.File) -> MeasuredParameters | None:
     values = {name: group[name].item() for name in names}
     values["n"] = int(values["n"])
     return MeasuredParameters(**values)
+
+
+def read_snapshot(path: os.PathLike | str, index: int) -> tuple[float, np.ndarray]:
+    """One snapshot of a field file, without reading the others.
+
+    Parameters
+    ----------
+    path : path-like
+        A field file (the whole file is checked by :func:`read_field_file`; this checks
+        the snapshot it reads).
+    index : int
+        Which snapshot, 0 … T − 1.
+
+    Returns
+    -------
+    time : float
+        Its time, s.
+    velocity : ndarray, shape (3, N, N, N), float64
+        u, m/s.
+
+    Raises
+    ------
+    ValueError
+        Naming the file: no such snapshot, a missing dataset, NaN or infinite values.
+    """
+    path = Path(path)
+    with h5py.File(path, "r") as f:
+        for name in ("times", *_COMPONENTS):
+            if name not in f:
+                raise _fail(path, f"missing dataset '{name}'")
+        count = f["times"].shape[0]
+        if not 0 <= index < count:
+            raise _fail(path, f"no snapshot {index}: the file holds {count}")
+        velocity = np.stack([np.asarray(f[name][index], dtype=np.float64) for name in _COMPONENTS])
+        time = float(f["times"][index])
+    if not np.all(np.isfinite(velocity)):
+        raise _fail(path, f"snapshot {index} holds NaN or infinite values")
+    return time, velocity
+
+
+def read_field_file_parameters(path: os.PathLike | str) -> MeasuredParameters:
+    """The measured scales a field file records (``/measured``).
+
+    Raises
+    ------
+    ValueError
+        Naming the file: a file without them, or with one missing.
+    """
+    path = Path(path)
+    with h5py.File(path, "r") as f:
+        parameters = _read_parameters(path, f)
+    if parameters is None:
+        raise _fail(path, "no 'measured' group: the file does not record its flow's scales")
+    return parameters

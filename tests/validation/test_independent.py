@@ -78,13 +78,30 @@ def test_the_plateau_reference_is_the_stacks_estimator_on_the_exact_d_ll():
     spectrum = PopeSpectrum(PARAMETERS)
     r = np.geomspace(1e-3, 30e-3, 20)
     dll = longitudinal_structure_function(spectrum, r)
+
+    def quadrature(x):
+        return exact_dll(spectrum, x)
+
     for method in ("max", "mean"):
         stack = plateau_epsilon(
             dissipation_profile(r, dll), r_min=2e-3, r_max=20e-3, method=method
         ).epsilon
-        reference = plateau_epsilon_reference(spectrum, r, r_range=(2e-3, 20e-3), method=method)
+        reference = plateau_epsilon_reference(quadrature, r, r_range=(2e-3, 20e-3), method=method)
         assert reference == pytest.approx(stack, rel=1e-6)
-    deficit = plateau_epsilon_reference(spectrum, r, r_range=(2e-3, 20e-3)) / PARAMETERS.epsilon
+    deficit = plateau_epsilon_reference(quadrature, r, r_range=(2e-3, 20e-3)) / PARAMETERS.epsilon
     assert 0.75 < deficit < 0.82  # docs/flow.md §2.4: the plateau is 0.78–0.81 ε
-    low_c2 = plateau_epsilon_reference(spectrum, r, r_range=(2e-3, 20e-3), kolmogorov_c2=1.5)
+    low_c2 = plateau_epsilon_reference(quadrature, r, r_range=(2e-3, 20e-3), kolmogorov_c2=1.5)
     assert low_c2 / (deficit * PARAMETERS.epsilon) == pytest.approx((2 / 1.5) ** 1.5)
+
+
+def test_the_modal_reference_equals_the_simulators_modal_dll():
+    """Two sums over a DNS's modes written apart: the simulator's (its own series for
+    small kr) and the reference's (SciPy's spherical Bessel function)."""
+    from simulator.dns.field_statistics import modal_dll as simulator_dll
+    from validation.truth.independent import modal_dll
+
+    rng = np.random.default_rng(4)
+    k = np.sqrt(np.arange(1, 400)) * 125.0
+    energy = rng.uniform(0, 1e-6, len(k))
+    r = np.geomspace(1e-4, 2.5e-2, 30)
+    assert np.allclose(modal_dll(k, energy, r), simulator_dll(k, energy, r), rtol=1e-9)

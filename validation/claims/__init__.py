@@ -10,8 +10,8 @@ every estimate with a reference it shares no code with
 (:mod:`validation.truth.independent`, :mod:`validation.truth.noise_floor`). Three
 claims check the simulator itself against closed forms written apart from it: Snell's
 law at the windows and the sheet's focus on Scheimpflug mounts (``optics.*``), Pope's
-spectrum (``flow.pope_spectrum``). ``quick`` sizes run in CI in 1–2 minutes; ``full``
-sizes take the sample sizes the tolerances were designed for.
+spectrum (``flow.pope_spectrum``). ``quick`` sizes run in CI (under a minute on an idle
+2-core machine); ``full`` sizes take the sample sizes the tolerances were designed for.
 
 Not regressed here: the calibration claims on rendered plate images
 (``synptv calibrate`` and ``synptv run`` measure those; here dots are exact

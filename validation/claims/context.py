@@ -29,6 +29,7 @@ from validation.truth.calibration_errors import synthetic_plane_dots
 from validation.truth.independent import (
     BruteForceS2,
     brute_force_s2,
+    exact_dll,
     log_edges,
     plateau_epsilon_reference,
 )
@@ -236,8 +237,9 @@ class ClaimContext:
         maximum of (D_LL/C₂)^{3/2}/r at the reference's bins in the plateau range, from
         an independent quadrature of the spectrum and C₂ = 2
         (:func:`validation.truth.independent.plateau_epsilon_reference`)."""
+        spectrum = PopeSpectrum(self.preset.parameters)
         return plateau_epsilon_reference(
-            PopeSpectrum(self.preset.parameters), self.reference.r, r_range=PLATEAU_RANGE
+            lambda r: exact_dll(spectrum, r), self.reference.r, r_range=PLATEAU_RANGE
         )
 
     def _analyse(self, measurement: Measurement, *, band: bool = False) -> MultiDtResult:

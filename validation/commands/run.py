@@ -42,6 +42,14 @@ def run_experiment(args: argparse.Namespace) -> int:
             return 130
         html_path, json_path = write_report(scenario, stages, out)
     results = json.loads(json_path.read_text())
+    if scenario.flow.kind == "dns":
+        f = results["flow"]
+        print(
+            f"DNS measured: u' = {f['u_rms']:.4g} m/s, R_lambda = {f['r_lambda_measured']:.1f}, "
+            f"eta = {f['eta'] * 1e6:.1f} um, box side {f['box_side'] * 1e3:.4g} mm, "
+            f"T_L = {f['eddy_time']:.4g} s, dissipation/injection = "
+            f"{f['epsilon_dissipation'] / f['epsilon']:.4f}"
+        )
     for line in summary_lines(results):
         print(line)
     print(f"report written to {html_path}")
@@ -64,8 +72,8 @@ def add_run_parser(sub) -> None:
     run.add_argument(
         "--scenario",
         default="default",
-        help="a preset (default, ci, box-3cam, paper-8hz, paper-10hz, paper-12hz) or a scenario "
-        ".toml file",
+        help="a preset (default, ci, dns-ci, box-3cam, paper-8hz, paper-10hz, paper-12hz) or a "
+        "scenario .toml file",
     )
     run.add_argument("--out", help="output folder (default ./synptv-<scenario>)")
     run.add_argument("--seed", type=SEED, help="override the scenario's seed")

@@ -38,7 +38,7 @@ import numpy as np
 from ptv.detect.store import chunk_name, write_chunk
 from ptv.pipeline.frames import DetectorSettings
 from simulator.flow import DEFAULT_UNSTEADINESS
-from simulator.particles import KSFlow
+from simulator.particles import KSFlow, TracerFlow
 from simulator.presets import FlowPreset
 from simulator.render.camera_frames import ParticleLighting
 from simulator.render.plate import render_plate
@@ -174,20 +174,57 @@ def _experiment_description(
     }
 
 
-def _header(rig: Rig, preset: FlowPreset, settings: RenderSettings):
+@dataclass(frozen=True)
+class DatasetFlow:
+    """The flow a dataset's particles follow, and what truth.h5 records of it.
+
+    Attributes
+    ----------
+    tracers : TracerFlow
+        What follows each snapshot's particles (:mod:`simulator.particles`).
+    attrs : dict
+        Attributes of ``/flow`` beside the scales (KS: spectrum, n_modes, unsteadiness).
+    datasets : dict of ndarray
+        Datasets of ``/flow`` (a DNS: ``shell_k``, ``shell_energy``, its exact D_LL).
+    """
+
+    tracers: TracerFlow
+    attrs: dict
+    datasets: dict = field(default_factory=dict)
+
+
+def ks_flow(preset: FlowPreset, settings: RenderSettings) -> DatasetFlow:
+    """Kinematic simulation of the settings' spectrum, modes and unsteadiness."""
+    if settings.spectrum not in SPECTRA:
+        raise ValueError(f"unknown spectrum {settings.spectrum!r}; known: {', '.join(SPECTRA)}")
+    tracers = KSFlow(
+        SPECTRA[settings.spectrum](preset.parameters),
+        n_modes=settings.n_modes,
+        unsteadiness=settings.unsteadiness,
+    )
+    attrs = {
+        "spectrum": settings.spectrum,
+        "n_modes": settings.n_modes,
+        "unsteadiness": settings.unsteadiness,
+    }
+    return DatasetFlow(tracers, attrs)
+
+
+def _header(rig: Rig, preset: FlowPreset, flow: DatasetFlow):
     """Writes the flow, the cameras and the rig into a new truth.h5."""
 
     def write(truth: h5py.File) -> None:
         truth.attrs["rig"] = json.dumps(rig.spec)
-        flow = truth.create_group("flow")
+        group = truth.create_group("flow")
         for key, value in preset.parameters.as_dict().items():
-            flow.attrs[key] = value
-        flow.attrs["preset"] = preset.name
-        flow.attrs["dt"] = np.asarray(preset.dt, dtype=float)
-        flow.attrs["dt_over_tau_eta"] = np.asarray(preset.dt_over_tau_eta, dtype=float)
-        flow.attrs["spectrum"] = settings.spectrum
-        flow.attrs["n_modes"] = settings.n_modes
-        flow.attrs["unsteadiness"] = settings.unsteadiness
+            group.attrs[key] = value
+        group.attrs["preset"] = preset.name
+        group.attrs["dt"] = np.asarray(preset.dt, dtype=float)
+        group.attrs["dt_over_tau_eta"] = np.asarray(preset.dt_over_tau_eta, dtype=float)
+        for key, value in flow.attrs.items():
+            group.attrs[key] = value
+        for key, value in flow.datasets.items():
+            group[key] = value
         for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
             group = truth.create_group(f"cameras/{name}")
             for key, value in _camera_attributes(camera).items():
@@ -230,20 +267,16 @@ def particle_job(
     preset: FlowPreset,
     settings: RenderSettings,
     *,
+    flow: DatasetFlow | None = None,
     detector: DetectorSettings | None = None,
     images: Path | None = None,
 ) -> ParticleJob:
-    """The :class:`validation.run.particle_chunks.ParticleJob` of a dataset's particles."""
-    if settings.spectrum not in SPECTRA:
-        raise ValueError(f"unknown spectrum {settings.spectrum!r}; known: {', '.join(SPECTRA)}")
-    flow = KSFlow(
-        SPECTRA[settings.spectrum](preset.parameters),
-        n_modes=settings.n_modes,
-        unsteadiness=settings.unsteadiness,
-    )
+    """The :class:`validation.run.particle_chunks.ParticleJob` of a dataset's particles
+    (``flow``: default the KS flow of the settings, :func:`ks_flow`)."""
+    flow = ks_flow(preset, settings) if flow is None else flow
     return ParticleJob(
         rig=rig,
-        flow=flow,
+        flow=flow.tracers,
         dt=np.asarray(preset.dt, dtype=float),
         frames=settings.frames,
         particles=settings.particles,
@@ -304,6 +337,7 @@ def build_dataset(
     preset: FlowPreset,
     settings: RenderSettings,
     *,
+    flow: DatasetFlow | None = None,
     images: bool = True,
     detections: DetectionOutput | None = None,
     executor: Executor | None = None,
@@ -322,6 +356,8 @@ def build_dataset(
         Flow and Δt set.
     settings : RenderSettings
         Sizes, plate, lighting, sensor and seed.
+    flow : DatasetFlow, optional
+        The flow (default: the KS flow of ``settings``, :func:`ks_flow`).
     images : bool
         Write the particle images (the plate images and truth.h5 always are).
     detections : DetectionOutput, optional
@@ -338,10 +374,12 @@ def build_dataset(
         ``target``.
     """
     executor = InProcess() if executor is None else executor
+    flow = ks_flow(preset, settings) if flow is None else flow
     job = particle_job(
         rig,
         preset,
         settings,
+        flow=flow,
         detector=None if detections is None else detections.detector,
         images=target if images else None,
     )
@@ -356,7 +394,7 @@ def build_dataset(
     names = rig.camera_names
     truth = TruthWriter(
         target / "truth.h5",
-        header=_header(rig, preset, settings),
+        header=_header(rig, preset, flow),
         cameras=names,
         planes=settings.planes,
         chunks=chunks,

@@ -41,7 +41,9 @@ import h5py
 import numpy as np
 
 from simulator.rigs import Rig, rig_from_dict
+from simulator.spectra import SPECTRA
 from simulator.turbulence import TurbulenceParameters
+from validation.truth.exact import ExactStructure, ModalStructure, SpectrumStructure
 
 FORMAT_VERSION = 3
 
@@ -250,14 +252,18 @@ class TruthFile:
             self.shared_first_frame = bool(particles.attrs["shared_first_frame"])
             self.dt = np.array([particles[f"dt{k}"].attrs["dt"] for k in range(len(particles))])
 
-    def flow(self) -> tuple[TurbulenceParameters, str]:
-        """The flow the dataset was simulated with: u', ε, ν, and its spectrum's name."""
+    def flow(self) -> tuple[TurbulenceParameters, ExactStructure]:
+        """The flow the dataset was simulated with: u', ε, ν, and its exact D_LL (of its
+        KS spectrum, or of a DNS's modes, ``/flow/shell_k`` and ``/flow/shell_energy``)."""
         with h5py.File(self.path, "r") as f:
-            attrs = f["flow"].attrs
+            group = f["flow"]
+            attrs = group.attrs
             parameters = TurbulenceParameters(
                 u_rms=float(attrs["u_rms"]), epsilon=float(attrs["epsilon"]), nu=float(attrs["nu"])
             )
-            return parameters, str(attrs["spectrum"])
+            if "shell_k" in group:
+                return parameters, ModalStructure(group["shell_k"][()], group["shell_energy"][()])
+            return parameters, SpectrumStructure(SPECTRA[str(attrs["spectrum"])](parameters))
 
     def runs(self, m0: int = 0, m1: int | None = None) -> list[TruthRun]:
         """The truth of snapshots m0 … m1 − 1 (default: all), one TruthRun per Δt."""

@@ -13,10 +13,12 @@ from pathlib import Path
 
 from simulator.rigs import load_rig
 from simulator.turbulence import TurbulenceParameters
+from validation.report.dns_report import dns_html
 from validation.report.html_parts import number, table
 from validation.report.png import save_figure
 from validation.report.run_figures import budget_figure, noise_figure
 from validation.run.checks import compare_variant, error_budget, float_array, predicted_noise
+from validation.run.dns_checks import dns_section
 from validation.run.experiment import REFERENCE_VARIANTS, ExperimentStages, run_label
 from validation.run.scenario import Scenario, pipeline_settings
 from validation.run.verdict import (
@@ -163,9 +165,9 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
         scenario.ptv.methods,
         table1,
     )
-    return {
+    results = {
         "scenario": _portable(scenario),
-        "flow": {**p, **scenario.flow.scales()},
+        "flow": {**p, **stages.flow},
         "truth": truth,
         "calibration": calibration,
         "detection": detection,
@@ -179,6 +181,18 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
         "checks": checks,
         "must_hold": must_hold,
     }
+    if stages.field is not None:
+        exact = populations["exact"] or truth
+        midpoint = stages.ptv["exact"].folder / "midpoint.json"
+        results["dns"] = dns_section(
+            stages.field.folder,
+            flow=results["flow"],
+            exact_summary=summaries["exact"],
+            midpoint_summary=_read(midpoint) if midpoint.is_file() else None,
+            exact_truth=float_array(exact["s2_sample"]),
+            midpoint_truth=float_array(exact["s2_sample"]),
+        )
+    return results
 
 
 def _img(path: str, caption: str) -> str:
@@ -516,6 +530,7 @@ _SECTIONS = (
     _table3_section,
     _budget_section,
     _noise_section,
+    dns_html,
 )
 
 

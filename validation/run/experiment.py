@@ -47,7 +47,7 @@ from ptv.detect.store import DetectionStore, chunk_name, write_chunk, write_inde
 from ptv.io.dataset import open_dataset
 from ptv.pipeline.double_frame import PtvResult
 from ptv.pipeline.frames import DetectorSettings, ImageDetector
-from ptv.pipeline.results import save_results
+from ptv.pipeline.results import save_results, statistics_summary
 from ptv.stats.run_statistics import compute_statistics
 from simulator.render.camera_frames import ParticleLighting, local_magnification
 from simulator.render.sensor import Sensor
@@ -66,6 +66,7 @@ from validation.report.calibration_figures import error_maps
 from validation.report.png import save_figure
 from validation.report.ptv_figures import save_ptv_figures
 from validation.report.run_figures import peak_locking_figure
+from validation.run.flow_stage import RunFlow, dns_run_flow, ks_run_flow
 from validation.run.particle_chunks import chunk_detections, render_chunk, snapshot_chunks
 from validation.run.ptv_rung import ptv_rung
 from validation.run.scenario import Scenario, pipeline_settings
@@ -73,6 +74,7 @@ from validation.run.truth_rungs import detected_runs, detection_chunk, exact_run
 from validation.truth.flow import flow_truth, population_truth
 from validation.truth.matching import score_matching
 from validation.workflow.chunk_map import map_chunks
+from validation.workflow.files import as_json
 from validation.workflow.parallel import Executor, InProcess
 from validation.workflow.stages import StageOutcome, is_built, run_stage, stage_key, staging_folder
 
@@ -115,7 +117,8 @@ def object_pixel(rig: Rig) -> float:
 
 @dataclass(frozen=True)
 class ExperimentStages:
-    """The stage folders of a run and how long each took (0 when reused)."""
+    """The stage folders of a run and how long each took (0 when reused); the flow's
+    scales (for results.json) and a DNS's field stage."""
 
     dataset: StageOutcome
     detections: StageOutcome
@@ -123,6 +126,8 @@ class ExperimentStages:
     calibrations: StageOutcome
     ptv: dict
     seconds: dict
+    flow: dict
+    field: StageOutcome | None = None
 
 
 def _write_json(path: Path, data) -> None:
@@ -208,9 +213,10 @@ class ExperimentRun:
         self.progress = progress
         self.images = keep_images or scenario.output.images
         self.rig = load_rig(scenario.rig.name) if rig is None else rig
-        self.preset = scenario.flow.as_preset()
         self.settings = pipeline_settings(scenario)
         self.render = render_settings(scenario)
+        self.field: StageOutcome | None = None
+        self.flow = ks_run_flow(scenario, self.render) if scenario.flow.kind == "ks" else None
         self.chunks = snapshot_chunks(self.render.frames)
         self.detector = DetectorSettings(saturation=float(scenario.sensor.max_dn))
         self.seconds: dict[str, float] = {}
@@ -224,6 +230,20 @@ class ExperimentRun:
 
     def bar(self, name: str):
         return self.progress(name) if self.progress is not None else None
+
+    def prepare_flow(self) -> RunFlow:
+        """The run's flow: for a DNS, its stage is built (or reused) now."""
+        if self.flow is None:
+            start = time.perf_counter()
+            self.flow, self.field = dns_run_flow(self.scenario, self.out, progress=self.bar("flow"))
+            self.seconds["flow"] = 0.0 if self.field.reused else time.perf_counter() - start
+            log.info("%s", self.scenario.flow.describe(self.flow.preset.parameters))
+        return self.flow
+
+    @property
+    def preset(self):
+        """The flow's u′, ε, ν and Δt set (:class:`simulator.presets.FlowPreset`)."""
+        return self.prepare_flow().preset
 
     def timed(self, name, folder, inputs, build, *, resume=False) -> StageOutcome:
         start = time.perf_counter()
@@ -239,7 +259,7 @@ class ExperimentRun:
             "synptv": version("synptv"),
             "format_version": FORMAT_VERSION,
             "seed": self.scenario.seed,
-            "flow": d["flow"],
+            "flow": self.prepare_flow().inputs,
             "rig": self.rig.spec,
             "calibration": {k: v for k, v in d["calibration"].items() if k != "methods"},
             "particles": d["particles"],
@@ -276,6 +296,7 @@ class ExperimentRun:
                 self.rig,
                 self.preset,
                 self.render,
+                flow=self.flow.dataset,
                 images=self.images,
                 detections=fused,
                 executor=self.executor,
@@ -309,7 +330,9 @@ class ExperimentRun:
             fn, shared = detect_images_chunk, {"folder": dataset, "detector": self.detector}
         else:
             render = self.render if sensor is None else replace(self.render, sensor=sensor)
-            job = particle_job(self.rig, self.preset, render, detector=self.detector)
+            job = particle_job(
+                self.rig, self.preset, render, flow=self.flow.dataset, detector=self.detector
+            )
             fn, shared = render_detections_chunk, {"job": job, "folder": dataset}
         frames = (self.render.frames,) * len(self.preset.dt)
         tick = self.bar("detect")
@@ -336,7 +359,7 @@ class ExperimentRun:
             reference = flow_truth(
                 truth.snapshots_at_t(self.chunks, progress=self.bar("truth")),
                 self.preset.parameters,
-                self.scenario.flow.spectrum,
+                self.flow.exact,
                 self.settings.statistics,
             )
             _write_json(target / "truth.json", reference.as_dict())
@@ -464,6 +487,12 @@ class RungBuilder:
             runs = exact_runs(self.truth, self.run.chunks, self.unlinked, progress=tick)
             result = self.reference_result(runs)
             self.save(result, target, "none: true trajectories", label)
+            if self.run.scenario.flow.kind != "ks":  # the Δt³ term exists: both binnings
+                midpoint = replace(self.unlinked.statistics, binning="midpoint")
+                statistics = compute_statistics(
+                    runs, midpoint, shared_first_frame=self.store.shared_first_frame
+                )
+                _write_json(target / "midpoint.json", as_json(statistics_summary(statistics)))
         elif variant == "detection":
             self.detection(target, cache, tick, label)
         else:
@@ -567,12 +596,22 @@ def run_stages(
     executor = InProcess() if executor is None else executor
     run = ExperimentRun(scenario, out, executor, progress, keep_images)
     run.out.mkdir(parents=True, exist_ok=True)
+    run.prepare_flow()
     dataset, detections = run.dataset_and_detections()
     truth = TruthFile(dataset.folder)
     truth_stage = run.truth(dataset, truth)
     calibrations = run.calibrations(dataset)
     ptv = run.rungs(detections, truth_stage, calibrations, truth)
-    return ExperimentStages(dataset, detections, truth_stage, calibrations, ptv, run.seconds)
+    return ExperimentStages(
+        dataset,
+        detections,
+        truth_stage,
+        calibrations,
+        ptv,
+        run.seconds,
+        flow=run.flow.scales,
+        field=run.field,
+    )
 
 
 def _plane_list(planes: list[int]) -> str:

@@ -6,8 +6,9 @@ traverse, the tracer seeding and lighting, the sensor, the sizes and the PTV ana
 Every length is in m, every time in s. A scenario file has ``name``, ``description``,
 ``seed`` and the tables (fields and defaults in :class:`Scenario`)::
 
-    [flow]         preset, or u_rms, epsilon, nu and dt (s) or dt_tau_eta (Kolmogorov
-                   times); spectrum, modes, unsteadiness
+    [flow]         kind ("ks", "dns", "grid"; :mod:`validation.run.flow_section`);
+                   KS: preset, or u_rms, epsilon, nu and dt (s) or dt_tau_eta
+                   (Kolmogorov times); spectrum, modes, unsteadiness
     [rig]          name (a rig preset or a .toml path, relative to the scenario file)
     [calibration]  planes, plate ("realistic" or "ideal"), brightness, methods
     [particles]    count, frames, electrons, diameter, shared_first_frame
@@ -28,15 +29,13 @@ file and the field. A custom flow (:class:`FlowSection`), for example::
 
 is refused when it also names a preset, lacks u_rms or epsilon, gives both or neither
 of dt and dt_tau_eta, a Δt set not strictly increasing from > 0, or numbers outside
-:data:`FLOW_LIMITS`. :meth:`FlowSection.as_preset` gives the flow, preset or custom, to
-everything that simulates it.
+:data:`validation.run.flow_section.FLOW_LIMITS`. :meth:`FlowSection.as_preset` gives the
+flow, preset or custom, to everything that simulates it.
 """
 
-import math
 import tomllib
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, replace
 from importlib import resources
-from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -45,146 +44,10 @@ from ptv.calibration.methods import CALIBRATION_METHODS
 from ptv.names import FILE_NAME_RULE, is_file_name
 from ptv.pipeline.double_frame import PipelineSettings
 from ptv.stats.run_statistics import StatisticsSettings
-from simulator.flow import DEFAULT_UNSTEADINESS
-from simulator.presets import FLOW_PRESETS, FlowPreset, flow_preset
 from simulator.render.sensor import Sensor
 from simulator.rigs import RigFileError, load_rig, rig_presets
-from simulator.spectra import SPECTRA
-from simulator.turbulence import NU_WATER, TurbulenceParameters
-
-
-class ScenarioError(ValueError):
-    """A scenario file or name that cannot be used; the message names file and field."""
-
-
-#: The fields of a custom flow, given instead of a preset.
-CUSTOM_FLOW_FIELDS = ("u_rms", "epsilon", "nu", "dt", "dt_tau_eta")
-
-#: (fewest, most) Δt of a custom flow: the multi-Δt fit needs two, each is a run.
-DT_COUNT = (2, 20)
-
-
-@dataclass(frozen=True)
-class FlowSection:
-    """The turbulence: a preset of the paper's Table 3 (its Δt set included) or a
-    custom flow.
-
-    A custom flow gives ``u_rms`` (u', m/s), ``epsilon`` (ε, m²/s³), ``nu`` (ν, m²/s,
-    default water's :data:`simulator.turbulence.NU_WATER`) and its Δt set, increasing,
-    either in s (``dt``) or in Kolmogorov times τ_η = (ν/ε)^{1/2} (``dt_tau_eta``);
-    ``preset`` is then None. The fields a flow does not use are None. ``spectrum`` and
-    ``modes`` are those of the KS field, ``unsteadiness`` its λ in
-    ω_n = λ √(k_n³ E(k_n)) (0 freezes the field; :func:`simulator.flow.draw_ks_field`).
-
-    Raises
-    ------
-    ValueError
-        A preset with custom fields, a custom flow without u_rms, epsilon or exactly
-        one of dt and dt_tau_eta, a Δt set not increasing or not positive; the message
-        names the field (``flow.<field>``).
-    """
-
-    preset: str | None = "lem-10hz"
-    spectrum: str = "pope"
-    modes: int = 200
-    unsteadiness: float = DEFAULT_UNSTEADINESS
-    u_rms: float | None = None
-    epsilon: float | None = None
-    nu: float | None = None
-    dt: tuple[float, ...] | None = None
-    dt_tau_eta: tuple[float, ...] | None = None
-
-    def __post_init__(self) -> None:
-        custom = [name for name in CUSTOM_FLOW_FIELDS if getattr(self, name) is not None]
-        if self.preset is not None:
-            if custom:
-                raise ValueError(
-                    f"flow.preset {self.preset!r} and the custom flow's {', '.join(custom)} "
-                    "exclude each other: give a preset or u_rms, epsilon, nu and a Δt set"
-                )
-            return
-        missing = [name for name in ("u_rms", "epsilon") if getattr(self, name) is None]
-        if missing:
-            raise ValueError(
-                f"flow.{missing[0]}: a custom flow needs u_rms (m/s) and epsilon (m²/s³), "
-                f"missing {', '.join(missing)} (or give a preset)"
-            )
-        if self.nu is None:
-            object.__setattr__(self, "nu", NU_WATER)
-        given = [name for name in ("dt", "dt_tau_eta") if getattr(self, name) is not None]
-        if len(given) != 1:
-            raise ValueError(
-                f"flow.dt: a custom flow needs exactly one of dt (s) and dt_tau_eta "
-                f"(Kolmogorov times), got {' and '.join(given) if given else 'neither'}"
-            )
-        name = given[0]
-        values = getattr(self, name)
-        if not DT_COUNT[0] <= len(values) <= DT_COUNT[1]:
-            raise ValueError(
-                f"flow.{name} must hold {DT_COUNT[0]} to {DT_COUNT[1]} values (the multi-Δt "
-                f"fit needs two), got {list(values)}"
-            )
-        if not (values[0] > 0 and all(a < b for a, b in pairwise(values))):
-            raise ValueError(f"flow.{name} must be > 0 and strictly increasing, got {list(values)}")
-
-    def as_preset(self) -> FlowPreset:
-        """The flow as a :class:`simulator.presets.FlowPreset`: the preset, or a custom
-        flow named ``"custom"`` whose Δt set is given in units of its τ_η.
-
-        Raises
-        ------
-        ValueError
-            An unknown preset name.
-        """
-        if self.preset is not None:
-            return flow_preset(self.preset)
-        parameters = TurbulenceParameters(u_rms=self.u_rms, epsilon=self.epsilon, nu=self.nu)
-        ratios = self.dt_tau_eta
-        if ratios is None:
-            ratios = tuple(d / parameters.tau_eta for d in self.dt)
-        return FlowPreset("custom", parameters, ratios, "scenario [flow]")
-
-    @property
-    def label(self) -> str:
-        """The preset name, or ``custom`` with u' and ε, for titles."""
-        if self.preset is not None:
-            return self.preset
-        return f"custom (u' = {self.u_rms:g} m/s, epsilon = {self.epsilon:g} m^2/s^3)"
-
-    def scales(self) -> dict:
-        """The flow and its derived scales, SI units, for logs and JSON files.
-
-        Returns
-        -------
-        dict
-            ``preset`` (``"custom"`` for a custom flow); u_rms (m/s), epsilon (m²/s³),
-            nu (m²/s) and the derived eta (m), tau_eta (s), R_lambda, L_int (m),
-            taylor_microscale (m) of
-            :meth:`simulator.turbulence.TurbulenceParameters.as_dict`; the Δt set as
-            ``dt`` (s) and ``dt_over_tau_eta``; spectrum, modes, unsteadiness.
-        """
-        flow = self.as_preset()
-        return {
-            "preset": flow.name,
-            **flow.parameters.as_dict(),
-            "dt": [float(d) for d in flow.dt],
-            "dt_over_tau_eta": [float(r) for r in flow.dt_over_tau_eta],
-            "spectrum": self.spectrum,
-            "modes": self.modes,
-            "unsteadiness": self.unsteadiness,
-        }
-
-    def describe(self) -> str:
-        """One line: the flow, its Kolmogorov and integral scales, R_λ and the Δt set."""
-        s = self.scales()
-        dt = ", ".join(f"{d * 1e3:.4g}" for d in s["dt"])
-        return (
-            f"flow {s['preset']}: u' = {s['u_rms']:.4g} m/s, epsilon = {s['epsilon']:.4g} "
-            f"m^2/s^3, nu = {s['nu']:.3g} m^2/s; "
-            f"eta = {s['eta'] * 1e6:.1f} um, tau_eta = {s['tau_eta'] * 1e3:.3f} ms, "
-            f"R_lambda = {s['R_lambda']:.1f}, L_int = u'^3/eps = {s['L_int'] * 100:.2f} cm; "
-            f"dt = {dt} ms"
-        )
+from validation.run.flow_section import FlowSection, check_flow, dns_box_side, flow_section
+from validation.run.scenario_fields import ScenarioError, section
 
 
 @dataclass(frozen=True)
@@ -289,7 +152,7 @@ class Scenario:
         """JSON-able form, the inverse of :func:`scenario_from_dict` (the fields its flow
         does not use left out)."""
         spec = asdict(self)
-        spec["flow"] = {k: v for k, v in spec["flow"].items() if v is not None}
+        spec["flow"] = self.flow.as_dict()
         return spec
 
     def with_seed(self, seed: int) -> "Scenario":
@@ -318,113 +181,11 @@ SIZE_LIMITS = {
     "bins": (1, 1_000, ""),
 }
 
-#: (lowest, highest, unit) of the numbers of a flow: water, air, oils and liquid metals
-#: stirred in a lab.
-FLOW_LIMITS = {
-    "u_rms": (1e-4, 10.0, "m/s"),
-    "epsilon": (1e-8, 1e3, "m²/s³"),
-    "nu": (1e-7, 1e-2, "m²/s"),
-    "dt": (1e-7, 10.0, "s"),
-    "dt_tau_eta": (1e-3, 1e3, "Kolmogorov times"),
-    "unsteadiness": (0.0, 10.0, "(λ in ω_n = λ √(k³E))"),
-}
-
-
-def _typed(value: object, kind: type, where: str):
-    """``value`` as ``kind`` (an integer is a float too), or a ScenarioError naming ``where``."""
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if type(value) is not kind:
-        raise ScenarioError(f"{where} must be {kind.__name__}, got {value!r}")
-    if kind is float and not math.isfinite(value):
-        raise ScenarioError(f"{where} must be a finite number, got {value!r}")
-    return value
-
-
-def _section(cls, table: object, source: str, key: str):
-    """The section dataclass ``cls`` from TOML table ``[key]`` of ``source``."""
-    if not isinstance(table, dict):
-        raise ScenarioError(f"{source}: [{key}] must be a table")
-    where = f"{source}: {key}"
-    known = {f.name: f for f in fields(cls)}
-    unknown = sorted(set(table) - set(known))
-    if unknown:
-        raise ScenarioError(
-            f"{where}: unknown field(s) {', '.join(map(repr, unknown))}; known: {', '.join(known)}"
-        )
-    values = {}
-    for name, value in table.items():
-        default = getattr(cls(), name)
-        if isinstance(default, tuple):
-            if not isinstance(value, list | tuple):
-                raise ScenarioError(f"{where}.{name} must be a list, got {value!r}")
-            item = type(default[0])
-            value = tuple(_typed(v, item, f"{where}.{name}") for v in value)
-            if item is float and len(value) != len(default):
-                raise ScenarioError(
-                    f"{where}.{name} must be a list of {len(default)} numbers, got {list(value)}"
-                )
-        else:
-            value = _typed(value, type(default), f"{where}.{name}")
-        values[name] = value
-    try:
-        return cls(**values)
-    except ValueError as err:
-        raise ScenarioError(f"{where}: {err}") from None
-
-
-def _flow_section(table: object, source: str) -> FlowSection:
-    """The [flow] table of ``source``: a preset, or a custom flow (:class:`FlowSection`)."""
-    if not isinstance(table, dict):
-        raise ScenarioError(f"{source}: [flow] must be a table")
-    where = f"{source}: flow"
-    custom = {name: table[name] for name in CUSTOM_FLOW_FIELDS if name in table}
-    common = _section(
-        FlowSection, {k: v for k, v in table.items() if k not in custom}, source, "flow"
-    )
-    if not custom:
-        return common
-    values = {}
-    for name, value in custom.items():
-        if name in ("dt", "dt_tau_eta"):
-            if not isinstance(value, list | tuple):
-                raise ScenarioError(f"{where}.{name} must be a list, got {value!r}")
-            values[name] = tuple(_typed(v, float, f"{where}.{name}") for v in value)
-        else:
-            values[name] = _typed(value, float, f"{where}.{name}")
-    try:
-        return replace(common, preset=common.preset if "preset" in table else None, **values)
-    except ValueError as err:
-        raise ScenarioError(f"{source}: {err}") from None
-
-
-def _check_flow(flow: FlowSection, fail) -> None:
-    """Refuse (through ``fail``) an unknown preset or spectrum, a flow out of
-    :data:`FLOW_LIMITS`, or one the spectrum cannot be fitted to."""
-    if flow.preset is not None and flow.preset not in FLOW_PRESETS:
-        fail(f"flow.preset {flow.preset!r} unknown; known: {', '.join(FLOW_PRESETS)}")
-    if flow.spectrum not in SPECTRA:
-        fail(f"flow.spectrum {flow.spectrum!r} unknown; known: {', '.join(SPECTRA)}")
-    for name, (lowest, highest, unit) in FLOW_LIMITS.items():
-        value = getattr(flow, name)
-        if value is None:
-            continue
-        for v in value if isinstance(value, tuple) else (value,):
-            if not lowest <= v <= highest:
-                fail(f"flow.{name} must be from {lowest:g} to {highest:g} {unit}, got {v:g}")
-    if flow.preset is None:
-        try:
-            SPECTRA[flow.spectrum](flow.as_preset().parameters)
-        except ValueError as err:  # the solver's message may span lines: one line here
-            why = " ".join(str(err).split())
-            fail(f"flow: u_rms, epsilon and nu give no {flow.spectrum} spectrum: {why}")
-
-
 def _check(scenario: Scenario, source: str) -> None:
     def fail(message: str):
         raise ScenarioError(f"{source}: {message}")
 
-    _check_flow(scenario.flow, fail)
+    check_flow(scenario.flow, fail)
     for where, methods in (
         ("calibration.methods", scenario.calibration.methods),
         ("ptv.methods", scenario.ptv.methods),
@@ -473,6 +234,14 @@ def _check(scenario: Scenario, source: str) -> None:
     ):
         if not 0 < lo < hi:
             fail(f"{where} must be [low, high] with 0 < low < high, m, got {[lo, hi]}")
+    if scenario.flow.kind == "dns":
+        half = dns_box_side(scenario.flow) / 2
+        if scenario.ptv.r_range[1] > half:
+            fail(
+                f"ptv.r_range reaches {scenario.ptv.r_range[1] * 1e3:g} mm, beyond half the DNS "
+                f"box ({half * 1e3:.4g} mm), where the box's periodic images correlate the "
+                "pairs (docs/dns.md §8)"
+            )
     try:
         pipeline_settings(scenario)
     except ValueError as err:
@@ -500,9 +269,9 @@ def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
     if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
         raise ScenarioError(f"{source}: seed must be an integer >= 0, got {seed!r}")
     sections = {
-        key: _flow_section(spec.get(key, {}), source)
+        key: flow_section(spec.get(key, {}), source)
         if cls is FlowSection
-        else _section(cls, spec.get(key, {}), source, key)
+        else section(cls, spec.get(key, {}), source, key)
         for key, cls in _SECTIONS.items()
     }
     description = spec.get("description", "")

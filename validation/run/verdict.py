@@ -45,8 +45,13 @@ RULE = (
 )
 
 
-def _row(check_id: str, value, tolerance: str, passed) -> dict:
-    return {"id": check_id, "value": value, "tolerance": tolerance, "passed": bool(passed)}
+def _row(check_id: str, value, tolerance: str, passed, informative: str | None = None) -> dict:
+    """A check; ``informative`` (why it is not required) only where the configuration
+    makes it a property of the rig rather than of the code."""
+    row = {"id": check_id, "value": value, "tolerance": tolerance, "passed": bool(passed)}
+    if informative is not None:
+        row["informative"] = informative
+    return row
 
 
 def calibration_check(table1: dict, rig: dict) -> dict | None:
@@ -131,6 +136,7 @@ def run_checks(detection: dict, detected: dict, calibration: dict | None) -> lis
                 c2["median_over_prediction"],
                 f"median c2 / noise prediction in [{lo:.2f}, {hi:.2f}]",
                 c2["consistent"],
+                c2.get("informative"),
             )
         )
     return rows
@@ -210,6 +216,7 @@ def rung_checks(comparison: dict, matching: dict) -> list[dict]:
                 raw["ratio_smallest_dt"],
                 f"median > {raw['minimum']:g} over 5η–20η",
                 raw["passed"],
+                raw.get("informative"),
             )
         )
     linear = c["mean_linear"]
@@ -257,7 +264,7 @@ def verdict(run: list[dict], rungs: dict, methods, table1: dict) -> tuple[dict, 
         ``check (method)``).
     """
     per_rung = {}
-    must_hold = list(run)
+    must_hold = [c for c in run if "informative" not in c]
     for i, method in enumerate(methods):
         required = i == 0
         d = table1.get(method, {}).get("nominal", {}).get("d_um")
@@ -268,7 +275,11 @@ def verdict(run: list[dict], rungs: dict, methods, table1: dict) -> tuple[dict, 
             "checks": rungs[method],
         }
         if required:
-            must_hold += [{**c, "id": f"{c['id']} ({method})"} for c in rungs[method]]
+            must_hold += [
+                {**c, "id": f"{c['id']} ({method})"}
+                for c in rungs[method]
+                if "informative" not in c
+            ]
     checks = {
         "rule": RULE,
         "run": run,
@@ -303,6 +314,15 @@ def summary_lines(results: dict) -> list[str]:
 
     lines = [line(c, c["id"]) for c in results["must_hold"]]
     checks = results["checks"]
+    informative = [(c, c["id"]) for c in checks["run"] if "informative" in c]
+    for method, rung in checks["rungs"].items():
+        if rung["required"]:
+            informative += [
+                (c, f"{c['id']} ({method})") for c in rung["checks"] if "informative" in c
+            ]
+    if informative:
+        lines.append("informative here (a property of this configuration, not required):")
+        lines += [f"{line(c, name)}  [{c['informative']}]" for c, name in informative]
     for method, rung in checks["rungs"].items():
         if not rung["required"]:
             lines.append(f"{method} ({BASELINE}: reported, not required):")

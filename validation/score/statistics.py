@@ -169,9 +169,9 @@ def score_statistics(
     except ValueError as err:
         return {"computed": False, "reason": f"no statistics: {err}"}
     chunks = snapshot_chunks(truth.frames)
-    parameters, spectrum = truth.flow()
+    parameters, exact = truth.flow()
     reference = flow_truth(
-        truth.snapshots_at_t(chunks), parameters, spectrum, settings.statistics
+        truth.snapshots_at_t(chunks), parameters, exact, settings.statistics
     ).as_dict()
     population = None
     if statistics.population is not None:

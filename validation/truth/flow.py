@@ -25,10 +25,9 @@ from ptv.stats.pairs import PairSums, pair_sums
 from ptv.stats.run_statistics import S2Population, StatisticsSettings
 from ptv.stats.snapshots import cluster_mean
 from simulator.particles import Box
-from simulator.spectra import SPECTRA
-from simulator.truth import longitudinal_structure_function
 from simulator.turbulence import TurbulenceParameters
 from validation.dataset.truth_file import TruthFile
+from validation.truth.exact import ExactStructure
 from validation.truth.independent import (
     check_edges,
     collect,
@@ -277,7 +276,7 @@ def population_truth(
 def flow_truth(
     snapshots: Iterable[tuple[np.ndarray, np.ndarray]],
     parameters: TurbulenceParameters,
-    spectrum: str,
+    exact: ExactStructure,
     settings: StatisticsSettings,
 ) -> FlowTruth:
     """Sample truth and exact D_LL in the bins of ``settings`` (module docstring).
@@ -289,8 +288,8 @@ def flow_truth(
         (:meth:`validation.dataset.truth_file.TruthFile.snapshots_at_t`).
     parameters : TurbulenceParameters
         The flow.
-    spectrum : str
-        Its spectrum's name (for the exact D_LL).
+    exact : ExactStructure
+        Its exact D_LL (:mod:`validation.truth.exact`).
     settings : StatisticsSettings
         Analysis volume, bins, plateau.
     """
@@ -320,18 +319,17 @@ def flow_truth(
         )
     r, s2, se = _pooled(per_snapshot)
     ok = np.isfinite(r)
-    exact = np.full_like(r, np.nan)
-    model = SPECTRA[spectrum](parameters)
-    exact[ok] = longitudinal_structure_function(model, r[ok])
+    s2_exact = np.full_like(r, np.nan)
+    s2_exact[ok] = exact.dll(r[ok])
     velocities = np.concatenate(inside)
     reference = collect(edges, parts)
     return FlowTruth(
         r=r,
         s2_sample=s2,
         se_s2_sample=se,
-        s2_exact=exact,
+        s2_exact=s2_exact,
         epsilon_input=parameters.epsilon,
-        epsilon_exact=_plateau(r[ok], exact[ok], settings),
+        epsilon_exact=_plateau(r[ok], s2_exact[ok], settings),
         epsilon_sample=_plateau(r[ok], s2[ok], settings),
         u_rms_sample=float(np.sqrt(np.mean(velocities**2))),
         parameters=parameters.as_dict(),
@@ -340,7 +338,7 @@ def flow_truth(
         se_s2_reference=reference.se_s2(),
         sample_over_reference=reference.mean_ratio(s2),
         epsilon_reference=plateau_epsilon_reference(
-            model,
+            exact.reference,
             reference.r,
             r_range=settings.plateau,
             method=settings.plateau_method,

@@ -306,14 +306,14 @@ def log_quadrature(k_lo: float, k_hi: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def plateau_epsilon_reference(
-    spectrum,
+    dll,
     r: np.ndarray,
     *,
     r_range: tuple[float, float],
     method: str = "max",
     kolmogorov_c2: float = REFERENCE_C2,
 ) -> float:
-    """The ε estimator's plateau on the exact D_LL of a spectrum, m²/s³.
+    """The ε estimator's plateau on an exact D_LL, m²/s³.
 
     ε(r) = (D_LL(r)/C₂)^{3/2}/r at the separations ``r`` inside ``r_range``: its
     maximum or its mean, as the stack takes the plateau over its bins. Divided by the
@@ -322,8 +322,9 @@ def plateau_epsilon_reference(
 
     Parameters
     ----------
-    spectrum : object
-        As for :func:`exact_dll`.
+    dll : callable(r) -> D_LL(r)
+        The exact D_LL, m²/s², computed apart from the stack: :func:`exact_dll` of a
+        spectrum, or :func:`modal_dll` of a DNS's modes.
     r : array_like
         Separations, m (e.g. the mean pair separation of each bin; NaN ones are left out).
     r_range : (float, float)
@@ -339,8 +340,18 @@ def plateau_epsilon_reference(
     r = r[np.isfinite(r) & (r >= r_range[0]) & (r <= r_range[1])]
     if not r.size:
         raise ValueError(f"no separation inside the plateau range {r_range}")
-    epsilon = (exact_dll(spectrum, r) / kolmogorov_c2) ** 1.5 / r
+    epsilon = (dll(r) / kolmogorov_c2) ** 1.5 / r
     return float(epsilon.max() if method == "max" else epsilon.mean())
+
+
+def modal_dll(k: np.ndarray, energy: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """D_LL(r) = 4 Σ e_k [1/3 − j₁(kr)/(kr)] of a periodic field's modes grouped by |k|
+    (energies e_k, m²/s²; wavenumbers k, 1/m), m²/s², the shape of r: the direction
+    average of the field's exact structure function (docs/dns.md §9)."""
+    r = np.asarray(r, dtype=float)
+    x = np.multiply.outer(r.ravel(), np.asarray(k, dtype=float))
+    kernel = 1.0 / 3.0 - spherical_jn(1, x) / x
+    return (4.0 * kernel @ np.asarray(energy, dtype=float)).reshape(r.shape)
 
 
 def intercept_standard_error(dt: np.ndarray, snapshot_means) -> np.ndarray:

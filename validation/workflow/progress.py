@@ -59,7 +59,7 @@ class ProgressBar:
             self._last = now
             elapsed = now - self.start
             eta = elapsed / done * (total - done) if done else float("nan")
-            timing = f"{done}/{total} {elapsed:5.0f} s elapsed, {eta:4.0f} s left"
+            timing = f"{_count(done, total)} {elapsed:5.0f} s elapsed, {eta:4.0f} s left"
             if self.terminal:
                 width = 30
                 filled = int(width * done / max(total, 1))
@@ -79,7 +79,7 @@ class ProgressBar:
             if self._stop.is_set() or now - self._last < LOG_INTERVAL_S:
                 return
             self._last = now
-            done = "starting" if self._state is None else "{}/{}".format(*self._state)
+            done = "starting" if self._state is None else _count(*self._state)
             self.stream.write(
                 f"{self.label}: {done} {now - self.start:5.0f} s elapsed, still working\n"
             )
@@ -88,6 +88,13 @@ class ProgressBar:
     def close(self) -> None:
         """Stop the ``still working`` lines (also done when the bar is dropped)."""
         self._stop.set()
+
+
+def _count(done: float, total: float) -> str:
+    """``done/total`` for counts, a percentage for fractions of work (floats)."""
+    if isinstance(total, float) or isinstance(done, float):
+        return f"{100 * done / total:3.0f} %"
+    return f"{done}/{total}"
 
 
 def _keep_alive(bar: "weakref.ref[ProgressBar]", stop: threading.Event) -> None:
