@@ -40,7 +40,6 @@ def test_a_ks_flow_is_written_as_before_without_its_kind():
         ({"grid": 1024}, PTV, "flow.grid: n = 1024 needs about"),
         ({"file": "f.h5"}, PTV, "flow.file is not a field of a 'dns' flow"),
         ({}, {}, "ptv.r_range reaches 35 mm, beyond half the DNS box"),
-        ({"kind": "grid", "file": "f.h5", "epsilon": None, "grid": None}, PTV, "not built yet"),
     ],
 )
 def test_bad_dns_fields_are_refused_by_name(change, ptv, message):

@@ -42,6 +42,21 @@ def run_experiment(args: argparse.Namespace) -> int:
             return 130
         html_path, json_path = write_report(scenario, stages, out)
     results = json.loads(json_path.read_text())
+    if scenario.flow.kind == "grid":
+        f = results["flow"]
+        print(
+            f"field file: u' = {f['u_rms']:.4g} m/s, R_lambda = {f['R_lambda']:.1f}, eta = "
+            f"{f['eta'] * 1e6:.1f} um, box side {f['box_side'] * 1e3:.4g} mm, "
+            f"{f['file_snapshots']} snapshots {f['file_step'] * 1e3:.4g} ms apart"
+        )
+        spacing = (f["snapshot_spacing"] or float("inf")) / f["eddy_time"]
+        if spacing < 1:
+            print(
+                f"warning: the run's {scenario.particles.frames} snapshots are {spacing:.2g} "
+                "eddy times T_L apart in the file: they are not independent, so the bootstrap "
+                "errors read low and the checks that use them fail more often "
+                "(docs/dns.md §12)"
+            )
     if scenario.flow.kind == "dns":
         f = results["flow"]
         print(

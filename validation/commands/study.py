@@ -88,9 +88,9 @@ def add_study_parser(subparsers) -> None:
     study.add_argument("--out", default="synptv-study", help="output folder")
     study.add_argument(
         "--chain",
-        default="rendered",
         choices=("rendered", "ideal"),
-        help="through images (default) or the fast stand-in without images",
+        help="through images (default) or the fast stand-in without images (the dt "
+        "study of a DNS scenario runs on its trajectories: ideal)",
     )
     study.add_argument(
         "--seeds", type=int, default=1, help="independent seeds per point (error bars)"

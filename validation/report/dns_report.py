@@ -51,26 +51,36 @@ def dns_html(results: dict, scenario) -> list[str]:
     ]
     parts.append("<p>Energy flux at the grid's separations (−2ε in an inertial range):</p>")
     parts.append(table(["r/η", "⟨δu·δa⟩/(−2ε)", "⟨δu_L δa_L⟩/(−2ε)"], rows))
+    dt3 = dns["dt3_bias"]
+    if dt3 is None:
+        parts.append("<p>The Δt³ term needs every Δt from a shared first frame.</p>")
+        return parts
     parts.append(
-        f"<p>Bias of c1 on the true trajectories (γ = {number(dns['dt3_gain_s'] * 1e3, 3)} "
-        "ms), against the sample truth of the pairs, with the prediction γβ/S2:</p>"
+        f"<p>{_mark(dt3['passed'])} (informative) bias of c1 on the true trajectories "
+        f"against the sample truth of its pairs, ± its paired bootstrap error, with the "
+        f"prediction γβ/S2 (γ = {number(dt3['gain_s'] * 1e3, 3)} ms unweighted; and with "
+        f"the γ of the fit's weights); Σz² = {number(dt3['chi2'], 3)} (at most "
+        f"{dt3['chi2_limit']:g}):</p>"
     )
-    rows = []
-    for row in dns["dt3_bias"]:
 
-        def cell(entry):
-            if entry is None:
-                return "–"
-            return f"{100 * entry['bias']:+.2f} ± {100 * entry['se']:.2f} %"
+    def cell(entry):
+        return f"{100 * entry['bias']:+.2f} ± {100 * entry['se']:.2f} %"
 
-        predicted = row.get("predicted")
-        rows.append(
-            (
-                number(row["r_over_eta"], 3),
-                cell(row["standard"]),
-                cell(row["midpoint"]),
-                "–" if predicted is None else f"{100 * predicted:+.2f} %",
-            )
+    rows = [
+        (
+            number(row["r_over_eta"], 3),
+            cell(row["standard"]),
+            cell(row["midpoint"]),
+            f"{100 * row['predicted']:+.2f} %",
+            f"{100 * row['predicted_weighted']:+.2f} %",
+            number(row["z"], 3),
         )
-    parts.append(table(["r/η", "start binning", "chord midpoint", "γβ/S2"], rows))
+        for row in dt3["rows"]
+    ]
+    parts.append(
+        table(
+            ["r/η", "start binning", "chord midpoint", "γβ/S2", "γ_w β/S2", "z (start)"],
+            rows,
+        )
+    )
     return parts

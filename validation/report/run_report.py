@@ -13,6 +13,7 @@ from pathlib import Path
 
 from simulator.rigs import load_rig
 from simulator.turbulence import TurbulenceParameters
+from validation.dataset.truth_file import TruthFile
 from validation.report.dns_report import dns_html
 from validation.report.html_parts import number, table
 from validation.report.png import save_figure
@@ -23,6 +24,7 @@ from validation.run.experiment import REFERENCE_VARIANTS, ExperimentStages, run_
 from validation.run.scenario import Scenario, pipeline_settings
 from validation.run.verdict import (
     calibration_check,
+    dns_rows,
     run_checks,
     rung_checks,
     verdict,
@@ -155,12 +157,22 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     )
     calibration = _read(stages.calibrations.folder / "table1.json")
     table1 = calibration["table1"]
+    dns = None
+    if stages.field is not None:
+        dns = dns_section(
+            stages.field.folder,
+            flow={**p, **stages.flow},
+            truth=TruthFile(stages.dataset.folder),
+            ptv=scenario.ptv,
+            seed=scenario.seed,
+        )
     checks, must_hold = verdict(
         run_checks(
             detection,
             comparisons["detection"],
             calibration_check(table1, load_rig(scenario.rig.name).spec),
-        ),
+        )
+        + dns_rows(dns),
         {m: rung_checks(comparisons[m], matching[m]) for m in scenario.ptv.methods},
         scenario.ptv.methods,
         table1,
@@ -181,17 +193,8 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
         "checks": checks,
         "must_hold": must_hold,
     }
-    if stages.field is not None:
-        exact = populations["exact"] or truth
-        midpoint = stages.ptv["exact"].folder / "midpoint.json"
-        results["dns"] = dns_section(
-            stages.field.folder,
-            flow=results["flow"],
-            exact_summary=summaries["exact"],
-            midpoint_summary=_read(midpoint) if midpoint.is_file() else None,
-            exact_truth=float_array(exact["s2_sample"]),
-            midpoint_truth=float_array(exact["s2_sample"]),
-        )
+    if dns is not None:
+        results["dns"] = dns
     return results
 
 
@@ -308,9 +311,15 @@ def _findings_section(results: dict, scenario: Scenario) -> list[str]:
 
 
 def _flow_section(results: dict, scenario: Scenario) -> list[str]:
-    """The prescribed flow and its scales."""
-    parts = ["<h2>Flow</h2>"]
+    """The flow, its kind and its scales (a DNS's or a file's box side beside them)."""
+    kinds = {"ks": "kinematic simulation", "dns": "Navier–Stokes DNS", "grid": "field file"}
+    parts = [f"<h2>Flow: {kinds[scenario.flow.kind]}, {html.escape(scenario.flow.label)}</h2>"]
     p = results["flow"]
+    if "box_side" in p:
+        parts.append(
+            f"<p>Periodic box of side {number(p['box_side'] * 1e3)} mm; u′ and R_λ below are "
+            "measured on the field.</p>"
+        )
     parts.append(
         table(
             ["u' (m/s)", "ε (m²/s³)", "ν (m²/s)", "η (µm)", "τ_η (ms)", "R_λ", "L_int (cm)"],

@@ -12,18 +12,25 @@ From the field's statistics (``statistics.h5`` of the flow stage, exact on the g
 - **the energy flux**: ⟨δu·δa⟩(r) and ⟨δu_L δa_L⟩(r), beside −2ε, the inertial-range
   value of the first.
 
-From the exact rung (true trajectories, no noise): the bias of c1 against the sample truth
-of its pairs at 10η, 20η and 40η, binned by the separation at t (the standard fit) and by
-the chord midpoint, beside the prediction γβ(r)/S2 of docs/statistics.md §4 with
-β = ⟨δu_L δa_L⟩ of the field and γ from the Δt set (unweighted least squares).
+From the true trajectories of the dataset (every Δt from the shared first frame, no
+noise, the run's analysis volume and bins): the bias of c1 against the sample truth of
+its pairs at 10η, 20η and 40η with its paired bootstrap error
+(:mod:`validation.truth.dt3_bias`), binned by the separation at t (the standard fit) and
+by the chord midpoint, beside the prediction γβ(r)/S2 of docs/statistics.md §4 with
+β = ⟨δu_L δa_L⟩ of the field, γ of the Δt set unweighted and γ of the fit's weights. The
+check: the standard fit's bias is the weighted prediction, Σz² ≤ :data:`DT3_CHI2_LIMIT`
+over the three separations.
 """
 
 import h5py
 import numpy as np
 
+from ptv.stats.pairs import LogBins
 from simulator.dns.field_statistics import forcing_flux, modal_dll_slope
+from simulator.particles import Box
 from validation.claims.statistics import dt3_gamma
-from validation.run.checks import float_array
+from validation.dataset.truth_file import TruthFile
+from validation.truth.dt3_bias import at_separation, c1_bias
 
 #: Energy budget: the stationary window's mean dissipation within this of ε.
 BUDGET_TOLERANCE = 0.02
@@ -35,6 +42,9 @@ KH_SE = 3.0
 KH_MIN_STEPS = 3
 #: Separations (in η) where the Δt³ bias is reported.
 BIAS_R_OVER_ETA = (10.0, 20.0, 40.0)
+#: The Δt³ bias against γβ/S2: Σz² over the three separations within the 99th
+#: percentile of χ² with 3 degrees of freedom (z in paired standard errors).
+DT3_CHI2_LIMIT = 11.34
 
 
 def _field(folder) -> dict:
@@ -91,29 +101,64 @@ def _flux(field: dict, eta: float) -> dict:
     }
 
 
-def _bias(summary: dict, truth_s2: np.ndarray, r_target: float) -> dict | None:
-    sf = summary["structure_function"]
-    r, s2, se = (float_array(sf[k]) for k in ("r", "s2", "se_s2"))
-    ok = np.isfinite(r) & np.isfinite(s2) & np.isfinite(truth_s2)
-    if not ok.any():
+def _trajectories(truth: TruthFile) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(times (K + 1,), positions (M, K + 1, N, 3), start (M, N, 3), velocity (M, N, 3)):
+    the true trajectories of a shared-first-frame dataset, every Δt from the same start."""
+    runs = truth.runs()
+    positions = np.stack([runs[0].positions[:, 0], *(run.positions[:, 1] for run in runs)], 1)
+    times = np.concatenate([[0.0], [run.dt for run in runs]])
+    return times, positions, runs[0].positions[:, 0], runs[0].velocity
+
+
+def _dt3_bias(folder, truth: TruthFile, ptv, seed: int, eta: float) -> dict | None:
+    """The paired bias of c1 on the true trajectories, both binnings, at
+    :data:`BIAS_R_OVER_ETA`, beside γβ/S2 of the field (module docstring)."""
+    if not truth.shared_first_frame:
         return None
-    b = int(np.flatnonzero(ok)[np.argmin(np.abs(np.log(r[ok] / r_target)))])
+    field = _field(folder)
+    r_field = field["r"]
+    beta_over_s2 = field["dul_dal"].mean(axis=0) / field["s2"].mean(axis=0)
+    times, positions, start, velocity = _trajectories(truth)
+    columns = np.arange(1, len(times))
+    gamma = dt3_gamma(times[columns])
+    measured = {}
+    for binning in ("start", "midpoint"):
+        measured[binning] = c1_bias(
+            times,
+            positions,
+            start,
+            velocity,
+            columns,
+            region=Box(ptv.analysis_volume),
+            bins=LogBins(ptv.r_range[0], ptv.r_range[1], ptv.bins),
+            binning=binning,
+            n_boot=ptv.n_boot,
+            rng=np.random.SeedSequence([seed, 3]),
+        )
+    rows = []
+    for n in BIAS_R_OVER_ETA:
+        row = {"r_over_eta": n}
+        for binning, name in (("start", "standard"), ("midpoint", "midpoint")):
+            r, bias, se, gamma_weighted = at_separation(measured[binning], n * eta)
+            row[name] = {"r_m": r, "bias": bias, "se": se}
+            if binning == "start":
+                ratio = float(np.interp(np.log(r), np.log(r_field), beta_over_s2))
+                row["predicted"] = gamma * ratio
+                row["predicted_weighted"] = gamma_weighted * ratio
+                row["z"] = (bias - gamma_weighted * ratio) / se
+        rows.append(row)
+    z = np.array([row["z"] for row in rows])
+    chi2 = float(np.sum(z[np.isfinite(z)] ** 2))
     return {
-        "r_m": float(r[b]),
-        "bias": float(s2[b] / truth_s2[b] - 1),
-        "se": float(se[b] / truth_s2[b]),
+        "gain_s": gamma,
+        "rows": rows,
+        "chi2": chi2,
+        "chi2_limit": DT3_CHI2_LIMIT,
+        "passed": bool(np.all(np.isfinite(z)) and chi2 <= DT3_CHI2_LIMIT),
     }
 
 
-def dns_section(
-    folder,
-    *,
-    flow: dict,
-    exact_summary: dict,
-    midpoint_summary: dict | None,
-    exact_truth: np.ndarray,
-    midpoint_truth: np.ndarray | None,
-) -> dict:
+def dns_section(folder, *, flow: dict, truth: TruthFile, ptv, seed: int) -> dict:
     """The report's ``dns`` section (module docstring).
 
     Parameters
@@ -121,35 +166,18 @@ def dns_section(
     folder : Path
         The flow stage (its ``statistics.h5``).
     flow : dict
-        results.json's ``flow`` (eta, eddy_time, dt in s).
-    exact_summary, midpoint_summary : dict
-        summary.json of the exact rung, and its statistics binned by the chord midpoint.
-    exact_truth, midpoint_truth : ndarray, shape (B,)
-        The sample truth of the pairs each used, m²/s².
+        results.json's ``flow`` (eta, eddy_time).
+    truth : TruthFile
+        The dataset's truth (the true trajectories).
+    ptv : PtvSection
+        The scenario's analysis volume, separation bins and bootstrap size.
+    seed : int
+        The scenario's seed (the bootstrap's).
     """
     field = _field(folder)
-    eta, dt = flow["eta"], np.asarray(flow["dt"])
-    gamma = dt3_gamma(dt)
-    r_field = field["r"]
-    beta = field["dul_dal"].mean(axis=0)
-    bias = []
-    for n in BIAS_R_OVER_ETA:
-        row = {"r_over_eta": n}
-        standard = _bias(exact_summary, exact_truth, n * eta)
-        row["standard"] = standard
-        row["midpoint"] = (
-            None if midpoint_summary is None else _bias(midpoint_summary, midpoint_truth, n * eta)
-        )
-        if standard is not None:
-            r = standard["r_m"]
-            b = float(np.interp(np.log(r), np.log(r_field), beta))
-            s2 = float(np.interp(np.log(r), np.log(r_field), field["s2"].mean(axis=0)))
-            row["predicted"] = gamma * b / s2
-        bias.append(row)
     return {
         "energy_budget": _budget(field, flow["eddy_time"]),
         "karman_howarth": _karman_howarth(field),
-        "flux": _flux(field, eta),
-        "dt3_gain_s": gamma,
-        "dt3_bias": bias,
+        "flux": _flux(field, flow["eta"]),
+        "dt3_bias": _dt3_bias(folder, truth, ptv, seed, flow["eta"]),
     }

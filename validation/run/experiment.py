@@ -47,7 +47,7 @@ from ptv.detect.store import DetectionStore, chunk_name, write_chunk, write_inde
 from ptv.io.dataset import open_dataset
 from ptv.pipeline.double_frame import PtvResult
 from ptv.pipeline.frames import DetectorSettings, ImageDetector
-from ptv.pipeline.results import save_results, statistics_summary
+from ptv.pipeline.results import save_results
 from ptv.stats.run_statistics import compute_statistics
 from simulator.render.camera_frames import ParticleLighting, local_magnification
 from simulator.render.sensor import Sensor
@@ -66,15 +66,16 @@ from validation.report.calibration_figures import error_maps
 from validation.report.png import save_figure
 from validation.report.ptv_figures import save_ptv_figures
 from validation.report.run_figures import peak_locking_figure
-from validation.run.flow_stage import RunFlow, dns_run_flow, ks_run_flow
+from validation.run.flow_stage import dns_run_flow, ks_run_flow
+from validation.run.grid_flow import grid_run_flow
 from validation.run.particle_chunks import chunk_detections, render_chunk, snapshot_chunks
 from validation.run.ptv_rung import ptv_rung
+from validation.run.run_flow import RunFlow
 from validation.run.scenario import Scenario, pipeline_settings
 from validation.run.truth_rungs import detected_runs, detection_chunk, exact_runs
 from validation.truth.flow import flow_truth, population_truth
 from validation.truth.matching import score_matching
 from validation.workflow.chunk_map import map_chunks
-from validation.workflow.files import as_json
 from validation.workflow.parallel import Executor, InProcess
 from validation.workflow.stages import StageOutcome, is_built, run_stage, stage_key, staging_folder
 
@@ -235,8 +236,14 @@ class ExperimentRun:
         """The run's flow: for a DNS, its stage is built (or reused) now."""
         if self.flow is None:
             start = time.perf_counter()
-            self.flow, self.field = dns_run_flow(self.scenario, self.out, progress=self.bar("flow"))
-            self.seconds["flow"] = 0.0 if self.field.reused else time.perf_counter() - start
+            if self.scenario.flow.kind == "grid":
+                self.flow = grid_run_flow(self.scenario.flow, self.scenario.particles.frames)
+            else:
+                self.flow, self.field = dns_run_flow(
+                    self.scenario, self.out, progress=self.bar("flow")
+                )
+            reused = self.field is not None and self.field.reused
+            self.seconds["flow"] = 0.0 if reused else time.perf_counter() - start
             log.info("%s", self.scenario.flow.describe(self.flow.preset.parameters))
         return self.flow
 
@@ -487,12 +494,6 @@ class RungBuilder:
             runs = exact_runs(self.truth, self.run.chunks, self.unlinked, progress=tick)
             result = self.reference_result(runs)
             self.save(result, target, "none: true trajectories", label)
-            if self.run.scenario.flow.kind != "ks":  # the Δt³ term exists: both binnings
-                midpoint = replace(self.unlinked.statistics, binning="midpoint")
-                statistics = compute_statistics(
-                    runs, midpoint, shared_first_frame=self.store.shared_first_frame
-                )
-                _write_json(target / "midpoint.json", as_json(statistics_summary(statistics)))
         elif variant == "detection":
             self.detection(target, cache, tick, label)
         else:

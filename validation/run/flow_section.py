@@ -237,7 +237,8 @@ class FlowSection:
 
     def describe(self, parameters: TurbulenceParameters | None = None) -> str:
         """One line: the flow, its Kolmogorov and integral scales, R_λ and the Δt set
-        (a DNS before it has run: what its inputs prescribe)."""
+        (a DNS before it has run: what its inputs prescribe; a field file before it is
+        read: its name and the Δt set)."""
         if self.kind == "dns" and parameters is None:
             setup = dns_setup(self.nu, self.epsilon, self.grid, kmax_eta=self.kmax_eta)
             ratios = self.dt_tau_eta or tuple(d / setup.tau_eta for d in self.dt)
@@ -248,6 +249,16 @@ class FlowSection:
                 f"{setup.eta * 1e6:.1f} um, tau_eta = {setup.tau_eta * 1e3:.3f} ms, box side "
                 f"{setup.grid.box_side * 1e3:.4g} mm; u', R_lambda and T_L are measured; "
                 f"dt = {dt} ms"
+            )
+        if self.kind == "grid" and parameters is None:
+            dt = (
+                f"{', '.join(f'{r:g}' for r in self.dt_tau_eta)} tau_eta"
+                if self.dt_tau_eta
+                else f"{', '.join(f'{d * 1e3:.4g}' for d in self.dt)} ms"
+            )
+            return (
+                f"flow field file {self.file}: nu, epsilon and the box from the file, u' and "
+                f"R_lambda measured on it; dt = {dt}"
             )
         s = self.scales(parameters)
         dt = ", ".join(f"{d * 1e3:.4g}" for d in s["dt"])
@@ -320,7 +331,8 @@ def dns_box_side(flow: FlowSection) -> float:
 def check_flow(flow: FlowSection, fail) -> None:
     """Refuse (through ``fail``) an unknown preset or spectrum, a flow out of
     :data:`FLOW_LIMITS`, a KS flow its spectrum cannot be fitted to, or a DNS whose grid
-    or memory the machine cannot hold (checked before anything is allocated)."""
+    or memory the machine cannot hold (checked before anything is allocated). A field
+    file is checked once its path is resolved (:func:`check_field_file`)."""
     if flow.preset is not None and flow.preset not in FLOW_PRESETS:
         fail(f"flow.preset {flow.preset!r} unknown; known: {', '.join(FLOW_PRESETS)}")
     if flow.spectrum not in SPECTRA:
@@ -338,11 +350,6 @@ def check_flow(flow: FlowSection, fail) -> None:
         except ValueError as err:  # the solver's message may span lines: one line here
             why = " ".join(str(err).split())
             fail(f"flow: u_rms, epsilon and nu give no {flow.spectrum} spectrum: {why}")
-    if flow.kind == "grid":
-        fail(
-            "flow.kind 'grid': a run on a periodic field file of one's own is not built "
-            "yet (docs/dns.md §10 gives the file layout the DNS writes); use 'dns'"
-        )
     if flow.kind == "dns":
         try:
             dns_setup(flow.nu, flow.epsilon, flow.grid, kmax_eta=flow.kmax_eta)

@@ -1,15 +1,16 @@
 """The flow of a run: what its particles follow and what their statistics are checked
 against (docs/run.md §7, docs/dns.md §10).
 
-Kinematic simulation needs no stage: each snapshot draws its realization. A DNS is a
-stage of its own, ``DIR/flow``: the stationary field, one snapshot per snapshot of the
-run, and the exact statistics of every snapshot (:mod:`simulator.dns.flow`). It is keyed
-by the flow's inputs, the number of snapshots and the seed, so a second run, or a study,
-reuses it.
+Kinematic simulation needs no stage: each snapshot draws its realization (a field file
+of one's own needs none either: :mod:`validation.run.grid_flow`). A DNS is a stage of its
+own, ``DIR/flow``: the stationary
+field, one snapshot per snapshot of the run, and the exact statistics of every snapshot
+(:mod:`simulator.dns.flow`). It is keyed by the flow's inputs, the number of snapshots
+and the seed, so a second run, or a study, reuses it.
 """
 
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from importlib.metadata import version
 from pathlib import Path
 
@@ -24,41 +25,13 @@ from simulator.dns.flow import (
     DnsTracerFlow,
     build_stationary_field,
 )
-from simulator.presets import FlowPreset
 from simulator.spectra import SPECTRA
 from simulator.turbulence import TurbulenceParameters
 from validation.dataset.render import DatasetFlow, RenderSettings, ks_flow
+from validation.run.run_flow import RunFlow
 from validation.run.scenario import Scenario
-from validation.truth.exact import ExactStructure, ModalStructure, SpectrumStructure
+from validation.truth.exact import ModalStructure, SpectrumStructure
 from validation.workflow.stages import StageOutcome, run_stage
-
-
-@dataclass(frozen=True)
-class RunFlow:
-    """The flow of a run.
-
-    Attributes
-    ----------
-    preset : FlowPreset
-        u′, ε, ν (u′ measured for a DNS) and the Δt set.
-    dataset : DatasetFlow
-        What the particles follow and what truth.h5 records of the flow.
-    exact : ExactStructure
-        Its exact D_LL.
-    scales : dict
-        The flow and its scales for results.json (``flow``).
-    inputs : dict
-        What the particles depend on (for the keys of the stages that read them).
-    field : Path or None
-        A DNS's folder (its field and statistics files); None for KS.
-    """
-
-    preset: FlowPreset
-    dataset: DatasetFlow
-    exact: ExactStructure
-    scales: dict
-    inputs: dict
-    field: Path | None = None
 
 
 def ks_run_flow(scenario: Scenario, settings: RenderSettings) -> RunFlow:

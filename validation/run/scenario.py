@@ -181,6 +181,7 @@ SIZE_LIMITS = {
     "bins": (1, 1_000, ""),
 }
 
+
 def _check(scenario: Scenario, source: str) -> None:
     def fail(message: str):
         raise ScenarioError(f"{source}: {message}")
@@ -329,6 +330,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     if path is not None and rig.suffix == ".toml" and not rig.is_absolute():
         rig = path.parent / rig
         scenario = replace(scenario, rig=RigSection(str(rig)))
+    if scenario.flow.kind == "grid":
+        scenario = _checked_field_file(scenario, path, source)
     if scenario.rig.name not in rig_presets() and not rig.is_file():
         raise ScenarioError(
             f"{source}: rig.name: unknown rig {scenario.rig.name!r}, neither a rig preset "
@@ -342,6 +345,28 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         raise ScenarioError(
             f"{source}: ptv.min_cameras is {scenario.ptv.min_cameras} but rig "
             f"{scenario.rig.name!r} has {len(cameras)} cameras"
+        )
+    return scenario
+
+
+def _checked_field_file(scenario: Scenario, path: Path | None, source: str) -> Scenario:
+    """A ``grid`` flow's file resolved (relative to the scenario file) and read as a run
+    will read it, its separations checked against half its box."""
+    from validation.run.grid_flow import grid_run_flow  # reads the file: only for a grid
+
+    file = Path(scenario.flow.file)
+    if path is not None and not file.is_absolute():
+        scenario = replace(scenario, flow=replace(scenario.flow, file=str(path.parent / file)))
+    try:
+        run_flow = grid_run_flow(scenario.flow, scenario.particles.frames)
+    except ValueError as err:
+        raise ScenarioError(f"{source}: flow.file: {err}") from None
+    half = run_flow.scales["box_side"] / 2
+    if scenario.ptv.r_range[1] > half:
+        raise ScenarioError(
+            f"{source}: ptv.r_range reaches {scenario.ptv.r_range[1] * 1e3:g} mm, beyond half "
+            f"the file's periodic box ({half * 1e3:.4g} mm), where its periodic images "
+            "correlate the pairs (docs/dns.md §8)"
         )
     return scenario
 

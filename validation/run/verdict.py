@@ -240,6 +240,43 @@ def rung_checks(comparison: dict, matching: dict) -> list[dict]:
     return rows
 
 
+def dns_rows(dns: dict | None) -> list[dict]:
+    """The checks of a DNS's ``dns`` section (:func:`validation.run.dns_checks.dns_section`;
+    none for another flow): the energy budget and the Kármán–Howarth balance must hold
+    (the truth is a solution of Navier–Stokes); the Δt³ bias against γβ/S2 is
+    informative (the Δt⁴ terms and the bins' correlation make it a measurement, not a
+    pass mark)."""
+    if dns is None:
+        return []
+    budget, balance = dns["energy_budget"], dns["karman_howarth"]
+    rows = [
+        _row(
+            "dns.energy_budget",
+            budget["dissipation_over_injection"],
+            f"dissipation/injection within 1 ± {budget['tolerance']:g} over the window",
+            budget["passed"],
+        ),
+        _row(
+            "dns.karman_howarth",
+            balance["max_residual_in_se"],
+            f"≤ {balance['tolerance_se']:g} standard errors, 3Δx to a quarter box",
+            balance["passed"],
+        ),
+    ]
+    dt3 = dns["dt3_bias"]
+    if dt3 is not None:
+        rows.append(
+            _row(
+                "dns.dt3_bias_matches_field",
+                dt3["chi2"],
+                f"Σz² ≤ {dt3['chi2_limit']:g} over 10η, 20η, 40η (z: c1 bias − γβ/S2, paired SE)",
+                dt3["passed"],
+                "the Δt³ term measured against the field's β; the Δt⁴ terms grow with the Δt range",
+            )
+        )
+    return rows
+
+
 def verdict(run: list[dict], rungs: dict, methods, table1: dict) -> tuple[dict, list[dict]]:
     """The checks of the run and of every calibration rung, and which must hold.
 

@@ -25,7 +25,7 @@ runs) go to ``<out>/work/``, where every study of ``<out>`` finds them. Output, 
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from importlib.metadata import version
 from pathlib import Path
 
@@ -42,7 +42,9 @@ from validation.studies.multi_dt import (
     dt_sweep,
     noise_sweep,
     seeding_sweep,
+    study_sizes,
 )
+from validation.studies.multi_dt_dns import dt_range_figure, dt_range_sweep
 from validation.studies.multi_dt_figures import multi_dt_figure
 from validation.studies.rendered import evaluate_point, study_points
 from validation.studies.runner import Sweep, load_point, run_sweep
@@ -215,16 +217,10 @@ def _run_ideal(
     for s in range(seeds):
         seeded = scenario.with_seed(scenario.seed + s)
         sweep = spec.sweep(seeded, settings)
-
-        def connect(pending: int):
-            if scheduler is not None:
-                return dask_client(scheduler=scheduler)
-            return dask_client(workers=min(workers or os.cpu_count() or 1, pending))
-
         outcome = run_sweep(
             sweep,
             folder / "points" / f"seed-{seeded.seed}",
-            connect,
+            _connect(workers, scheduler),
             progress=ProgressBar(f"study {study} seed {seeded.seed}", enabled=not quiet),
             on_saved=on_saved,
         )
@@ -237,6 +233,67 @@ def _run_ideal(
             figure = spec.figure(sweep, table, results)
             figure.suptitle(_title(sweep), fontsize=9)
     return rows, figure, tuple(computed), tuple(reused)
+
+
+def _run_dns_dt(
+    scenario: Scenario,
+    out: Path,
+    *,
+    settings: StudySettings,
+    seeds: int,
+    workers: int | None,
+    scheduler: str | None,
+    quiet: bool,
+    on_saved: Callable[[str], None] | None,
+) -> tuple[list[dict], Figure, tuple, tuple]:
+    """The dt study on a DNS: the Δt-range sweep (:mod:`validation.studies.multi_dt_dns`)
+    on the scenario's flow stage ``<out>/flow``, built or reused first (the stage of
+    ``synptv run --out <out>``)."""
+    from validation.run.flow_stage import dns_run_flow
+
+    _, stage = dns_run_flow(scenario, out, progress=ProgressBar("flow", enabled=not quiet))
+    particles, snapshots = study_sizes(scenario, settings.snapshots)
+    snapshots = min(snapshots, scenario.particles.frames)
+    folder = out / "dt"
+    rows, computed, reused = [], [], []
+    for s in range(seeds):
+        seeded = scenario.with_seed(scenario.seed + s)
+        sweep = dt_range_sweep(
+            seeded,
+            particles=particles,
+            snapshots=snapshots,
+            noise_um=settings.position_noise_um,
+            field=stage.folder,
+        )
+        sweep = replace(sweep, options={**sweep.options, "field_key": stage.key})
+        outcome = run_sweep(
+            sweep,
+            folder / "points" / f"seed-{seeded.seed}",
+            _connect(workers, scheduler),
+            progress=ProgressBar(f"study dt seed {seeded.seed}", enabled=not quiet),
+            on_saved=on_saved,
+        )
+        for result in outcome.results.values():
+            rows += [_common_row(row, seeded.seed) for row in result["rows"]]
+        computed += [f"seed-{seeded.seed}/{p}" for p in outcome.computed]
+        reused += [f"seed-{seeded.seed}/{p}" for p in outcome.reused]
+    figure = dt_range_figure(
+        rows,
+        f"study dt on a Navier–Stokes flow: the Δt³ bias of c₁; scenario {scenario.name} "
+        f"(flow {scenario.flow.label}), P = {particles}, M = {snapshots}",
+    )
+    return rows, figure, tuple(computed), tuple(reused)
+
+
+def _connect(workers: int | None, scheduler: str | None):
+    """The Dask client of an ideal-chain sweep, given its number of pending points."""
+
+    def connect(pending: int):
+        if scheduler is not None:
+            return dask_client(scheduler=scheduler)
+        return dask_client(workers=min(workers or os.cpu_count() or 1, pending))
+
+    return connect
 
 
 def _relative_to_most_planes(rows: list[dict]) -> list[dict]:
@@ -325,30 +382,57 @@ def _run_rendered(
     return table, study_figure(study, table, title=title), tuple(computed), tuple(reused)
 
 
+def _study_chain(study: str, scenario: Scenario, chain: str | None) -> str:
+    """The chain a study runs on: as given, else ``rendered``; on a DNS flow the dt
+    study runs on the DNS's trajectories (``ideal``) and the studies that draw kinematic
+    simulation are refused."""
+    if chain not in (None, "rendered", "ideal"):
+        raise ValueError(f"--chain must be 'rendered' or 'ideal', got {chain!r}")
+    if scenario.flow.kind == "ks":
+        return chain or "rendered"
+    kind = scenario.flow.kind
+    if study in ("noise", "seeding"):
+        raise ValueError(
+            f"the {study} study draws kinematic simulation; on a {kind!r} flow only the dt "
+            "study (and the calibration studies) are built"
+        )
+    if study == "dt":
+        if chain == "rendered" or kind != "dns":
+            raise ValueError(
+                f"the dt study on a {kind!r} flow runs on the DNS's exact trajectories with "
+                "position noise (--chain ideal, its default; docs/study.md); rendered Δt "
+                "subsets of a DNS are not built"
+            )
+        return "ideal"
+    return chain or "rendered"
+
+
 def _checked_study(
     study: str,
     scenario: str | Path | Scenario,
-    chain: str,
+    chain: str | None,
     seeds: int,
     values: list | None,
     settings: StudySettings,
-) -> Scenario:
-    """The scenario of a study whose options are all checked (see :func:`run_study`)."""
+) -> tuple[Scenario, str]:
+    """The scenario and chain of a study whose options are all checked (see
+    :func:`run_study`)."""
     if study not in STUDIES:
         raise ValueError(f"unknown study {study!r}; known: {', '.join(STUDIES)}")
-    if chain not in ("rendered", "ideal"):
-        raise ValueError(f"--chain must be 'rendered' or 'ideal', got {chain!r}")
     if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise ValueError(f"--seeds must be an integer >= 1, got {seeds!r}")
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
+    chain = _study_chain(study, scenario, chain)
     if chain == "rendered":
         study_points(study, scenario, 1, values)  # checks the values
     elif values is not None:
         raise ValueError("--planes and --dt-subsets choose points of the rendered chain only")
+    elif scenario.flow.kind == "dns" and study == "dt":
+        study_sizes(scenario, settings.snapshots)  # checks --snapshots
     else:
         STUDIES[study].sweep(scenario, settings)  # checks the options
-    return scenario
+    return scenario, chain
 
 
 def run_study(
@@ -356,7 +440,7 @@ def run_study(
     scenario: str | Path | Scenario,
     out: Path,
     *,
-    chain: str = "rendered",
+    chain: str | None = None,
     seeds: int = 1,
     values: list | None = None,
     settings: StudySettings = StudySettings(),
@@ -375,8 +459,9 @@ def run_study(
         A scenario preset name, a scenario file, or a scenario.
     out : Path
         Output folder; the study writes ``<out>/<study>/`` (module docstring).
-    chain : {"rendered", "ideal"}
-        Through images (every stage of ``synptv run``) or the fast stand-in.
+    chain : {"rendered", "ideal"} or None
+        Through images (every stage of ``synptv run``) or the fast stand-in (None:
+        rendered, except the dt study of a DNS flow, which runs on its trajectories).
     seeds : int
         Independent repetitions of every point (seeds scenario.seed, +1, …).
     values : list, optional
@@ -403,9 +488,21 @@ def run_study(
         scheduler: before any work starts.
     """
     check_parallel_options(workers, scheduler)
-    scenario = _checked_study(study, scenario, chain, seeds, values, settings)
+    scenario, chain = _checked_study(study, scenario, chain, seeds, values, settings)
     folder = Path(out) / study
-    if chain == "rendered":
+    if chain == "ideal" and scenario.flow.kind == "dns":
+        folder.mkdir(parents=True, exist_ok=True)
+        rows, figure, computed, reused = _run_dns_dt(
+            scenario,
+            Path(out),
+            settings=settings,
+            seeds=seeds,
+            workers=workers,
+            scheduler=scheduler,
+            quiet=quiet,
+            on_saved=on_saved,
+        )
+    elif chain == "rendered":
         with executor(workers=workers, scheduler=scheduler) as ex:
             folder.mkdir(parents=True, exist_ok=True)
             rows, figure, computed, reused = _run_rendered(
