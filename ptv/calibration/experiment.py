@@ -346,6 +346,19 @@ def _check_traverse_moved(planes: list[TraverseDots], paths: list[Path]) -> None
             )
 
 
+class CameraCalibrationError(ValueError):
+    """A calibration method that cannot fit one camera.
+
+    Attributes
+    ----------
+    camera, method, reason : str
+    """
+
+    def __init__(self, camera: str, method: str, reason: str) -> None:
+        super().__init__(f"{method} cannot calibrate camera {camera}: {reason}")
+        self.camera, self.method, self.reason = camera, method, reason
+
+
 def calibrate_cameras(
     setup: PlateSetup,
     dots: Mapping[str, Sequence[TraverseDots]],
@@ -370,11 +383,19 @@ def calibrate_cameras(
     -------
     dict of str to CameraModel
         In experiment.json's camera order.
+
+    Raises
+    ------
+    CameraCalibrationError
+        A camera the method cannot fit, named, with the method's reason.
     """
     calibrations = {}
     for name, sheet in setup.sheets.items():
         planes = dots[name] if fit_planes is None else [dots[name][j] for j in fit_planes]
-        calibrations[name] = calibrate(method, [d.observation() for d in planes], sheet)
+        try:
+            calibrations[name] = calibrate(method, [d.observation() for d in planes], sheet)
+        except ValueError as err:
+            raise CameraCalibrationError(name, method, str(err)) from err
     return calibrations
 
 

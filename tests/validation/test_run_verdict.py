@@ -197,3 +197,24 @@ def test_the_report_has_a_column_per_rung_with_each_verdict_and_value():
     table1_row = next(r for r in page.split("<tr>") if r.startswith("<td>calibration: Table 1 d"))
     assert "<td>8</td><td>50</td>" in table1_row
     assert 'class="pass">Verdict: every required check passes; the baseline tsai fails' in page
+
+
+def test_a_relative_deviation_prints_in_percent_over_the_bins_actually_used():
+    # the case: c1 off by 6.144 (614 %), asked over 7.1–62.5 mm, the
+    # statistics stopping at 35 mm
+    c = comparison(c1=6.144)
+    c["c1"].update(r_range_m=[7.1e-3, 62.5e-3], r_used_m=[7.5e-3, 33.1e-3], bins=9)
+    rungs = {"model-free": rung_checks(c, matching())}
+    checks, must_hold = verdict(run_checks(detection(), DETECTED, None), rungs, ["model-free"], {})
+    printed = summary_lines({"checks": checks, "must_hold": must_hold})
+    line = next(p for p in printed if "c1_matches_truth" in p)
+    assert "614 %" in line and "≤ 5%" in line
+    assert "9 fitted bins at 7.5–33.1 mm" in line and "7.1–62.5 mm asked" in line
+    # a ratio stays a ratio
+    assert any("1.23" in p for p in summary_lines_with_raw(1.23))
+
+
+def summary_lines_with_raw(raw: float) -> list[str]:
+    rungs = {"model-free": rung_checks(comparison(raw_s2=raw), matching())}
+    checks, must_hold = verdict(run_checks(detection(), DETECTED, None), rungs, ["model-free"], {})
+    return summary_lines({"checks": checks, "must_hold": must_hold})

@@ -61,8 +61,8 @@ def test_presets_round_trip_through_json(name):
     count=st.integers(1, 10**5),
     electrons=st.floats(1e-3, 1e6),
     gain=st.floats(1e-3, 10.0),
-    r_low=st.floats(1e-6, 1e-2),
-    r_ratio=st.floats(1.001, 1e3),
+    r_low=st.floats(5e-5, 1e-2),  # from η of the default flow (49 µm)
+    r_ratio=st.floats(1.001, 9.9),  # to the analysis volume's diagonal (99.3 mm)
     shared=st.booleans(),
 )
 def test_any_valid_scenario_round_trips_through_json(
@@ -139,6 +139,12 @@ def test_an_integer_is_accepted_for_a_float_field(tmp_path):
         ("[ptv]\nmin_cameras = 1\n", "ptv.min_cameras"),
         ("[ptv]\nmin_cameras = 3\n", "ptv.min_cameras"),
         ("[ptv]\nmin_cameras = 2.5\n", "min_cameras"),
+        ("[ptv]\nr_range = [0.5e-3, 0.2]\n", "ptv.r_range reaches 200 mm, beyond the 99.32 mm"),
+        ("[ptv]\nplateau = [2e-3, 0.15]\n", "ptv.plateau reaches 150 mm"),
+        ("[ptv]\nr_range = [2e-5, 35e-3]\n", "ptv.r_range starts at 0.02 mm, below the flow's"),
+        ("[ptv]\nplateau = [1e-5, 20e-3]\n", "ptv.plateau starts at 0.01 mm, below"),
+        ("[ptv]\ntolerance = 0.0\n", "tolerance must be a finite number > 0"),
+        ("[ptv]\nmax_speed = -1.5\n", "max_speed must be a finite number > 0"),
     ],
 )
 def test_bad_fields_are_errors_that_name_the_file_and_the_field(tmp_path, body, field):

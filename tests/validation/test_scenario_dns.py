@@ -39,7 +39,8 @@ def test_a_ks_flow_is_written_as_before_without_its_kind():
         ({"spacing": 0.5}, PTV, "flow.spacing must be from 1"),
         ({"grid": 1024}, PTV, "flow.grid: n = 1024 needs about"),
         ({"file": "f.h5"}, PTV, "flow.file is not a field of a 'dns' flow"),
-        ({}, {}, "ptv.r_range reaches 35 mm, beyond half the DNS box"),
+        ({}, {"r_range": [1e-3, 35e-3]}, "ptv.r_range reaches 35 mm, beyond half the DNS box"),
+        ({}, {}, "ptv.r_range starts at 0.5 mm, below the flow's Kolmogorov length"),
     ],
 )
 def test_bad_dns_fields_are_refused_by_name(change, ptv, message):

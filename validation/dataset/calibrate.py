@@ -11,13 +11,14 @@ per camera, is calibrated by :func:`calibrate_point_dataset`
 """
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
 import numpy as np
 
 from ptv.calibration.experiment import (
+    CameraCalibrationError,
     PlateSetup,
     calibrate_cameras,
     find_traverse_dots,
@@ -69,6 +70,9 @@ class DatasetCalibration:
         What the user should know about the result (two plate positions: Z unchecked).
     plate_offsets : PlateOffsets or None
         The plate's estimated offsets from its nominal grid, when self-calibrated.
+    failed : dict
+        ``{method: {"camera", "reason"}}``: the methods that could not fit a camera and
+        were not required (none of their results or files is kept).
     """
 
     dots: list
@@ -79,6 +83,7 @@ class DatasetCalibration:
     leave_one_plane_out: dict
     warnings: list[str]
     plate_offsets: PlateOffsets | None = None
+    failed: dict = field(default_factory=dict)
 
 
 #: Fewest plate positions for a leave-one-plane-out error (two are needed to calibrate).
@@ -180,6 +185,7 @@ def calibrate_dataset(
     fit_planes: Sequence[int] | None = None,
     plate_offsets: str | None = None,
     progress: Progress | None = None,
+    required: Sequence[str] | None = None,
 ) -> DatasetCalibration:
     """Find the dots, calibrate every camera with each method, save, and score.
 
@@ -201,6 +207,9 @@ def calibrate_dataset(
         (``"corrected"``).
     progress : callable(done, total), optional
         Called after each plate image and each calibration.
+    required : sequence of str, optional
+        The methods whose failure on a camera stops the work (default: every method);
+        another that cannot fit a camera is reported in ``failed`` and left out.
 
     Returns
     -------
@@ -213,8 +222,9 @@ def calibrate_dataset(
     ValueError
         An unknown method; or (:class:`ptv.io.dataset.DatasetError`) a bad field of
         experiment.json, a plate image missing or unreadable, an unreadable truth.h5,
-        all found before any dot is searched. Nothing is written unless every method
-        calibrates.
+        all found before any dot is searched; a required method that cannot fit a
+        camera (:class:`ptv.calibration.experiment.CameraCalibrationError`). Nothing is
+        written unless every required method calibrates.
     """
     check_methods(methods)
     if plate_offsets is not None and plate_offsets not in PLATE_OFFSET_MODES:
@@ -255,9 +265,23 @@ def calibrate_dataset(
         offsets = estimate_plate_offsets(fitted, mode=plate_offsets)
         fitted_dots = offsets.corrected(dots)
         references["corrected"] = offsets.positions(indices, setup.z)
-    table1, fitted_models, residuals, errors, held_out = {}, {}, {}, {}, {}
+    table1, fitted_models, residuals, errors, held_out, failed = {}, {}, {}, {}, {}, {}
+    must_fit = set(methods if required is None else required)
     for method in methods:
-        calibrations = calibrate_cameras(setup, fitted_dots, method, fit_planes=fit_planes)
+        try:
+            calibrations = calibrate_cameras(setup, fitted_dots, method, fit_planes=fit_planes)
+            if len(setup.z) >= LEAVE_ONE_OUT_PLANES:
+                held_out[method] = leave_one_plane_out(
+                    setup, dots, method, indices, nominal, plate_offsets=plate_offsets
+                )
+        except CameraCalibrationError as err:
+            if method in must_fit:
+                raise
+            failed[method] = {"camera": err.camera, "reason": err.reason}
+            warnings.append(f"{err}; the run goes on without {method}")
+            for _ in setup.sheets:
+                tick()
+            continue
         for _ in calibrations:
             tick()
         if method == "model-free":
@@ -274,10 +298,6 @@ def calibrate_dataset(
         }
         table1[method] = {name: e.summary() for name, e in errors[method].items()}
         fitted_models[method] = calibrations
-        if len(setup.z) >= LEAVE_ONE_OUT_PLANES:
-            held_out[method] = leave_one_plane_out(
-                setup, dots, method, indices, nominal, plate_offsets=plate_offsets
-            )
     # Written only once every method has calibrated: a method that fails leaves no file.
     out = Path(out) if out is not None else folder / "calibrations"
     metadata = {"dataset": str(folder)}
@@ -286,7 +306,7 @@ def calibrate_dataset(
             save_calibrations(staging / f"{method}.h5", calibrations, metadata=metadata)
     files = {method: str(out / f"{method}.h5") for method in fitted_models}
     return DatasetCalibration(
-        list(dots.values()), residuals, table1, files, errors, held_out, warnings, offsets
+        list(dots.values()), residuals, table1, files, errors, held_out, warnings, offsets, failed
     )
 
 

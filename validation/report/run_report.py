@@ -9,6 +9,7 @@ to ``run_log.json``), so the same scenario and seed give the same file.
 import html
 import json
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 from simulator.rigs import load_rig
@@ -25,6 +26,7 @@ from validation.run.scenario import Scenario, pipeline_settings
 from validation.run.verdict import (
     calibration_check,
     dns_rows,
+    failed_rung_checks,
     run_checks,
     rung_checks,
     verdict,
@@ -87,6 +89,15 @@ def _portable(scenario: Scenario) -> dict:
     return spec
 
 
+def without_failed(scenario: Scenario, failed: dict) -> Scenario:
+    """The scenario as its report shows it: without the baselines whose calibration
+    failed (they have no rung; the checks name them and why)."""
+    if not failed:
+        return scenario
+    methods = tuple(m for m in scenario.ptv.methods if m not in failed)
+    return replace(scenario, ptv=replace(scenario.ptv, methods=methods))
+
+
 def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> dict:
     """Compare every PTV variant with the truth and write the figures of the report.
 
@@ -95,6 +106,9 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     dict
         The content of ``results.json``.
     """
+    calibration = _read(stages.calibrations.folder / "table1.json")
+    failed = calibration.get("failed", {})
+    given, scenario = scenario, without_failed(scenario, failed)
     settings = pipeline_settings(scenario).statistics
     truth = _read(stages.truth.folder / "truth.json")
     detection = _read(stages.ptv["detection"].folder / "detection.json")
@@ -155,7 +169,6 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
         ),
         figures / "noise.png",
     )
-    calibration = _read(stages.calibrations.folder / "table1.json")
     table1 = calibration["table1"]
     dns = None
     if stages.field is not None:
@@ -173,12 +186,17 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
             calibration_check(table1, load_rig(scenario.rig.name).spec),
         )
         + dns_rows(dns),
-        {m: rung_checks(comparisons[m], matching[m]) for m in scenario.ptv.methods},
-        scenario.ptv.methods,
+        {
+            m: failed_rung_checks(failed[m])
+            if m in failed
+            else rung_checks(comparisons[m], matching[m])
+            for m in given.ptv.methods
+        },
+        given.ptv.methods,
         table1,
     )
     results = {
-        "scenario": _portable(scenario),
+        "scenario": _portable(given),
         "flow": {**p, **stages.flow},
         "truth": truth,
         "calibration": calibration,
@@ -349,6 +367,12 @@ def _calibration_section(results: dict, scenario: Scenario) -> list[str]:
                 (method, ref, *(number(t[k], 3) for k in ("d_X_um", "d_Y_um", "d_Z_um", "d_um")))
             )
     parts.append(table(["method", "against", "d_X (µm)", "d_Y (µm)", "d_Z (µm)", "d (µm)"], rows))
+    for method, failure in results["calibration"].get("failed", {}).items():
+        parts.append(
+            f"<p><span class='fail'>FAIL</span> {html.escape(method)} (a baseline) could not "
+            f"calibrate camera {html.escape(failure['camera'])}: "
+            f"{html.escape(failure['reason'])}. The run went on without it.</p>"
+        )
     parts.append(
         "<p>“nominal”: the paper's metric (dots at their design positions); “true”: against "
         "the dots' true centres (the plate's imperfections removed). The difference is "
@@ -573,7 +597,8 @@ def write_report(scenario: Scenario, stages: ExperimentStages, out: Path) -> tup
     results = build_results(scenario, stages, out)
     json_path, html_path = out / "results.json", out / "report.html"
     write_text_atomic(json_path, json.dumps(results, indent=2, allow_nan=False) + "\n")
-    write_text_atomic(html_path, render_html(results, scenario))
+    failed = results["calibration"].get("failed", {})
+    write_text_atomic(html_path, render_html(results, without_failed(scenario, failed)))
     log = {
         "stages_seconds": stages.seconds,
         "reused": {

@@ -240,6 +240,7 @@ def compare_variant(
     dev = np.abs(ratio[sel] - 1)
     out["c1"] = {
         "r_range_m": [lo, hi],
+        "r_used_m": [float(r[sel].min()), float(r[sel].max())] if sel.any() else None,
         "bins": int(sel.sum()),
         "max_abs_deviation": float(dev.max()) if dev.size else None,
         "mean_deviation": float(np.mean(ratio[sel] - 1)) if dev.size else None,

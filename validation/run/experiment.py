@@ -385,6 +385,7 @@ class ExperimentRun:
         """Calibrations (default: every method of the scenario, from every plane),
         Table 1 on every plane and Fig. 3."""
         methods = self.scenario.calibration.methods if methods is None else methods
+        under_test = [m for m in methods if m == self.scenario.ptv.methods[0]]
 
         def build(target: Path) -> None:
             result = calibrate_dataset(
@@ -393,11 +394,15 @@ class ExperimentRun:
                 out=target,
                 fit_planes=planes,
                 progress=self.bar("calibrate"),
+                required=under_test,
             )
-            _write_json(
-                target / "table1.json",
-                {"table1": result.table1, "max_plane_residual_px": result.max_plane_residual_px},
-            )
+            table1 = {
+                "table1": result.table1,
+                "max_plane_residual_px": result.max_plane_residual_px,
+            }
+            if result.failed:  # baselines that could not fit a camera (docs/run.md §5)
+                table1["failed"] = result.failed
+            _write_json(target / "table1.json", table1)
             maps = {m: e["nominal"] for m, e in result.errors.items()}
             title = (
                 "Triangulated dots against their nominal positions (the paper's Fig. 3)\n"
@@ -449,13 +454,16 @@ class ExperimentRun:
         )
 
     def rungs(self, detections, truth_stage, calibrations, truth: TruthFile) -> dict:
-        """Every rung of the error budget, one stage each."""
+        """Every rung of the error budget, one stage each (none for a baseline whose
+        calibration failed)."""
         builder = self.rung_builder(detections, truth_stage, truth)
+        failed = json.loads((calibrations.folder / "table1.json").read_text()).get("failed", {})
         return {
             variant: self.rung(
                 variant, builder, detections, calibrations, self.out / "ptv" / variant
             )
             for variant in (*REFERENCE_VARIANTS, *self.scenario.ptv.methods)
+            if variant not in failed
         }
 
 

@@ -323,6 +323,11 @@ def flow_section(table: object, source: str) -> FlowSection:
         raise ScenarioError(f"{source}: {err}") from None
 
 
+def dns_eta(flow: FlowSection) -> float:
+    """A DNS flow's Kolmogorov length from its inputs, η = (ν³/ε)^{1/4}, m."""
+    return dns_setup(flow.nu, flow.epsilon, flow.grid, kmax_eta=flow.kmax_eta).eta
+
+
 def dns_box_side(flow: FlowSection) -> float:
     """Side of a DNS flow's periodic box, L = 2πNη/(3 k_max η), m."""
     return dns_setup(flow.nu, flow.epsilon, flow.grid, kmax_eta=flow.kmax_eta).grid.box_side

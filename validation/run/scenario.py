@@ -46,7 +46,13 @@ from ptv.pipeline.double_frame import PipelineSettings
 from ptv.stats.run_statistics import StatisticsSettings
 from simulator.render.sensor import Sensor
 from simulator.rigs import RigFileError, load_rig, rig_presets
-from validation.run.flow_section import FlowSection, check_flow, dns_box_side, flow_section
+from validation.run.flow_section import (
+    FlowSection,
+    check_flow,
+    dns_box_side,
+    dns_eta,
+    flow_section,
+)
 from validation.run.scenario_fields import ScenarioError, section
 
 
@@ -235,6 +241,7 @@ def _check(scenario: Scenario, source: str) -> None:
     ):
         if not 0 < lo < hi:
             fail(f"{where} must be [low, high] with 0 < low < high, m, got {[lo, hi]}")
+    _check_separations(scenario, source)
     if scenario.flow.kind == "dns":
         half = dns_box_side(scenario.flow) / 2
         if scenario.ptv.r_range[1] > half:
@@ -349,6 +356,43 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     return scenario
 
 
+def _check_separations(scenario: Scenario, source: str, eta: float | None = None) -> None:
+    """Refuse separations no pair of the analysis volume can have (beyond its diagonal)
+    and a plateau or r range starting below η (the flow's, or ``eta``; a field file's η
+    is known once it is read)."""
+
+    def fail(message: str):
+        raise ScenarioError(f"{source}: {message}")
+
+    diagonal = float(np.linalg.norm(scenario.ptv.analysis_volume))
+    for where, (_, hi) in (
+        ("ptv.r_range", scenario.ptv.r_range),
+        ("ptv.plateau", scenario.ptv.plateau),
+    ):
+        if hi > diagonal:
+            fail(
+                f"{where} reaches {hi * 1e3:g} mm, beyond the {diagonal * 1e3:.4g} mm diagonal "
+                "of ptv.analysis_volume: no pair is that far apart"
+            )
+    if eta is None:
+        if scenario.flow.kind == "grid":
+            return
+        eta = (
+            dns_eta(scenario.flow)
+            if scenario.flow.kind == "dns"
+            else scenario.flow.as_preset().parameters.eta
+        )
+    for where, (lo, _) in (
+        ("ptv.r_range", scenario.ptv.r_range),
+        ("ptv.plateau", scenario.ptv.plateau),
+    ):
+        if lo < eta:
+            fail(
+                f"{where} starts at {lo * 1e3:g} mm, below the flow's Kolmogorov length "
+                f"η = {eta * 1e3:.3g} mm"
+            )
+
+
 def _checked_field_file(scenario: Scenario, path: Path | None, source: str) -> Scenario:
     """A ``grid`` flow's file resolved (relative to the scenario file) and read as a run
     will read it, its separations checked against half its box."""
@@ -361,6 +405,7 @@ def _checked_field_file(scenario: Scenario, path: Path | None, source: str) -> S
         run_flow = grid_run_flow(scenario.flow, scenario.particles.frames)
     except ValueError as err:
         raise ScenarioError(f"{source}: flow.file: {err}") from None
+    _check_separations(scenario, source, eta=run_flow.preset.parameters.eta)
     half = run_flow.scales["box_side"] / 2
     if scenario.ptv.r_range[1] > half:
         raise ScenarioError(

@@ -45,6 +45,18 @@ RULE = (
 )
 
 
+#: Checks whose value is a relative deviation, printed in % like their tolerance.
+PERCENT_CHECKS = frozenset(
+    {
+        "stats.c1_matches_truth",
+        "stats.epsilon_recovered",
+        "stats.c1_matches_independent_truth",
+        "stats.epsilon_matches_input_deficit",
+        "stats.dt_subsets",
+    }
+)
+
+
 def _row(check_id: str, value, tolerance: str, passed, informative: str | None = None) -> dict:
     """A check; ``informative`` (why it is not required) only where the configuration
     makes it a property of the rig rather than of the code."""
@@ -142,6 +154,24 @@ def run_checks(detection: dict, detected: dict, calibration: dict | None) -> lis
     return rows
 
 
+def failed_rung_checks(failure: dict) -> list[dict]:
+    """The one check of a baseline whose calibration failed: which camera, and why.
+
+    Parameters
+    ----------
+    failure : dict
+        ``table1.json``'s ``failed`` entry of the method: ``camera`` and ``reason``.
+    """
+    return [
+        _row(
+            "calibration.fitted",
+            None,
+            f"fits every camera; failed on {failure['camera']}: {failure['reason']}",
+            False,
+        )
+    ]
+
+
 def rung_checks(comparison: dict, matching: dict) -> list[dict]:
     """The checks of one calibration rung (module docstring), the same on every rung.
 
@@ -160,6 +190,13 @@ def rung_checks(comparison: dict, matching: dict) -> list[dict]:
     """
     c = comparison
     c1_range = c["c1"]["r_range_m"]
+    used = c["c1"].get("r_used_m")
+    c1_where = (
+        f"over the {c['c1']['bins']} fitted bins at {used[0] * 1e3:.2g}–{used[1] * 1e3:.3g} mm "
+        f"(of {c1_range[0] * 1e3:.2g}–{c1_range[1] * 1e3:.3g} mm asked)"
+        if used
+        else f"no fitted bin in {c1_range[0] * 1e3:.2g}–{c1_range[1] * 1e3:.3g} mm"
+    )
     rows = [
         _row(
             "matching.yield",
@@ -176,7 +213,7 @@ def rung_checks(comparison: dict, matching: dict) -> list[dict]:
         _row(
             "stats.c1_matches_truth",
             c["c1"]["max_abs_deviation"],
-            f"≤ {c['c1']['tolerance']:.0%} over {c1_range[0] * 1e3:.2g}–{c1_range[1] * 1e3:.3g} mm",
+            f"≤ {c['c1']['tolerance']:.0%} {c1_where}",
             c["c1"]["passed"],
         ),
         _row(
@@ -346,8 +383,14 @@ def summary_lines(results: dict) -> list[str]:
 
     def line(check: dict, name: str) -> str:
         mark = "PASS" if check["passed"] else "FAIL"
-        value = "" if check["value"] is None else f"{check['value']:.4g}"
-        return f"{mark}  {name:48s} {value:>10s}   {check['tolerance']}"
+        value = check["value"]
+        if value is None:
+            shown = ""
+        elif check["id"].split(" (")[0].split(":")[0] in PERCENT_CHECKS:
+            shown = f"{100 * value:.3g} %"
+        else:
+            shown = f"{value:.4g}"
+        return f"{mark}  {name:48s} {shown:>10s}   {check['tolerance']}"
 
     lines = [line(c, c["id"]) for c in results["must_hold"]]
     checks = results["checks"]
@@ -364,5 +407,11 @@ def summary_lines(results: dict) -> list[str]:
         if not rung["required"]:
             lines.append(f"{method} ({BASELINE}: reported, not required):")
             lines += [line(c, f"{c['id']} ({method})") for c in rung["checks"]]
+    for method, failure in results.get("calibration", {}).get("failed", {}).items():
+        if method not in checks["rungs"]:  # a calibration baseline with no rung
+            lines.append(
+                f"{method} ({BASELINE}: reported, not required): could not calibrate camera "
+                f"{failure['camera']}: {failure['reason']}"
+            )
     lines.append(f"verdict: {verdict_line(checks)}")
     return lines

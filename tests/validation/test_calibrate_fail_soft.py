@@ -1,0 +1,91 @@
+"""A calibration method that cannot fit a camera: named with its reason; a baseline is
+left out and the work goes on, a required method stops it."""
+
+import pytest
+
+import ptv.calibration.experiment as experiment
+from ptv.calibration.experiment import CameraCalibrationError
+from simulator.presets import flow_preset
+from simulator.rigs import load_rig
+from validation.dataset.calibrate import calibrate_dataset
+from validation.dataset.render import RenderSettings, write_dataset
+from validation.run.verdict import failed_rung_checks, verdict, verdict_line
+
+SETTINGS = RenderSettings(frames=1, planes=3, particles=50, n_modes=40, seed=2)
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fail-soft") / "ds"
+    write_dataset(folder, load_rig("paper-stereo"), flow_preset("lem-10hz"), SETTINGS)
+    return folder
+
+
+@pytest.fixture
+def tsai_fails_on_the_second_camera(monkeypatch):
+    """Tsai diverges on the second camera of the rig, as it did on a rolled Scheimpflug
+    camera of an unseen rig."""
+    calibrate = experiment.calibrate
+    calls = []
+
+    def failing(method, observations, sheet):
+        if method == "tsai":
+            calls.append(sheet)
+            if len(calls) == 2:
+                raise ValueError("Tsai LM diverged (f = 0.000202 m): behind the camera")
+        return calibrate(method, observations, sheet)
+
+    monkeypatch.setattr(experiment, "calibrate", failing)
+
+
+def test_a_baseline_that_fails_on_a_camera_is_named_and_left_out(
+    folder, tmp_path, tsai_fails_on_the_second_camera
+):
+    result = calibrate_dataset(
+        folder, methods=("model-free", "tsai"), out=tmp_path / "cal", required=("model-free",)
+    )
+    camera = load_rig("paper-stereo").camera_names[1]
+    assert result.failed == {
+        "tsai": {"camera": camera, "reason": "Tsai LM diverged (f = 0.000202 m): behind the camera"}
+    }
+    assert set(result.table1) == set(result.files) == {"model-free"}
+    assert any(f"camera {camera}" in w and "without tsai" in w for w in result.warnings)
+    # its rung's one check says which camera and why; the verdict is the method under test's
+    checks, must_hold = verdict(
+        [],
+        {"model-free": [], "tsai": failed_rung_checks(result.failed["tsai"])},
+        ["model-free", "tsai"],
+        {},
+    )
+    assert checks["passed"] and must_hold == []
+    assert "tsai fails 1 of 1" in verdict_line(checks) and "calibration.fitted" in verdict_line(
+        checks
+    )
+    assert camera in checks["rungs"]["tsai"]["checks"][0]["tolerance"]
+
+
+def test_a_required_method_that_fails_stops_with_the_camera_named(
+    folder, tmp_path, tsai_fails_on_the_second_camera
+):
+    camera = load_rig("paper-stereo").camera_names[1]
+    with pytest.raises(CameraCalibrationError, match=f"tsai cannot calibrate camera {camera}"):
+        calibrate_dataset(folder, methods=("model-free", "tsai"), out=tmp_path / "cal")
+    assert not (tmp_path / "cal").exists()
+
+
+def test_a_calibration_baseline_without_a_rung_is_printed_with_its_camera():
+    from validation.run.verdict import rung_checks, summary_lines
+
+    from .test_run_verdict import comparison, matching
+
+    checks, must_hold = verdict(
+        [], {"model-free": rung_checks(comparison(), matching())}, ["model-free"], {}
+    )
+    failed = {"tsai": {"camera": "cam2", "reason": "Tsai LM diverged"}}
+    printed = summary_lines(
+        {"checks": checks, "must_hold": must_hold, "calibration": {"failed": failed}}
+    )
+    assert printed[-2] == (
+        "tsai (baseline: reported, not required): could not calibrate camera cam2: Tsai LM diverged"
+    )
+    assert printed[-1] == "verdict: every required check passes"
