@@ -218,3 +218,18 @@ def summary_lines_with_raw(raw: float) -> list[str]:
     rungs = {"model-free": rung_checks(comparison(raw_s2=raw), matching())}
     checks, must_hold = verdict(run_checks(detection(), DETECTED, None), rungs, ["model-free"], {})
     return summary_lines({"checks": checks, "must_hold": must_hold})
+
+
+def test_the_epsilon_tolerance_widens_to_two_standard_errors_only_where_they_exceed_it():
+    from validation.run.checks import epsilon_tolerance
+
+    assert epsilon_tolerance({"epsilon": 0.13, "se_epsilon": 0.0017}) == 0.05  # a KS run
+    # the dns run: ε 3.86e-6 ± 1.85e-7 (4.8 %): 9.6 %, and the check says why
+    widened = epsilon_tolerance({"epsilon": 3.86e-6, "se_epsilon": 1.85e-7})
+    assert widened == pytest.approx(2 * 1.85e-7 / 3.86e-6)
+    c = comparison(epsilon=-0.063)
+    c["epsilon"].update(tolerance=widened, passed=abs(-0.063) <= widened)
+    rows = rung_checks(c, matching())
+    row = next(r for r in rows if r["id"] == "stats.epsilon_recovered")
+    assert row["passed"] and "9.6 % (2 standard errors of the plateau ε)" in row["tolerance"]
+    assert epsilon_tolerance(None) == 0.05

@@ -101,6 +101,15 @@ def _flux(field: dict, eta: float) -> dict:
     }
 
 
+def beta_over_s2(folder):
+    """r (m) → β(r)/S2(r) of a DNS stage's field statistics, 1/s: β = ⟨δu_L δa_L⟩ and S2
+    averaged over the snapshots, interpolated in log r (NaN for a NaN r)."""
+    field = _field(folder)
+    r = np.log(field["r"])
+    ratio = field["dul_dal"].mean(axis=0) / field["s2"].mean(axis=0)
+    return lambda x: float(np.interp(np.log(x), r, ratio)) if np.isfinite(x) else np.nan
+
+
 def _trajectories(truth: TruthFile) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(times (K + 1,), positions (M, K + 1, N, 3), start (M, N, 3), velocity (M, N, 3)):
     the true trajectories of a shared-first-frame dataset, every Δt from the same start."""
@@ -115,9 +124,7 @@ def _dt3_bias(folder, truth: TruthFile, ptv, seed: int, eta: float) -> dict | No
     :data:`BIAS_R_OVER_ETA`, beside γβ/S2 of the field (module docstring)."""
     if not truth.shared_first_frame:
         return None
-    field = _field(folder)
-    r_field = field["r"]
-    beta_over_s2 = field["dul_dal"].mean(axis=0) / field["s2"].mean(axis=0)
+    ratio = beta_over_s2(folder)
     times, positions, start, velocity = _trajectories(truth)
     columns = np.arange(1, len(times))
     gamma = dt3_gamma(times[columns])
@@ -142,10 +149,9 @@ def _dt3_bias(folder, truth: TruthFile, ptv, seed: int, eta: float) -> dict | No
             r, bias, se, gamma_weighted = at_separation(measured[binning], n * eta)
             row[name] = {"r_m": r, "bias": bias, "se": se}
             if binning == "start":
-                ratio = float(np.interp(np.log(r), np.log(r_field), beta_over_s2))
-                row["predicted"] = gamma * ratio
-                row["predicted_weighted"] = gamma_weighted * ratio
-                row["z"] = (bias - gamma_weighted * ratio) / se
+                row["predicted"] = gamma * ratio(r)
+                row["predicted_weighted"] = gamma_weighted * ratio(r)
+                row["z"] = (bias - gamma_weighted * ratio(r)) / se
         rows.append(row)
     z = np.array([row["z"] for row in rows])
     chi2 = float(np.sum(z[np.isfinite(z)] ** 2))

@@ -22,7 +22,6 @@ The bias and its paired error: :mod:`validation.truth.dt3_bias`.
 from collections.abc import Sequence
 from pathlib import Path
 
-import h5py
 import matplotlib
 
 matplotlib.use("Agg")
@@ -32,10 +31,11 @@ from matplotlib.figure import Figure
 
 from ptv.stats.pairs import LogBins
 from simulator.dns.fieldfile import read_field_file_parameters
-from simulator.dns.flow import FIELD_FILE, STATISTICS_FILE, DnsTracerFlow
+from simulator.dns.flow import FIELD_FILE, DnsTracerFlow
 from simulator.particles import Box, follow_snapshots
 from simulator.turbulence import TurbulenceParameters
 from validation.claims.statistics import dt3_gamma
+from validation.run.dns_checks import beta_over_s2
 from validation.run.flow_stage import dns_spec
 from validation.run.scenario import Scenario, scenario_from_dict
 from validation.studies.runner import Sweep, SweepPoint, seed_sequence
@@ -127,7 +127,7 @@ def dt_range_task(settings: dict, options: dict, point: dict) -> dict:
         rng=seed_sequence(scenario.seed, "dt-range", "flow"),
     )
     bins = LogBins(scenario.ptv.r_range[0], scenario.ptv.r_range[1], scenario.ptv.bins)
-    beta_of_r = _field_beta(folder)
+    beta_of_r = beta_over_s2(folder)
     rows = []
     for noise_um in sorted({0.0, float(options["noise_um"])}):
         noise = seed_sequence(scenario.seed, "dt-range", "noise", noise_um)
@@ -165,14 +165,6 @@ def dt_range_task(settings: dict, options: dict, point: dict) -> dict:
                     row[f"predicted_weighted_{n}eta"] = gamma_weighted * beta_of_r(r)
                 rows.append(row)
     return {"rows": rows, "curves": {}}
-
-
-def _field_beta(folder: Path):
-    """r → β(r)/S2(r) of the field's statistics (log-interpolated), 1/s."""
-    with h5py.File(folder / STATISTICS_FILE, "r") as f:
-        r = f["r"][()]
-        ratio = f["dul_dal"][()].mean(axis=0) / f["s2"][()].mean(axis=0)
-    return lambda x: float(np.interp(np.log(x), np.log(r), ratio)) if np.isfinite(x) else np.nan
 
 
 def dt_range_figure(rows: Sequence[dict], title: str) -> Figure:
