@@ -16,8 +16,8 @@ import time
 from pathlib import Path
 
 from benchmarks.machine import machine
-from ptv.pipeline.double_frame import PipelineSettings
 from ptv.pipeline.frames import DetectorSettings
+from ptv.pipeline.options import PipelineSettings
 from simulator.rigs import load_rig
 from validation.dataset.render import particle_job
 from validation.run.experiment import render_settings

@@ -34,7 +34,11 @@ non-coplanar rig of world points (X, Y, Z_j).
   RQ decomposition (f = K₂₂, s_x = K₁₁/K₂₂).
 * Levenberg–Marquardt (``scipy.optimize.least_squares``, ``method='lm'``) on all pixel
   reprojection errors: first f, T_z, κ₁ (Tsai's own nonlinear step), then every
-  parameter, the rotation as a rotation vector.
+  parameter, the rotation as a rotation vector. When it diverges from the linear
+  stages' start (f or s_x ≤ 0, points behind the camera or past the distortion fold, as
+  on an oblique Scheimpflug camera whose linear start is poor) or ends in a local
+  minimum far above any model error, it starts again from the DLT and keeps the better
+  fit; only when both diverge is the camera refused.
 
 The model knows no refraction: a pixel's ray is a straight line from the camera centre
 through the water. That is the model error the paper measures against the model-free
@@ -67,6 +71,10 @@ _NEWTON_STEPS = 60
 _NEWTON_TOL = 1e-15
 #: Step of the central-difference Jacobian, in normalised parameter units (about 1e-4 px).
 _JAC_STEP = 1e-4
+#: A fit ending above this reprojection RMS has not found the camera: it is tried again
+#: from the DLT start. The model error of straight rays through our rigs' oblique windows
+#: is 1-7 px; a fit lost in a local minimum ends at hundreds.
+_LOST_RMS_PX = 20.0
 #: Residual given to points that cannot be imaged at some trial parameters, px.
 _UNIMAGED_RESIDUAL = 1e6
 
@@ -455,6 +463,36 @@ def _linear_stages(local: np.ndarray, xd_s: np.ndarray, yd: np.ndarray) -> tuple
     return rot, tx, ty, tz, f, sx
 
 
+def _refined(local, pixels, pitch, centre, start, free_principal_point):
+    """Levenberg–Marquardt from a start (R, T_x, T_y, T_z, f, s_x) in the internal frame:
+    first Tsai's own step (T_z, f, κ₁), then every parameter, in pixel-effect units (one
+    unit ≈ one pixel at the image edge). Returns (p, result), p None when the fit
+    diverged (f or s_x ≤ 0, or points left unimaged)."""
+    rot, tx, ty, tz, f, sx = start
+    cam = local @ rot.T + np.array([tx, ty, tz])
+    depth = float(np.mean(cam[:, 2]))
+    if depth <= 0 or not f > 0:
+        raise ValueError("Tsai's start puts the calibration points behind the camera")
+    rho_px = max(float(np.max(np.hypot(*(pixels - centre).T))), 1.0)
+    rho_m = rho_px * float(pitch.mean())
+    f_px = f / float(pitch.mean())
+    p0 = np.concatenate([Rotation.from_matrix(rot).as_rotvec(), [tx, ty, tz, f, 0.0, sx], centre])
+    scale = np.array(
+        [1 / f_px] * 3
+        + [depth / f_px] * 2
+        + [depth / rho_px, f / rho_px, 1 / (rho_m**2 * rho_px), 1 / rho_px, 1.0, 1.0]
+    )
+    tsai_step = np.zeros(11, dtype=bool)
+    tsai_step[[5, 6, 7]] = True  # T_z, f, κ₁: Tsai's nonlinear step
+    p, _ = _levenberg_marquardt(local, pixels, pitch, p0, scale, tsai_step)
+    everything = np.ones(11, dtype=bool)
+    everything[9:11] = free_principal_point
+    p, result = _levenberg_marquardt(local, pixels, pitch, p, scale, everything)
+    if p[6] <= 0 or p[8] <= 0 or np.any(np.abs(result.fun) >= _UNIMAGED_RESIDUAL):
+        return None, result
+    return p, result
+
+
 def fit_tsai(
     world: np.ndarray,
     pixels: np.ndarray,
@@ -502,36 +540,31 @@ def fit_tsai(
     local = world - origin
     rot, tx, ty, tz, f, sx = _linear_stages(local, xd_s, yd)
 
-    # Levenberg–Marquardt in pixel-effect units (one unit ≈ one pixel at the image edge).
-    cam = local @ rot.T + np.array([tx, ty, tz])
-    depth = float(np.mean(cam[:, 2]))
-    if depth <= 0:
-        raise ValueError("Tsai stages 1-2 put the calibration points behind the camera")
-    rho_px = max(float(np.max(np.hypot(*(pixels - centre).T))), 1.0)
-    rho_m = rho_px * float(pitch.mean())
-    f_px = f / float(pitch.mean())
-    p0 = np.concatenate([Rotation.from_matrix(rot).as_rotvec(), [tx, ty, tz, f, 0.0, sx], centre])
-    scale = np.array(
-        [1 / f_px] * 3
-        + [depth / f_px] * 2
-        + [depth / rho_px, f / rho_px, 1 / (rho_m**2 * rho_px), 1 / rho_px, 1.0, 1.0]
-    )
-    tsai_step = np.zeros(11, dtype=bool)
-    tsai_step[[5, 6, 7]] = True  # T_z, f, κ₁: Tsai's nonlinear step
-    p, _ = _levenberg_marquardt(local, pixels, pitch, p0, scale, tsai_step)
-    everything = np.ones(11, dtype=bool)
-    everything[9:11] = free_principal_point
-    p, result = _levenberg_marquardt(local, pixels, pitch, p, scale, everything)
-
+    start = (rot, tx, ty, tz, f, sx)
+    p, result = _refined(local, pixels, pitch, centre, start, free_principal_point)
+    rms = float(np.sqrt(np.mean(result.fun**2)))
+    if p is None or rms > _LOST_RMS_PX:
+        # A start from the linear stages that Levenberg–Marquardt cannot bring home (a
+        # camera far from a pinhole's); a careful experimentalist starts again from a DLT
+        # and keeps the better fit.
+        log.warning(
+            "Tsai LM %s from the linear stages' start: starting from a DLT",
+            "diverged" if p is None else f"ended at {rms:.3g} px RMS",
+        )
+        p_dlt, result_dlt = _refined(
+            local, pixels, pitch, centre, _dlt_start(local, xd_s, yd), free_principal_point
+        )
+        rms_dlt = float(np.sqrt(np.mean(result_dlt.fun**2)))
+        if p_dlt is not None and (p is None or rms_dlt < rms):
+            p, rms = p_dlt, rms_dlt
+    if p is None:
+        raise ValueError(
+            f"Tsai LM diverged from the linear stages' start and from a DLT start (RMS "
+            f"{rms:.3g} px): some calibration points fell behind the camera or past the "
+            "distortion fold"
+        )
     rot = Rotation.from_rotvec(p[0:3]).as_matrix()
     translation = p[3:6] - rot @ origin  # R (P − W0) + T' = R P + (T' − R W0)
-    residuals = result.fun
-    rms = float(np.sqrt(np.mean(residuals**2)))
-    if p[6] <= 0 or p[8] <= 0 or np.any(np.abs(residuals) >= _UNIMAGED_RESIDUAL):
-        raise ValueError(
-            f"Tsai LM diverged (f = {p[6]:.3g} m, s_x = {p[8]:.3g}, RMS {rms:.3g} px): "
-            "some calibration points fell behind the camera or past the distortion fold"
-        )
     log.info("Tsai fit: %d points, RMS %.3g px per coordinate", len(world), rms)
     return TsaiCalibration(
         rotation=rot,

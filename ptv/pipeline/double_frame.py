@@ -9,9 +9,13 @@ source (detected from a dataset's images, or read from a detection store). For e
    tolerance (default 0.15 mm, 2–3× the calibration error); with a shared first frame,
    frame a of snapshot m is matched once for every Δt;
 2. link frame a to frame b one-to-one (:func:`ptv.tracking.linking.link`) within the radius
-   r_k = max_speed·Δt_k + 5σ_b (max_speed: the largest speed expected, default
-   1.5 m/s; σ_b: the position noise, default 30 µm): the Δt-scaled threshold of
-   docs/ptv.md §4, which also rejects mismatches with |ΔX| beyond it;
+   r_k = max_speed·Δt_k + 5σ_b (σ_b: the position noise, default 30 µm): the Δt-scaled
+   threshold of docs/ptv.md §4, which also rejects mismatches with |ΔX| beyond it.
+   max_speed is the largest particle speed: measured on the links of the first snapshots
+   at the smallest Δt (:mod:`ptv.tracking.link_speed`, :func:`resolve_settings`)
+   unless the settings give it. Each snapshot counts its ambiguous links (a second
+   candidate within the radius) and the spacing of its particles, and a Δt whose links
+   are more than :data:`AMBIGUITY_WARNING` ambiguous is named in a warning;
 3. flag mislinks by the normalised median test (Westerweel & Scarano 2005) on the
    3-D displacements: a link is an outlier when |ΔX − m| > threshold·(r̃ + ε0), m the
    median displacement of its 8 nearest linked neighbours (same snapshot, by X(t)), r̃
@@ -40,170 +44,149 @@ results, ``validation`` draws and compares.
 
 import logging
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from ptv._checks import positive
-from ptv.box import Box, check_box, inside_box
+from ptv.box import Box, inside_box
 from ptv.camera_model import CameraModel
 from ptv.io.dataset import cameras_in_order
 from ptv.matching.stereo import match
 from ptv.pipeline.frames import FrameDetections
+from ptv.pipeline.options import PipelineSettings, default_min_cameras, link_radius
 from ptv.stats.links import RunParticles
-from ptv.stats.run_statistics import PtvStatistics, StatisticsSettings, compute_statistics
-from ptv.tracking.linking import RecordingTracks, link, search_radius
+from ptv.stats.run_statistics import PtvStatistics, compute_statistics
+from ptv.tracking.link_speed import LinkSpeed, link_speed, nearest_spacing
+from ptv.tracking.linking import RecordingTracks, link
+from ptv.tracking.outliers import median_test_outliers
 
 __all__ = [
-    "MEASUREMENT_VOLUME",
+    "AMBIGUITY_WARNING",
+    "LINK_SPEED_SNAPSHOTS",
     "MatchedPoints",
-    "PipelineSettings",
     "PtvResult",
     "SnapshotMeasurement",
-    "link_radius",
+    "ambiguity_message",
     "match_frame",
     "measure_snapshot",
     "measure_snapshots",
-    "median_test_outliers",
+    "resolve_settings",
     "run_particles",
     "run_pipeline",
+    "settings_with_measured_speed",
 ]
 
 log = logging.getLogger(__name__)
 
 Progress = Callable[[int, int], None]
 
-#: The 100 × 100 × 10 mm laser sheet plus a 1 mm margin, m: the default matching volume.
-MEASUREMENT_VOLUME: Box = ((-0.051, -0.051, -0.006), (0.051, 0.051, 0.006))
+#: A Δt whose links have a second candidate within the radius more often than this is
+#: named in a warning. Half the links is where the radius reaches the median
+#: nearest-neighbour spacing (by that spacing's definition): a particle whose partner was
+#: lost then finds a stranger, and with a radius of 5 rms displacements a stranger is
+#: closer than the true partner for about 3.5 % of the links (n·4π/3·⟨|ΔX|³⟩ at a density
+#: n that puts half the particles within 5σ of a neighbour). Below it, second candidates
+#: are common (30 % at the largest Δt of a correctly linked slow flow) and harmless: the
+#: assignment picks the partner.
+AMBIGUITY_WARNING = 0.5
+#: Snapshots of the smallest Δt whose links measure max_speed when the settings leave it out.
+LINK_SPEED_SNAPSHOTS = 5
 
 
-@dataclass(frozen=True)
-class PipelineSettings:
-    """Options of :func:`run_pipeline` (SI units).
+def resolve_settings(
+    frames: FrameDetections, cameras: Sequence[CameraModel], settings: PipelineSettings
+) -> tuple[PipelineSettings, LinkSpeed | None]:
+    """The settings with min_cameras and max_speed known: as given, or from the camera
+    count (:func:`ptv.pipeline.options.default_min_cameras`) and measured on the data.
 
-    Attributes
-    ----------
-    volume : (lower, upper)
-        Matching volume, m (default :data:`MEASUREMENT_VOLUME`).
-    tolerance : float
-        Stereo tolerance on the ray distances, m (default 0.15 mm).
-    min_cameras : int
-        Fewest cameras a match must use (default 2; at most the number of cameras).
-    max_speed : float
-        Largest particle speed expected, m/s: sets the link radius (default 1.5).
-    position_noise : float
-        Expected position noise σ_b (one component), m: adds 5σ_b to the link radius
-        (default 30 µm).
-    max_acceleration : float
-        Largest particle acceleration expected, m/s²: sets the radius around a track's
-        constant-velocity prediction in a time-resolved recording
-        (:func:`ptv.tracking.recording.track_radii`; default 100, about 5 times the rms of one
-        component in the paper's flows).
-    outlier_threshold : float or None
-        Threshold of the normalised median test on the displacements (default 4; None
-        keeps every link).
-    outlier_neighbours : int
-        Neighbours of the normalised median test (default 8).
-    snapshots : int or None
-        Process only the first N snapshots of every Δt (None: all).
-    statistics : StatisticsSettings
-        Analysis volume, bins, plateau, C2, bootstrap (:mod:`ptv.stats.run_statistics`).
-    """
-
-    volume: Box = MEASUREMENT_VOLUME
-    tolerance: float = 1.5e-4
-    min_cameras: int = 2
-    max_speed: float = 1.5
-    position_noise: float = 30e-6
-    max_acceleration: float = 100.0
-    outlier_threshold: float | None = 4.0
-    outlier_neighbours: int = 8
-    snapshots: int | None = None
-    statistics: StatisticsSettings = field(default_factory=StatisticsSettings)
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "volume", check_box("volume", self.volume))
-        for name in ("tolerance", "max_speed", "position_noise", "max_acceleration"):
-            object.__setattr__(self, name, positive(name, getattr(self, name)))
-        if self.outlier_threshold is not None:
-            object.__setattr__(
-                self, "outlier_threshold", positive("outlier_threshold", self.outlier_threshold)
-            )
-        if (
-            isinstance(self.min_cameras, bool)
-            or not isinstance(self.min_cameras, int)
-            or self.min_cameras < 2
-        ):
-            raise ValueError(f"min_cameras must be an integer >= 2, got {self.min_cameras!r}")
-        if not isinstance(self.outlier_neighbours, int) or self.outlier_neighbours < 2:
-            raise ValueError(
-                f"outlier_neighbours must be an integer >= 2, got {self.outlier_neighbours!r}"
-            )
-        if self.snapshots is not None and not (
-            isinstance(self.snapshots, int)
-            and not isinstance(self.snapshots, bool)
-            and self.snapshots >= 1
-        ):
-            raise ValueError(f"snapshots must be an integer >= 1 or None, got {self.snapshots!r}")
-        if not isinstance(self.statistics, StatisticsSettings):
-            raise ValueError(
-                f"statistics must be a StatisticsSettings, got {type(self.statistics).__name__}"
-            )
-
-    def snapshot_count(self, frames: int) -> int:
-        """Snapshots processed of a run of ``frames`` frame pairs."""
-        return frames if self.snapshots is None else min(self.snapshots, frames)
-
-
-def link_radius(dt: float, settings: PipelineSettings) -> float:
-    """Link search radius max_speed·Δt + 5·position_noise, m."""
-    return search_radius(
-        dt, u_rms=settings.max_speed, sigma_b=settings.position_noise, k_v=1.0, k_b=5.0
-    )
-
-
-def median_test_outliers(
-    positions: np.ndarray,
-    displacements: np.ndarray,
-    *,
-    threshold: float,
-    noise: float,
-    neighbours: int = 8,
-) -> np.ndarray:
-    """Normalised median test (Westerweel & Scarano 2005) on scattered 3-D displacements.
-
-    For link i with neighbours j (its ``neighbours`` nearest links by position), m_i is
-    the component-wise median of ΔX_j, r̃_i the median of |ΔX_j − m_i|, and link i is
-    an outlier when |ΔX_i − m_i| > threshold·(r̃_i + noise).
+    When ``settings.max_speed`` is None, the first :data:`LINK_SPEED_SNAPSHOTS` snapshots
+    of the smallest Δt with matched particles in both frames are matched and their links
+    measure it (:func:`ptv.tracking.link_speed.link_speed`).
 
     Parameters
     ----------
-    positions, displacements : ndarray, shape (N, 3)
-        X(t) and ΔX of the links of one snapshot, m.
-    threshold : float
-        > 0 (about 2 for PIV vectors; 4 keeps genuine turbulent increments).
-    noise : float
-        ε0, the displacement noise floor, m (> 0).
-    neighbours : int
-        Neighbours per link (fewer when the snapshot has fewer links).
+    frames : FrameDetections
+        The detections.
+    cameras : sequence of CameraModel
+        Calibrations in the order of ``frames.cameras``.
+    settings : PipelineSettings
+        Options; max_speed None to measure it.
 
     Returns
     -------
-    ndarray of bool, shape (N,)
-        True for outliers; all False with fewer than 4 links.
+    (PipelineSettings, LinkSpeed or None)
+        The settings with min_cameras and max_speed set, and the measurement (None when
+        the settings gave max_speed).
+
+    Raises
+    ------
+    ValueError
+        No snapshot of the smallest Δt with matched particles, or too few links in them
+        to measure a speed.
     """
-    x = np.asarray(positions, dtype=np.float64)
-    d = np.asarray(displacements, dtype=np.float64)
-    n = len(x)
-    k = min(int(neighbours), n - 1)
-    if k < 3:
-        return np.zeros(n, dtype=bool)
-    _, nb = cKDTree(x).query(x, k=k + 1)
-    nb = nb[:, 1:]  # drop the point itself
-    median = np.median(d[nb], axis=1)
-    spread = np.median(np.linalg.norm(d[nb] - median[:, None, :], axis=2), axis=1)
-    return np.linalg.norm(d - median, axis=1) > threshold * (spread + noise)
+    if settings.min_cameras is None:
+        settings = replace(settings, min_cameras=default_min_cameras(len(cameras)))
+    if settings.max_speed is not None:
+        return settings, None
+    k = int(np.argmin(frames.dt))
+    pairs = []
+    for m in range(settings.snapshot_count(frames.frames[k])):
+        a, b = (match_frame(frames.detections(k, m, f), cameras, settings) for f in "ab")
+        if len(a) >= 2 and len(b):
+            pairs.append((a, b))
+        if len(pairs) == LINK_SPEED_SNAPSHOTS:
+            break
+    if not pairs:
+        raise ValueError(
+            f"no snapshot at Δt_{k} = {frames.dt[k]:.4g} s has matched particles in both "
+            "frames: nothing to link (check the images, the detection settings and that the "
+            "calibration is of this rig)"
+        )
+    return settings_with_measured_speed(settings, pairs, k, float(frames.dt[k]))
+
+
+def settings_with_measured_speed(
+    settings: PipelineSettings, pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int, dt: float
+) -> tuple[PipelineSettings, LinkSpeed]:
+    """The settings with max_speed measured on the matched points of some snapshots at Δt_k.
+
+    Parameters
+    ----------
+    settings : PipelineSettings
+        Options (position_noise is used).
+    pairs : sequence of (ndarray (N_a, 3), ndarray (N_b, 3))
+        Matched points of frames a and b of each snapshot, m.
+    k : int
+        Their Δt index (for the messages).
+    dt : float
+        Their Δt, s.
+
+    Returns
+    -------
+    (PipelineSettings, LinkSpeed)
+
+    Raises
+    ------
+    ValueError
+        Too few particles to measure a speed.
+    """
+    try:
+        measured = link_speed(pairs, dt, position_noise=settings.position_noise)
+    except ValueError as err:
+        raise ValueError(f"Δt_{k} = {dt:.4g} s: {err}") from None
+    log.info(
+        "max_speed %.3g m/s, measured on %d links of %d snapshots at Δt_%d = %.4g s "
+        "(mean velocity %s m/s, rms %s m/s; particle spacing %.3g mm)",
+        measured.max_speed,
+        measured.links,
+        measured.snapshots,
+        k,
+        measured.dt,
+        np.round(measured.mean_velocity, 4).tolist(),
+        np.round(measured.velocity_rms, 4).tolist(),
+        measured.spacing * 1e3,
+    )
+    return replace(settings, max_speed=measured.max_speed), measured
 
 
 # ------------------------------------------------------------------------ per snapshot
@@ -231,6 +214,11 @@ class SnapshotMeasurement:
         Links failing the normalised median test (made on all the links).
     matched : (ndarray (N_a, 3), ndarray (N_b, 3)) or None
         The matched points of frames a and b, m (None unless asked for).
+    ambiguous : int
+        Links whose particle of frame a had a second candidate within the link radius.
+    spacing : float
+        Median nearest-neighbour distance of the matched points of frame a, m (nan
+        below two points).
     """
 
     k: int
@@ -242,6 +230,8 @@ class SnapshotMeasurement:
     displacements: np.ndarray
     outlier: np.ndarray
     matched: tuple[np.ndarray, np.ndarray] | None = None
+    ambiguous: int = 0
+    spacing: float = float("nan")
 
     def within(self, box: Box) -> "SnapshotMeasurement":
         """The same measurement keeping only the links whose X(t) lies in ``box``."""
@@ -280,7 +270,7 @@ def match_frame(
         list(xy),
         settings.volume,
         tolerance=settings.tolerance,
-        min_cameras=settings.min_cameras,
+        min_cameras=settings.min_cameras or default_min_cameras(len(cameras)),
     ).points
 
 
@@ -331,9 +321,10 @@ def measure_snapshot(
         detections.append(counts)
         points.append(matched)
     dt = float(frames.dt[k])
+    ambiguous = 0
     if len(points[0]) and len(points[1]):
         links = link(points[0], points[1], radius=link_radius(dt, settings))
-        positions, displacements = links.positions, links.displacements
+        positions, displacements, ambiguous = links.positions, links.displacements, links.ambiguous
     else:
         positions = displacements = np.empty((0, 3))
     if settings.outlier_threshold is None:
@@ -356,6 +347,8 @@ def measure_snapshot(
         displacements=displacements,
         outlier=outlier,
         matched=(points[0], points[1]) if keep_matched else None,
+        ambiguous=ambiguous,
+        spacing=nearest_spacing(points[0]),
     )
 
 
@@ -419,10 +412,14 @@ def run_particles(
     measured: Sequence[SnapshotMeasurement],
     n_cameras: int,
     settings: PipelineSettings,
+    *,
+    speed_measured: bool = False,
 ) -> RunParticles:
     """The links of the run at Δt_k from its measured snapshots, in snapshot order.
 
-    Snapshots without a match in a frame, or without a link, are skipped with a warning.
+    Snapshots without a match in a frame, or without a link, are skipped with a warning,
+    and a Δt whose links are more than :data:`AMBIGUITY_WARNING` ambiguous is named in one
+    (:func:`ambiguity_message`).
 
     Parameters
     ----------
@@ -436,6 +433,9 @@ def run_particles(
         Cameras C.
     settings : PipelineSettings
         Link radius (for the messages) and analysis volume.
+    speed_measured : bool
+        max_speed was measured on the data (:func:`resolve_settings`), not given: the
+        ambiguity warning then advises on the data rather than the setting.
 
     Returns
     -------
@@ -469,7 +469,7 @@ def run_particles(
     positions = np.concatenate([r.positions for r in kept]) if kept else np.empty((0, 3))
     displacements = np.concatenate([r.displacements for r in kept]) if kept else np.empty((0, 3))
     outlier = np.concatenate([r.outlier for r in kept]) if kept else np.empty(0, dtype=bool)
-    return RunParticles(
+    run = RunParticles(
         k=k,
         dt=float(dt),
         positions=positions,
@@ -484,6 +484,44 @@ def run_particles(
         processed=np.asarray([r.m for r in measured], dtype=np.int64),
         in_analysis=inside_box(positions, settings.statistics.analysis_volume),
         outlier=outlier,
+        ambiguous=np.asarray([r.ambiguous for r in measured], dtype=np.int64),
+        spacing=np.asarray([r.spacing for r in measured], dtype=np.float64),
+    )
+    message = ambiguity_message(run, settings, speed_measured=speed_measured)
+    if message is not None:
+        log.warning(message)
+    return run
+
+
+def ambiguity_message(
+    run: RunParticles, settings: PipelineSettings, *, speed_measured: bool
+) -> str | None:
+    """The warning for a Δt whose links are more than :data:`AMBIGUITY_WARNING` ambiguous
+    (None below that).
+
+    Parameters
+    ----------
+    run : RunParticles
+        The run at one Δt, with its ambiguity counts.
+    settings : PipelineSettings
+        Its settings, max_speed known.
+    speed_measured : bool
+        max_speed was measured on the data rather than given.
+    """
+    if not run.ambiguity > AMBIGUITY_WARNING:
+        return None
+    spacing = np.nanmedian(run.spacing) if np.isfinite(run.spacing).any() else np.nan
+    advice = (
+        "the radius follows the measured speed, so the particles move too far between frames "
+        "for this seeding: a shorter Δt or fewer particles"
+        if speed_measured
+        else f"[linking] max_speed = {settings.max_speed:g} m/s was given: leave it out to "
+        "measure it on the data, or lower it"
+    )
+    return (
+        f"Δt_{run.k} = {run.dt:.4g} s: {100 * run.ambiguity:.0f} % of the links had a second "
+        f"candidate within the link radius ({link_radius(run.dt, settings) * 1e3:.3g} mm; "
+        f"particle spacing {spacing * 1e3:.3g} mm): linking is ambiguous; {advice}"
     )
 
 
@@ -545,6 +583,8 @@ class PtvResult:
     recording : RecordingTracks or None
         The tracks through every frame of a time-resolved recording
         (:func:`ptv.tracking.recording.run_recording`; None otherwise).
+    link_speed : LinkSpeed or None
+        How max_speed was measured on the data (None when the settings gave it).
     """
 
     source: FrameDetections
@@ -554,6 +594,7 @@ class PtvResult:
     statistics: PtvStatistics | None
     matched: MatchedPoints | None = None
     recording: RecordingTracks | None = None
+    link_speed: LinkSpeed | None = None
 
 
 def run_pipeline(
@@ -593,10 +634,11 @@ def run_pipeline(
     """
     settings = PipelineSettings() if settings is None else settings
     cameras = cameras_in_order(frames, calibrations)
-    if settings.min_cameras > len(cameras):
+    if settings.min_cameras is not None and settings.min_cameras > len(cameras):
         raise ValueError(
             f"min_cameras is {settings.min_cameras} but the dataset has {len(cameras)} cameras"
         )
+    settings, measured_speed = resolve_settings(frames, cameras, settings)
     total = sum(settings.snapshot_count(n) for n in frames.frames) + 1
     done = [0]
 
@@ -609,7 +651,14 @@ def run_pipeline(
         frames, range(max(frames.frames)), cameras, settings, tick=tick, keep_matched=True
     )
     runs = [
-        run_particles(k, float(frames.dt[k]), measured[k], len(cameras), settings)
+        run_particles(
+            k,
+            float(frames.dt[k]),
+            measured[k],
+            len(cameras),
+            settings,
+            speed_measured=measured_speed is not None,
+        )
         for k in range(len(frames.dt))
     ]
     for run in runs:
@@ -641,4 +690,5 @@ def run_pipeline(
             for s in run
             for f, points in enumerate(s.matched)
         ),
+        link_speed=measured_speed,
     )

@@ -77,7 +77,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ptv.pipeline.double_frame import MatchedPoints, PtvResult, link_radius
+from ptv.pipeline.double_frame import MatchedPoints, PtvResult, ambiguity_message
+from ptv.pipeline.options import link_radius
 from ptv.stats.dissipation import Plateau
 from ptv.stats.links import RunParticles
 from ptv.stats.mean_displacement import MeanDisplacement
@@ -203,12 +204,19 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
 
     Keys: ``dataset``, ``calibration``, ``cameras``, ``settings``, ``dt``, ``counts``
     (per Δt: snapshots processed, kept and skipped, detections per camera and frame,
-    matches per frame, links, links in the analysis volume, link radius), ``warnings``
-    (:func:`thin_data_warnings`), and those of :func:`statistics_summary` (only
-    ``statistics_dt`` and ``errors``, both None, for a run of positions and links only);
+    matches per frame, links, links in the analysis volume, link radius, ambiguous links
+    and their fraction, particle spacing), ``link_speed`` (how max_speed was measured on
+    the data; None when the settings gave it), ``warnings`` (:func:`thin_data_warnings`
+    and :func:`ptv.pipeline.double_frame.ambiguity_message`), and those of
+    :func:`statistics_summary` (only ``statistics_dt`` and ``errors``, both None, for a run
+    of positions and links only);
     ``tracks`` (:func:`tracks_summary`) for the tracks of a recording.
     """
     counts = [_run_counts(run, result) for run in result.runs]
+    ambiguous = [
+        ambiguity_message(run, result.settings, speed_measured=result.link_speed is not None)
+        for run in result.runs
+    ]
     statistics = (
         {"statistics_dt": None, "errors": None}
         if result.statistics is None
@@ -226,7 +234,8 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
         "statistics_dt": statistics.pop("statistics_dt"),
         "errors": statistics.pop("errors"),
         "counts": counts,
-        "warnings": thin_data_warnings(counts),
+        "link_speed": None if result.link_speed is None else result.link_speed.as_dict(),
+        "warnings": thin_data_warnings(counts) + [line for line in ambiguous if line],
         **tracks,
         **statistics,
     }
@@ -326,6 +335,12 @@ def statistics_summary(st: PtvStatistics) -> dict:
     }
 
 
+def _link_radius(run: RunParticles, result: PtvResult) -> float | None:
+    """The link radius of a run, m (None for links not made by distance, as the exact
+    trajectories' of a simulation)."""
+    return None if result.settings.max_speed is None else link_radius(run.dt, result.settings)
+
+
 def _run_counts(run: RunParticles, result: PtvResult) -> dict:
     """What one Δt's run processed and found (an entry of ``summary["counts"]``)."""
     return {
@@ -343,7 +358,14 @@ def _run_counts(run: RunParticles, result: PtvResult) -> dict:
         "outliers": int(run.outlier.sum()),
         "links_in_analysis_volume": int(run.in_analysis.sum()),
         "links_used": int(run.used.sum()),
-        "link_radius": link_radius(run.dt, result.settings),
+        "link_radius": _link_radius(run, result),
+        "ambiguous_links": None if run.ambiguous is None else int(run.ambiguous.sum()),
+        "ambiguity": _num(run.ambiguity),
+        "particle_spacing": (
+            None
+            if run.spacing is None or not np.isfinite(run.spacing).any()
+            else float(np.nanmedian(run.spacing))
+        ),
     }
 
 
@@ -420,7 +442,8 @@ def _write_h5(path: Path, result: PtvResult, calibration: str | None, links: boo
         for run in result.runs:
             g = f.create_group(f"particles/dt{run.k}")
             g.attrs["dt"] = run.dt
-            g.attrs["link_radius"] = link_radius(run.dt, result.settings)
+            radius = _link_radius(run, result)
+            g.attrs["link_radius"] = np.nan if radius is None else radius
             g.attrs["links_kept"] = links
             if links:
                 _put(g, "positions", run.positions, "m")

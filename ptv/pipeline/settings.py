@@ -14,7 +14,8 @@ Sections and the dataclass fields they fill (SI units: m, s, m/s, m/s²)::
 
 A missing section or field keeps its default. Boxes are ``[[x0, y0, z0], [x1, y1, z1]]``
 (lower and upper corners). TOML has no null: a field whose default is "none"
-(``saturation``: the image type's maximum; ``snapshots``: all) is left out for that
+(``saturation``: the image type's maximum; ``snapshots``: all; ``max_speed``: measured
+on the data; ``min_cameras``: from the camera count) is left out for that
 default, and ``outlier_threshold`` or ``trajectory_threshold`` = false turns that test
 off. Unknown sections or fields, wrong types and values the settings refuse are
 :class:`SettingsError` naming the file, the section and the field.
@@ -25,8 +26,8 @@ import math
 import tomllib
 from pathlib import Path
 
-from ptv.pipeline.double_frame import PipelineSettings
 from ptv.pipeline.frames import DetectorSettings
+from ptv.pipeline.options import PipelineSettings
 from ptv.stats.run_statistics import StatisticsSettings
 
 __all__ = ["PtvSettings", "SettingsError", "load_settings", "settings_from_dict", "settings_toml"]
@@ -54,7 +55,7 @@ SECTIONS = {
 #: Fields whose "none" is written as false (a test turned off).
 _OFF_WITH_FALSE = ("outlier_threshold", "trajectory_threshold")
 #: Fields whose "none" is their absence.
-_NONE_WHEN_ABSENT = ("saturation", "snapshots")
+_NONE_WHEN_ABSENT = ("saturation", "snapshots", "max_speed", "min_cameras")
 #: Units and meaning written beside each field by :func:`settings_toml`.
 _COMMENTS = {
     "threshold_sigmas": "detection threshold, noise σ above the background",
@@ -67,8 +68,9 @@ _COMMENTS = {
     "min_size": "particles with fewer pixels above threshold are dropped",
     "volume": "matching volume: lower and upper corners, m",
     "tolerance": "largest ray distance from a matched point, m (2-3x the calibration error)",
-    "min_cameras": "fewest cameras a match must use",
-    "max_speed": "largest particle speed, m/s: link radius max_speed·Δt + 5·position_noise",
+    "min_cameras": "fewest cameras a match must use (left out: all but one of 4 or more, else 2)",
+    "max_speed": "largest particle speed, m/s: link radius max_speed·Δt + 5·position_noise "
+    "(left out: measured on the links of the smallest Δt)",
     "position_noise": "expected position noise, one component, m",
     "max_acceleration": "largest particle acceleration, m/s², for --tracks: radius "
     "max_acceleration·τ² + 5√3·position_noise",

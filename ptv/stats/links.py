@@ -48,6 +48,12 @@ class RunParticles:
         X(t) inside the analysis volume.
     outlier : ndarray of bool, shape (N,)
         Links failing the normalised median test (not used by the statistics).
+    ambiguous : ndarray of int, shape (S,) or None
+        Links per processed snapshot whose particle had a second candidate within the
+        link radius (None where no linking was done, as for exact trajectories).
+    spacing : ndarray, shape (S,) or None
+        Median nearest-neighbour distance of the matched particles of frame a per
+        processed snapshot, m (None as ``ambiguous``).
     """
 
     k: int
@@ -62,11 +68,21 @@ class RunParticles:
     processed: np.ndarray
     in_analysis: np.ndarray
     outlier: np.ndarray
+    ambiguous: np.ndarray | None = None
+    spacing: np.ndarray | None = None
 
     @property
     def used(self) -> np.ndarray:
         """(N,) bool: links the statistics use (in the analysis volume, not outliers)."""
         return self.in_analysis & ~self.outlier
+
+    @property
+    def ambiguity(self) -> float:
+        """Fraction of the links with a second candidate within the link radius (nan
+        without links or without linking)."""
+        if self.ambiguous is None or self.links.sum() == 0:
+            return float("nan")
+        return float(self.ambiguous.sum() / self.links.sum())
 
     @property
     def skipped(self) -> np.ndarray:

@@ -28,14 +28,9 @@ import numpy as np
 from ptv.camera_model import CameraModel
 from ptv.errors import DatasetError
 from ptv.io.dataset import cameras_in_order
-from ptv.pipeline.double_frame import (
-    PipelineSettings,
-    PtvResult,
-    link_radius,
-    match_frame,
-    run_pipeline,
-)
+from ptv.pipeline.double_frame import PtvResult, match_frame, run_pipeline
 from ptv.pipeline.frames import ChunkDetections, DetectedCentres, ImageDetector, exposures
+from ptv.pipeline.options import PipelineSettings, link_radius
 from ptv.tracking.linking import RecordingTracks, track_frames
 
 __all__ = [
@@ -197,16 +192,6 @@ def run_recording(
             progress(done[0], steps)
 
     recorded = measure_recording(detector, cameras, settings, numbers, tick=tick)
-    radius, predicted_radius = track_radii(sequence.frame_rate, settings)
-    tracks = track_frames(recorded.points, radius=radius, predicted_radius=predicted_radius)
-    log.info(
-        "frames %d … %d: %d points in %d tracks (%d links)",
-        numbers[0],
-        numbers[-1],
-        len(tracks),
-        tracks.n_tracks,
-        tracks.links,
-    )
     pairs = pair_detections(detector, recorded, settings.snapshot_count(sequence.snapshots))
 
     def pairs_progress(done_pairs: int, total: int) -> None:
@@ -215,6 +200,16 @@ def run_recording(
 
     result = run_pipeline(
         pairs, calibrations, settings, progress=pairs_progress, statistics=statistics
+    )
+    radius, predicted_radius = track_radii(sequence.frame_rate, result.settings)
+    tracks = track_frames(recorded.points, radius=radius, predicted_radius=predicted_radius)
+    log.info(
+        "frames %d … %d: %d points in %d tracks (%d links)",
+        numbers[0],
+        numbers[-1],
+        len(tracks),
+        tracks.n_tracks,
+        tracks.links,
     )
     recording = RecordingTracks(
         numbers=recorded.numbers,

@@ -22,19 +22,19 @@ from ptv.calibration.grid_errors import nominal_positions
 from ptv.calibration.io import load_calibrations
 from ptv.io.dataset import DatasetError, open_dataset
 from ptv.pipeline.double_frame import (
-    PipelineSettings,
     match_frame,
     measure_snapshot,
     measure_snapshots,
-    median_test_outliers,
     run_pipeline,
 )
 from ptv.pipeline.frames import ImageDetector
+from ptv.pipeline.options import PipelineSettings
 from ptv.pipeline.results import save_results
 from ptv.stats.links import RunParticles, shared_snapshots
 from ptv.stats.mean_displacement import shared_mean_displacement
 from ptv.stats.pairs import pair_sums
 from ptv.stats.run_statistics import ANALYSIS_VOLUME, StatisticsSettings, compute_statistics
+from ptv.tracking.outliers import median_test_outliers
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign
@@ -315,8 +315,11 @@ def _tiny_dataset(folder, *, dt=(1e-4, 2e-4), frames=1, size=(64, 64), image=(64
 def test_all_frames_empty_is_a_clear_error(rendered, tmp_path, caplog):
     calibrations = rendered[2]
     dataset = open_dataset(_tiny_dataset(tmp_path / "empty"))
+    with pytest.raises(ValueError, match=r"no snapshot at Δt_0 .* has matched particles"):
+        run_pipeline(ImageDetector(dataset), calibrations)  # max_speed cannot be measured
+    given = PipelineSettings(max_speed=1.5)
     with pytest.raises(ValueError, match="multi-Δt method needs at least two"):
-        run_pipeline(ImageDetector(dataset), calibrations)
+        run_pipeline(ImageDetector(dataset), calibrations, given)
     assert caplog.text.count("no matched particle") == 2
 
 
@@ -474,7 +477,7 @@ def test_a_shared_first_frame_is_measured_once_with_the_same_result(rendered):
     detector = ImageDetector(open_dataset(folder))
     assert detector.shared_first_frame
     cameras = [calibrations[name] for name in detector.cameras]
-    settings = PipelineSettings()
+    settings = PipelineSettings(max_speed=1.5)
     shared = measure_snapshots(detector, range(3), cameras, settings)
     for m in range(3):
         fresh = measure_snapshot(ImageDetector(open_dataset(folder)), 2, m, cameras, settings)

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ptv.pipeline.double_frame import PipelineSettings
 from ptv.pipeline.frames import DetectorSettings
+from ptv.pipeline.options import PipelineSettings
 from ptv.pipeline.settings import (
     PtvSettings,
     SettingsError,
@@ -103,3 +103,14 @@ def test_a_missing_or_broken_file_is_named(tmp_path):
     broken.write_text("[linking\n")
     with pytest.raises(SettingsError, match=r"broken\.toml: not a readable TOML file"):
         load_settings(broken)
+
+
+def test_min_cameras_and_max_speed_left_out_follow_the_cameras_and_the_data():
+    from ptv.pipeline.options import default_min_cameras
+
+    assert [default_min_cameras(n) for n in (2, 3, 4, 5, 6)] == [2, 2, 3, 4, 5]
+    defaults = PipelineSettings()
+    assert defaults.min_cameras is None and defaults.max_speed is None
+    text = settings_toml()
+    assert "# max_speed = ...  # " in text and "# min_cameras = ...  # " in text
+    assert settings_from_dict(tomllib.loads(text)).pipeline == defaults

@@ -1,6 +1,8 @@
 """A calibration method that cannot fit a camera: named with its reason; a baseline is
 left out and the work goes on, a required method stops it."""
 
+from dataclasses import replace
+
 import pytest
 
 import ptv.calibration.experiment as experiment
@@ -9,6 +11,8 @@ from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.dataset.calibrate import calibrate_dataset
 from validation.dataset.render import RenderSettings, write_dataset
+from validation.report.run_report import _tsai_note
+from validation.run.scenario import RigSection, load_scenario
 from validation.run.verdict import failed_rung_checks, verdict, verdict_line
 
 SETTINGS = RenderSettings(frames=1, planes=3, particles=50, n_modes=40, seed=2)
@@ -89,3 +93,12 @@ def test_a_calibration_baseline_without_a_rung_is_printed_with_its_camera():
         "tsai (baseline: reported, not required): could not calibrate camera cam2: Tsai LM diverged"
     )
     assert printed[-1] == "verdict: every required check passes"
+
+
+def test_the_report_says_when_scheimpflug_cameras_are_outside_tsais_model():
+    results = {"calibration": {"tsai_reprojection_rms_px": {"cam1": 3.61, "cam2": 3.62}}}
+    note = " ".join(_tsai_note(results, load_scenario("default")))  # paper-stereo: Scheimpflug
+    assert "sensor square to the optical axis" in note and "cam1 3.61 px, cam2 3.62 px" in note
+    untilted = replace(load_scenario("default"), rig=RigSection("conventional"))
+    assert _tsai_note(results, untilted) == []  # no tilted sensor: nothing to say
+    assert _tsai_note({"calibration": {}}, load_scenario("default")) == []  # Tsai not fitted

@@ -12,7 +12,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from ptv.pipeline.double_frame import PipelineSettings, PtvResult
+from ptv.pipeline.double_frame import PtvResult
+from ptv.pipeline.options import PipelineSettings
 from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import ANALYSIS_VOLUME, StatisticsSettings, compute_statistics
 from validation.report.ptv_figures import (

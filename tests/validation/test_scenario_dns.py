@@ -8,7 +8,7 @@ import pytest
 from validation.run.scenario import ScenarioError, load_scenario, scenario_from_dict
 
 DNS = {"kind": "dns", "epsilon": 1e-5, "grid": 64, "dt_tau_eta": [0.1, 0.2]}
-PTV = {"r_range": [1e-3, 25e-3]}
+PTV = {"r_range": [1e-3, 25e-3], "plateau": [2e-3, 20e-3]}
 
 
 def scenario(flow: dict, ptv: dict = PTV):
@@ -39,8 +39,17 @@ def test_a_ks_flow_is_written_as_before_without_its_kind():
         ({"spacing": 0.5}, PTV, "flow.spacing must be from 1"),
         ({"grid": 1024}, PTV, "flow.grid: n = 1024 needs about"),
         ({"file": "f.h5"}, PTV, "flow.file is not a field of a 'dns' flow"),
-        ({}, {"r_range": [1e-3, 35e-3]}, "ptv.r_range reaches 35 mm, beyond half the DNS box"),
-        ({}, {}, "ptv.r_range starts at 0.5 mm, below the flow's Kolmogorov length"),
+        (
+            {},
+            {**PTV, "r_range": [1e-3, 35e-3]},
+            "ptv.r_range reaches 35 mm, beyond half the DNS box",
+        ),
+        ({}, {}, "ptv.r_range and ptv.plateau: a DNS must give them"),
+        (
+            {},
+            {"r_range": [0.5e-3, 25e-3], "plateau": [2e-3, 20e-3]},
+            "ptv.r_range starts at 0.5 mm, below the flow's Kolmogorov length",
+        ),
     ],
 )
 def test_bad_dns_fields_are_refused_by_name(change, ptv, message):

@@ -11,7 +11,7 @@ from simulator.presets import flow_preset
 from simulator.rigs import load_rig, rig_from_dict
 from simulator.spectra import KolmogorovBandSpectrum, PopeSpectrum
 from simulator.target import Imperfections, PlateDesign, build_plate, traverse_positions
-from validation.claims.rendered_case import RenderedCase, render_case
+from validation.claims.rendered_case import SLOW_CASE, RenderedCase, render_case
 from validation.studies.calibration_methods import (
     calibrate_cameras,
     compare_methods,
@@ -210,6 +210,11 @@ class ClaimContext:
     def rendered_case(self) -> RenderedCase:
         """The small rendered case of the image-stack claims, measured by the stack."""
         return render_case(self.sizes.image_snapshots, seed=self.seed + 10)
+
+    @cached_property
+    def slow_case(self) -> RenderedCase:
+        """The slow lab flow on four cameras (claims #35, #36), measured by the stack."""
+        return render_case(self.sizes.image_snapshots, seed=self.seed + 11, spec=SLOW_CASE)
 
     @cached_property
     def reference(self) -> BruteForceS2:

@@ -1,36 +1,76 @@
-"""A small rendered double-frame case for the image-stack claims (docs/claims.md §3).
+"""Small rendered double-frame cases for the image-stack claims (docs/claims.md §3).
 
-The paper-stereo rig records a few snapshots of the 10 Hz flow at its largest Δt through
-the simulator's refracting cameras with sensor noise; the PTV stack then runs on the
-images exactly as in ``synptv run``: :func:`ptv.detect.detect_particles` with the
-default :class:`ptv.pipeline.frames.DetectorSettings`, and
+A rig records a few snapshots of a flow at its largest Δt through the simulator's
+refracting cameras with sensor noise; the PTV stack then runs on the images exactly as
+in ``synptv run``: :func:`ptv.detect.detect_particles` with the default
+:class:`ptv.pipeline.frames.DetectorSettings`, and
 :func:`ptv.pipeline.double_frame.measure_snapshot` (matching, linking, median test) with
-the default :class:`ptv.pipeline.double_frame.PipelineSettings` and the rig's true
-cameras, so that no calibration error enters. Everything the claims compare with comes
-from the simulator: the exact image of every particle centre, its spot's σ and
-photo-electrons, and the particles' true positions.
+the default :class:`ptv.pipeline.options.PipelineSettings` (min_cameras from the camera
+count, max_speed measured on the case's own links:
+:func:`ptv.pipeline.double_frame.resolve_settings`) and the rig's true cameras, so that
+no calibration error enters. Everything the claims compare with comes from the
+simulator: the exact image of every particle centre, its spot's σ and photo-electrons,
+and the particles' true positions.
+
+Two cases (:data:`PAPER_CASE`, :data:`SLOW_CASE`): the default scenario's (paper-stereo,
+the 10 Hz flow), and the slow-4cam scenario's (four cameras, a lab flow ten times slower),
+on which a setting that does not follow the flow shows.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ptv.detect import detect_particles
-from ptv.pipeline.double_frame import PipelineSettings, SnapshotMeasurement, measure_snapshot
+from ptv.pipeline.double_frame import SnapshotMeasurement, measure_snapshot, resolve_settings
 from ptv.pipeline.frames import ChunkDetections, DetectedCentres, DetectorSettings
+from ptv.pipeline.options import PipelineSettings
 from simulator.particles import KSFlow, double_frame
 from simulator.presets import flow_preset
 from simulator.render.camera_frames import ParticleFrame, ParticleLighting, record_particles
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig, load_rig
 from simulator.spectra import PopeSpectrum
+from simulator.turbulence import TurbulenceParameters
 
-#: The rendered case: the default scenario's rig, flow, tracer count and brightness.
-RIG = "paper-stereo"
-FLOW = "lem-10hz"
-PARTICLES = 2000
-ELECTRONS = 2000.0
+
+@dataclass(frozen=True)
+class CaseSpec:
+    """What a rendered case records: a rig, a flow at one Δt, tracers and their light.
+
+    Attributes
+    ----------
+    rig : str
+        Rig preset.
+    parameters : TurbulenceParameters
+        The flow (u′, ε, ν).
+    dt : float
+        Frame separation, s.
+    particles : int
+        Tracers in the sheet.
+    electrons : float
+        Photo-electrons per tracer on the sheet's centre plane.
+    """
+
+    rig: str
+    parameters: TurbulenceParameters
+    dt: float
+    particles: int
+    electrons: float
+
+
+#: The default scenario's rig, flow (at its largest Δt), tracer count and brightness.
+PAPER_CASE = CaseSpec(
+    "paper-stereo",
+    flow_preset("lem-10hz").parameters,
+    float(flow_preset("lem-10hz").dt[-1]),
+    2000,
+    2000.0,
+)
+_SLOW = TurbulenceParameters(u_rms=0.05, epsilon=1e-3)
+#: The slow-4cam scenario's: four cameras, u′ = 0.05 m/s, ε = 10⁻³ m²/s³, Δt = 0.2 τ_η.
+SLOW_CASE = CaseSpec("box-4cam", _SLOW, 0.2 * _SLOW.tau_eta, 1500, 2000.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,7 +109,9 @@ class RenderedCase:
     sensor : Sensor
         The noise model the images were recorded with.
     settings : PipelineSettings
-        The matching and linking settings used.
+        The matching and linking settings used (min_cameras and max_speed resolved).
+    spec : CaseSpec
+        What was recorded.
     """
 
     rig: Rig
@@ -78,10 +120,11 @@ class RenderedCase:
     exposures: list
     measurements: list[SnapshotMeasurement]
     sensor: Sensor
-    settings: PipelineSettings = field(default_factory=PipelineSettings)
+    settings: PipelineSettings
+    spec: CaseSpec = PAPER_CASE
 
 
-def render_case(snapshots: int, *, seed: int) -> RenderedCase:
+def render_case(snapshots: int, *, seed: int, spec: CaseSpec = PAPER_CASE) -> RenderedCase:
     """Render ``snapshots`` double frames and run detection, matching and linking.
 
     Parameters
@@ -90,24 +133,25 @@ def render_case(snapshots: int, *, seed: int) -> RenderedCase:
         Frame pairs M.
     seed : int
         Seed of the flow, the particles and the sensor noise.
+    spec : CaseSpec
+        Rig, flow, Δt, tracers.
 
     Returns
     -------
     RenderedCase
     """
-    rig = load_rig(RIG)
-    preset = flow_preset(FLOW)
-    dt = float(preset.dt[-1])
+    rig = load_rig(spec.rig)
+    dt = spec.dt
     sample = double_frame(
-        KSFlow(PopeSpectrum(preset.parameters)),
+        KSFlow(PopeSpectrum(spec.parameters)),
         np.array([dt]),
-        particles=PARTICLES,
+        particles=spec.particles,
         snapshots=snapshots,
         region=rig.sheet,
         rng=seed,
     )
     positions = sample.runs[0].positions
-    lighting = ParticleLighting(electrons_at_reference=ELECTRONS)
+    lighting = ParticleLighting(electrons_at_reference=spec.electrons)
     sensor = Sensor()
     detector = DetectorSettings()
     noise = np.random.default_rng(np.random.SeedSequence([seed, 7]))
@@ -136,12 +180,12 @@ def render_case(snapshots: int, *, seed: int) -> RenderedCase:
         snapshots=(0, snapshots),
         found=found,
     )
-    settings = PipelineSettings()
+    settings, _ = resolve_settings(source, rig.cameras, PipelineSettings())
     measurements = [
         measure_snapshot(source, 0, m, rig.cameras, settings, keep_matched=True)
         for m in range(snapshots)
     ]
-    return RenderedCase(rig, dt, positions, exposures, measurements, sensor, settings)
+    return RenderedCase(rig, dt, positions, exposures, measurements, sensor, settings, spec)
 
 
 def _expose(camera, points, lighting, sensor, detector, rng) -> Exposure:

@@ -5,6 +5,8 @@ import dataclasses
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from validation.commands.common import COUNT, UsageError, say_took_over
 from validation.workflow.files import check_output_folder, hold_output_folder, staged_output
 from validation.workflow.progress import ProgressBar
@@ -22,6 +24,27 @@ def _ptv_settings(args: argparse.Namespace):
         if getattr(args, name) is not None
     }
     return dataclasses.replace(settings, pipeline=dataclasses.replace(settings.pipeline, **given))
+
+
+def _say_paper_ranges(statistics) -> None:
+    """Warn when the statistics ranges are the defaults, which suit the paper's flow: a
+    recording's η and L_int are not known to the stack, so they cannot be derived."""
+    from ptv.stats.run_statistics import StatisticsSettings
+
+    default = StatisticsSettings()
+    names = ("analysis_volume", "r_min", "r_max", "plateau")
+    if any(_same(getattr(statistics, n), getattr(default, n)) for n in names):
+        print(
+            "synptv ptv: warning: the analysis volume, r range or plateau is the default, "
+            "chosen for the paper's 10 Hz flow (r 0.5-35 mm, plateau 2-20 mm): it is not "
+            "derived from this recording; set [statistics] analysis_volume, r_min, r_max and "
+            "plateau for your flow (about 10η to L_int and 40η to L_int/2)",
+            file=sys.stderr,
+        )
+
+
+def _same(a, b) -> bool:
+    return bool(np.array_equal(np.asarray(a, dtype=float), np.asarray(b, dtype=float)))
 
 
 def run_ptv(args: argparse.Namespace) -> int:
@@ -53,7 +76,8 @@ def run_ptv(args: argparse.Namespace) -> int:
             f"--tracks needs a time-resolved recording ('time_resolved' in experiment.json, "
             f"docs/experiment.md §5), but {args.dataset} holds frame pairs"
         )
-    if settings.pipeline.min_cameras > len(dataset.cameras):
+    given = settings.pipeline.min_cameras
+    if given is not None and given > len(dataset.cameras):
         raise UsageError(
             f"min_cameras is {settings.pipeline.min_cameras} but the dataset has "
             f"{len(dataset.cameras)} cameras"
@@ -89,6 +113,8 @@ def run_ptv(args: argparse.Namespace) -> int:
     s = summary(result, calibration=str(args.calibration))
     for line in s["warnings"]:
         print(f"synptv ptv: warning: {line}", file=sys.stderr)
+    if not args.positions_only:
+        _say_paper_ranges(settings.pipeline.statistics)
     _print_counts(s)
     if args.tracks:
         csv_path, png_path = (out / path.name for path in tracked)
@@ -120,17 +146,30 @@ def _print_tracks(t: dict) -> None:
 
 
 def _print_counts(s: dict) -> None:
-    """The counts per Δt of a ``synptv ptv`` summary."""
+    """The link speed and the counts per Δt of a ``synptv ptv`` summary."""
+    speed = s["link_speed"]
+    if speed is None:
+        print(f"max_speed {s['settings']['max_speed']:.4g} m/s (given)")
+    else:
+        print(
+            f"max_speed {speed['max_speed']:.4g} m/s, measured on {speed['links']} links of "
+            f"{speed['snapshots']} snapshots at dt = {speed['dt'] * 1e3:.4g} ms (mean velocity "
+            f"{', '.join(f'{v:.3g}' for v in speed['mean_velocity'])} m/s, rms "
+            f"{', '.join(f'{v:.3g}' for v in speed['velocity_rms'])} m/s)"
+        )
     print(
         f"{'dt (ms)':>8s} {'snap':>5s} {'detections':>11s} {'matches':>8s} {'links':>7s} "
-        f"{'outliers':>8s} {'used':>6s}"
+        f"{'outliers':>8s} {'used':>6s} {'radius':>7s} {'spacing':>7s} {'ambig.':>6s}"
     )
     for c in s["counts"]:
         det = sum(d["a"] + d["b"] for d in c["detections"].values())
+        spacing = c["particle_spacing"]
         print(
             f"{c['dt'] * 1e3:8.4f} {c['snapshots_kept']:5d} {det:11d} "
             f"{c['matches']['a'] + c['matches']['b']:8d} {c['links']:7d} "
-            f"{c['outliers']:8d} {c['links_used']:6d}"
+            f"{c['outliers']:8d} {c['links_used']:6d} {c['link_radius'] * 1e3:5.3g}mm "
+            f"{'-' if spacing is None else f'{spacing * 1e3:.3g}mm':>7s} "
+            f"{100 * (c['ambiguity'] or 0):5.1f}%"
         )
 
 

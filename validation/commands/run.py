@@ -23,6 +23,13 @@ def run_experiment(args: argparse.Namespace) -> int:
         scenario = scenario.with_seed(args.seed)
     out = check_output_folder(args.out if args.out is not None else f"synptv-{scenario.name}")
     print(scenario.flow.describe())
+    p = scenario.ptv
+    print(
+        f"analysis: volume {' x '.join(f'{v * 1e3:.4g}' for v in p.analysis_volume)} mm, "
+        f"r {p.r_range[0] * 1e3:.3g}-{p.r_range[1] * 1e3:.3g} mm in {p.bins} bins, plateau "
+        f"{p.plateau[0] * 1e3:.3g}-{p.plateau[1] * 1e3:.3g} mm, max_speed "
+        + ("measured on the data" if p.max_speed is None else f"{p.max_speed:g} m/s (given)")
+    )
 
     def bar(stage: str) -> ProgressBar:
         return ProgressBar(stage, enabled=not args.quiet)
@@ -65,6 +72,10 @@ def run_experiment(args: argparse.Namespace) -> int:
             f"T_L = {f['eddy_time']:.4g} s, dissipation/injection = "
             f"{f['epsilon_dissipation'] / f['epsilon']:.4f}"
         )
+    baselines = set(scenario.ptv.methods[1:])  # their checks already say what went wrong
+    for variant, rung in results["ptv"].items():
+        for warning in [] if variant in baselines else rung["summary"]["warnings"]:
+            print(f"warning ({variant}): {warning}")
     for line in summary_lines(results):
         print(line)
     print(f"report written to {html_path}")

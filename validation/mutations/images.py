@@ -1,9 +1,9 @@
 """Mutations of detection, matching and linking (``ptv.detect``, ``ptv.matching.stereo``,
 ``ptv.tracking.linking``).
 
-Only the image-stack claims (``image.*``, on a small rendered case: detection against
-the Cramér–Rao bound and peak locking, matching against a brute-force matcher, linking)
-reach this code.
+Only the image-stack claims (``image.*``, on small rendered cases: detection against
+the Cramér–Rao bound and peak locking, matching against a brute-force matcher, linking,
+and the link radius on a slow flow) reach this code.
 """
 
 from dataclasses import replace
@@ -12,6 +12,7 @@ import numpy as np
 
 from ptv import detect
 from ptv.matching import stereo as match
+from ptv.tracking import link_speed as speed
 from ptv.tracking import linking as track
 from validation.mutations.base import Mutation
 from validation.mutations.patching import Patch, edited
@@ -21,6 +22,10 @@ from validation.mutations.probes import POINTS, stereo_pair
 DETECTION = ("image.detection_rms", "image.peak_locking")
 MATCHING = ("image.matching_reference",)
 LINKING = ("image.linking",)
+#: The claims of the link radius on a slow flow.
+SLOW_LINKING = ("image.slow_link_speed", "image.slow_linking")
+#: The link speed the stack used before it was measured on the data, m/s.
+PAPER_FLOW_SPEED = 1.5
 
 
 def _detected():
@@ -41,6 +46,20 @@ def _matched():
 def _linked():
     shift = np.array([5e-4, 0.0, 0.0])
     return np.array([len(track.link(POINTS, POINTS + shift, radius=1e-3))])
+
+
+def _speed_measured():
+    rng = np.random.default_rng(0)
+    a = rng.random((200, 3)) * 0.01
+    frames = [(a, a + rng.normal(0.0, 1e-5, a.shape))]
+    return np.array([speed.link_speed(frames, 1e-3, position_noise=1e-6).max_speed])
+
+
+def _fixed_speed(original):
+    def link_speed(frames, dt, **options):
+        return replace(original(frames, dt, **options), max_speed=PAPER_FLOW_SPEED)
+
+    return link_speed
 
 
 def _rounded(original):
@@ -101,5 +120,13 @@ IMAGE_MUTATIONS: tuple[Mutation, ...] = (
         LINKING,
         ("image",),
         _linked,
+    ),
+    Mutation(
+        "link-speed-fixed",
+        "the link radius uses the paper flow's 1.5 m/s, whatever speed the data show",
+        (Patch("ptv.tracking.link_speed:link_speed", _fixed_speed),),
+        SLOW_LINKING,
+        ("image",),
+        _speed_measured,
     ),
 )

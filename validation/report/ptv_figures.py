@@ -411,7 +411,7 @@ def epsilon_figure(
         label=f"S2^(3/2)/r (paper's caption, no C2: ×{c2**1.5:.2f})",
     )
     lo, hi = (v * 1e3 for v in result.settings.statistics.plateau)
-    ax.axvspan(lo, hi, color="0.93", zorder=0, label=f"plateau range {lo:g}–{hi:g} mm")
+    ax.axvspan(lo, hi, color="0.93", zorder=0, label=f"plateau range {lo:.3g}–{hi:.3g} mm")
     p = st.plateau
     if p is not None and np.isfinite(p.epsilon):
         if np.isfinite(p.se_epsilon):

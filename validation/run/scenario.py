@@ -42,10 +42,11 @@ import numpy as np
 
 from ptv.calibration.methods import CALIBRATION_METHODS
 from ptv.names import FILE_NAME_RULE, is_file_name
-from ptv.pipeline.double_frame import PipelineSettings
+from ptv.pipeline.options import PipelineSettings
 from ptv.stats.run_statistics import StatisticsSettings
 from simulator.render.sensor import Sensor
 from simulator.rigs import RigFileError, load_rig, rig_presets
+from validation.run.derived_ptv import DERIVED_FIELDS, derive_ptv_ranges
 from validation.run.flow_section import (
     FlowSection,
     check_flow,
@@ -103,7 +104,10 @@ class PtvSection:
     too, for the error budget); ``analysis_volume`` is the size of the centred box the
     statistics use, m; ``r_range`` the outer edges of the ``bins`` log-spaced
     separation bins, m; ``plateau`` the r range of the plateau ε, m; ``min_cameras``
-    the fewest cameras a match must use (2 to the rig's camera count).
+    the fewest cameras a match must use (2 to the rig's camera count; left out, all but
+    one of four or more, else 2); ``max_speed`` the largest particle speed, m/s (left
+    out, measured on the data). Left out, ``analysis_volume``, ``r_range`` and
+    ``plateau`` follow the rig and the flow (:mod:`validation.run.derived_ptv`).
     """
 
     methods: tuple[str, ...] = ("model-free", "tsai")
@@ -112,9 +116,9 @@ class PtvSection:
     bins: int = 24
     plateau: tuple[float, float] = (2e-3, 20e-3)
     kolmogorov_c2: float = 2.0
-    max_speed: float = 1.5
+    max_speed: float | None = None
     tolerance: float = 1.5e-4
-    min_cameras: int = 2
+    min_cameras: int | None = None
     n_boot: int = 200
 
 
@@ -188,7 +192,7 @@ SIZE_LIMITS = {
 }
 
 
-def _check(scenario: Scenario, source: str) -> None:
+def _check(scenario: Scenario, source: str, given: set[str]) -> None:
     def fail(message: str):
         raise ScenarioError(f"{source}: {message}")
 
@@ -225,7 +229,7 @@ def _check(scenario: Scenario, source: str) -> None:
     ):
         if not value > 0:
             fail(f"{where} must be > 0, got {value}")
-    if scenario.ptv.min_cameras < 2:
+    if scenario.ptv.min_cameras is not None and scenario.ptv.min_cameras < 2:
         fail(f"ptv.min_cameras must be at least 2, got {scenario.ptv.min_cameras}")
     if len(scenario.ptv.analysis_volume) != 3 or min(scenario.ptv.analysis_volume) <= 0:
         fail(f"ptv.analysis_volume must be 3 sizes > 0, m, got {scenario.ptv.analysis_volume}")
@@ -241,9 +245,18 @@ def _check(scenario: Scenario, source: str) -> None:
     ):
         if not 0 < lo < hi:
             fail(f"{where} must be [low, high] with 0 < low < high, m, got {[lo, hi]}")
-    _check_separations(scenario, source)
+    if {"r_range", "plateau", "analysis_volume"} & given:  # the rest are derived, then checked
+        _check_separations(scenario, source)
     if scenario.flow.kind == "dns":
         half = dns_box_side(scenario.flow) / 2
+        missing = [name for name in ("r_range", "plateau") if name not in given]
+        if missing:
+            fail(
+                f"ptv.{' and ptv.'.join(missing)}: a DNS must give them: its integral length "
+                f"is measured only once it runs, and half its box ({half * 1e3:.4g} mm, "
+                f"{half / dns_eta(scenario.flow):.0f}η) leaves no 40η … L_int/2 range to derive "
+                "them from (the dns-ci scenario gives r_range 1–25 mm, plateau 2–20 mm)"
+            )
         if scenario.ptv.r_range[1] > half:
             fail(
                 f"ptv.r_range reaches {scenario.ptv.r_range[1] * 1e3:g} mm, beyond half the DNS "
@@ -286,7 +299,7 @@ def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
     if not isinstance(description, str):
         raise ScenarioError(f"{source}: description must be a string, got {description!r}")
     scenario = Scenario(name=spec["name"], description=description, seed=seed, **sections)
-    _check(scenario, source)
+    _check(scenario, source, set(spec.get("ptv", {})))
     return scenario
 
 
@@ -337,18 +350,27 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     if path is not None and rig.suffix == ".toml" and not rig.is_absolute():
         rig = path.parent / rig
         scenario = replace(scenario, rig=RigSection(str(rig)))
-    if scenario.flow.kind == "grid":
-        scenario = _checked_field_file(scenario, path, source)
     if scenario.rig.name not in rig_presets() and not rig.is_file():
         raise ScenarioError(
             f"{source}: rig.name: unknown rig {scenario.rig.name!r}, neither a rig preset "
             f"({', '.join(rig_presets())}) nor a rig file"
         )
     try:
-        cameras = load_rig(scenario.rig.name).cameras  # a bad rig is refused now, not in the run
+        loaded = load_rig(scenario.rig.name)  # a bad rig is refused now, not in the run
     except RigFileError as err:
         raise ScenarioError(f"{source}: rig.name: {err}") from None
-    if scenario.ptv.min_cameras > len(cameras):
+    cameras = loaded.cameras
+    given = set(spec.get("ptv", {}))
+    if not given.issuperset(DERIVED_FIELDS):
+        scales = None
+        if scenario.flow.kind == "ks":
+            parameters = scenario.flow.as_preset().parameters
+            scales = {"eta": parameters.eta, "L_int": parameters.L_int}
+        scenario = derive_ptv_ranges(scenario, given, loaded.sheet.size, scales, source)
+        _check_separations(scenario, source)
+    if scenario.flow.kind == "grid":
+        scenario = _checked_field_file(scenario, path, source)
+    if scenario.ptv.min_cameras is not None and scenario.ptv.min_cameras > len(cameras):
         raise ScenarioError(
             f"{source}: ptv.min_cameras is {scenario.ptv.min_cameras} but rig "
             f"{scenario.rig.name!r} has {len(cameras)} cameras"

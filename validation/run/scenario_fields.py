@@ -3,6 +3,7 @@ naming the file and the field."""
 
 import math
 from dataclasses import fields
+from typing import get_args
 
 
 class ScenarioError(ValueError):
@@ -35,6 +36,9 @@ def section(cls, table: object, source: str, key: str):
     values = {}
     for name, value in table.items():
         default = getattr(cls(), name)
+        if value is None and default is None:  # as written by Scenario.as_dict
+            values[name] = None
+            continue
         if isinstance(default, tuple):
             if not isinstance(value, list | tuple):
                 raise ScenarioError(f"{where}.{name} must be a list, got {value!r}")
@@ -44,8 +48,11 @@ def section(cls, table: object, source: str, key: str):
                 raise ScenarioError(
                     f"{where}.{name} must be a list of {len(default)} numbers, got {list(value)}"
                 )
-        else:
-            value = typed(value, type(default), f"{where}.{name}")
+        else:  # a default of None stands for a value the run measures or derives
+            kind = type(default)
+            if default is None:
+                kind = next(a for a in get_args(known[name].type) if a is not type(None))
+            value = typed(value, kind, f"{where}.{name}")
         values[name] = value
     try:
         return cls(**values)

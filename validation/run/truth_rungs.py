@@ -24,8 +24,8 @@ from scipy.spatial import cKDTree
 from ptv.box import inside_box
 from ptv.camera_model import CameraModel
 from ptv.detect import FractionSums
-from ptv.pipeline.double_frame import PipelineSettings
 from ptv.pipeline.frames import FrameDetections
+from ptv.pipeline.options import PipelineSettings
 from ptv.stats.links import RunParticles
 from ptv.stats.pairs import LogBins
 from ptv.triangulate import triangulate

@@ -3,7 +3,8 @@ with the truth as ``synptv run``'s error budget compares its rungs.
 
 The positions of frames a and b of each snapshot at each Δt are linked: by their track
 ids when the file has tracks, else by synptv's double-frame linker
-(:func:`ptv.tracking.linking.link`, radius max_speed·Δt + 5σ_b); a normalised median test flags
+(:func:`ptv.tracking.linking.link`, radius max_speed·Δt + 5σ_b, max_speed measured on
+the file's first snapshots unless the settings give it); a normalised median test flags
 mislinks (:func:`ptv.pipeline.double_frame.median_test_outliers`), as for synptv's own links. The
 links in the analysis volume go through :func:`ptv.stats.run_statistics.compute_statistics`
 (with a shared first frame when the dataset has one and the file gives the same
@@ -15,16 +16,17 @@ estimator on the exact D_LL.
 import numpy as np
 
 from ptv.pipeline.double_frame import (
-    PipelineSettings,
+    LINK_SPEED_SNAPSHOTS,
     SnapshotMeasurement,
-    link_radius,
-    median_test_outliers,
     run_particles,
+    settings_with_measured_speed,
 )
+from ptv.pipeline.options import PipelineSettings, link_radius
 from ptv.pipeline.results import statistics_summary
 from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import compute_statistics
 from ptv.tracking.linking import link
+from ptv.tracking.outliers import median_test_outliers
 from validation.dataset.truth_file import TruthFile
 from validation.run.checks import compare_variant, predicted_noise
 from validation.run.particle_chunks import snapshot_chunks
@@ -46,6 +48,23 @@ def _pairs(positions: Positions, a: np.ndarray, b: np.ndarray, radius: float | N
         return np.empty(0, np.int64), np.empty(0, np.int64)
     links = link(positions.xyz[a], positions.xyz[b], radius=radius)
     return links.index_a, links.index_b
+
+
+def _with_measured_speed(
+    positions: Positions, rows: dict, dt: np.ndarray, settings: PipelineSettings
+) -> PipelineSettings:
+    """The settings with max_speed measured on the file's first snapshots at its smallest
+    scored Δt (as a run measures it on its own)."""
+    paired = sorted({k for k, m, frame in rows if frame == 0 and (k, m, 1) in rows})
+    if not paired:
+        return settings  # nothing to link
+    k = min(paired, key=lambda kk: dt[kk])
+    snapshots = sorted(m for kk, m, frame in rows if kk == k and frame == 0 and (k, m, 1) in rows)
+    pairs = [
+        (positions.xyz[rows[(k, m, 0)]], positions.xyz[rows[(k, m, 1)]])
+        for m in snapshots[:LINK_SPEED_SNAPSHOTS]
+    ]
+    return settings_with_measured_speed(settings, pairs, k, float(dt[k]))[0]
 
 
 def link_runs(
@@ -70,6 +89,8 @@ def link_runs(
         One per Δt with both frames, positions in the file's own frame.
     """
     rows = {(f.k, f.m, f.frame): f.rows for f in scored.frames}
+    if positions.track is None and settings.max_speed is None:
+        settings = _with_measured_speed(positions, rows, dt, settings)
     runs = []
     for k in sorted({key[0] for key in rows}):
         snapshots = sorted(m for kk, m, frame in rows if kk == k and frame == 0)

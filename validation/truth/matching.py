@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ptv.box import Box, inside_box
-from ptv.pipeline.double_frame import PipelineSettings
+from ptv.pipeline.options import PipelineSettings
 from validation.dataset.truth_file import TruthRun
 
 #: Nearest-neighbour distance within which pairs enter the rigid fit, m.

@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from ptv.calibration import tsai
 from ptv.calibration.grid_errors import table1_errors
 from ptv.calibration.model_free import calibrate_model_free
 from ptv.calibration.tsai import (
@@ -163,6 +164,36 @@ def test_a_camera_the_linear_stages_cannot_start_is_fitted_from_the_dlt(caplog):
     assert "direct linear transform" in caplog.text
     assert 1.0 < fit.reprojection_rms < 10.0
     assert fit.focal_length == pytest.approx(camera.lens.focal_length, rel=0.1)
+
+
+def _depth_over_50(start):
+    rot, tx, ty, tz, f, sx = start
+    return rot, tx, ty, tz / 50, f, sx
+
+
+def _tipped_60_degrees(start):
+    rot, *rest = start
+    return (Rotation.from_euler("x", 60, degrees=True).as_matrix() @ rot, *rest)
+
+
+@pytest.mark.parametrize(
+    ("spoil", "what"), [(_depth_over_50, "diverged"), (_tipped_60_degrees, "ended at")]
+)
+def test_a_start_the_fit_cannot_bring_home_is_retried_from_the_dlt(
+    spoil, what, monkeypatch, caplog
+):
+    # A poor linear start (the oblique Scheimpflug camera gave f = 0.2 mm) sends
+    # Levenberg–Marquardt past the distortion fold (the depth 50 times too short), or
+    # into a local minimum 200 px off (the camera tipped by 60°); the fit starts again
+    # from the DLT and gives back the exact camera.
+    cam, world, px = synthetic_data(CAM_A)
+    world, px = world[::10], px[::10]  # exact pixels: a tenth of the dots pin the camera
+    linear = tsai._linear_stages
+    monkeypatch.setattr(tsai, "_linear_stages", lambda *args: spoil(linear(*args)))
+    fit = fit_tsai(world, px, pixel_pitch=PITCH, sensor_size=SENSOR)
+    assert what in caplog.text and "starting from a DLT" in caplog.text
+    assert fit.reprojection_rms < 1e-6
+    assert fit.focal_length == pytest.approx(cam.focal_length, rel=1e-9)
 
 
 @pytest.mark.parametrize("spec", [CAM_A, CAM_B, CAM_C])

@@ -1,0 +1,123 @@
+"""The options of the double-frame PTV (:mod:`ptv.pipeline.double_frame`): matching
+volume and tolerance, linking, the median test, the snapshots processed, the statistics;
+and the link radius they give."""
+
+from dataclasses import dataclass, field
+
+from ptv._checks import positive
+from ptv.box import Box, check_box
+from ptv.stats.run_statistics import StatisticsSettings
+from ptv.tracking.linking import search_radius
+
+__all__ = ["MEASUREMENT_VOLUME", "PipelineSettings", "default_min_cameras", "link_radius"]
+
+#: The 100 × 100 × 10 mm laser sheet plus a 1 mm margin, m: the default matching volume.
+MEASUREMENT_VOLUME: Box = ((-0.051, -0.051, -0.006), (0.051, 0.051, 0.006))
+
+
+@dataclass(frozen=True)
+class PipelineSettings:
+    """Options of :func:`run_pipeline` (SI units).
+
+    Attributes
+    ----------
+    volume : (lower, upper)
+        Matching volume, m (default :data:`MEASUREMENT_VOLUME`).
+    tolerance : float
+        Stereo tolerance on the ray distances, m (default 0.15 mm).
+    min_cameras : int or None
+        Fewest cameras a match must use (at most the number of cameras; default None:
+        :func:`default_min_cameras` of the camera count).
+    max_speed : float or None
+        Largest particle speed, m/s: sets the link radius (default None: measured on the
+        data, :func:`resolve_settings`).
+    position_noise : float
+        Expected position noise σ_b (one component), m: adds 5σ_b to the link radius
+        (default 30 µm).
+    max_acceleration : float
+        Largest particle acceleration expected, m/s²: sets the radius around a track's
+        constant-velocity prediction in a time-resolved recording
+        (:func:`ptv.tracking.recording.track_radii`; default 100, about 5 times the rms of one
+        component in the paper's flows).
+    outlier_threshold : float or None
+        Threshold of the normalised median test on the displacements (default 4; None
+        keeps every link).
+    outlier_neighbours : int
+        Neighbours of the normalised median test (default 8).
+    snapshots : int or None
+        Process only the first N snapshots of every Δt (None: all).
+    statistics : StatisticsSettings
+        Analysis volume, bins, plateau, C2, bootstrap (:mod:`ptv.stats.run_statistics`).
+    """
+
+    volume: Box = MEASUREMENT_VOLUME
+    tolerance: float = 1.5e-4
+    min_cameras: int | None = None
+    max_speed: float | None = None
+    position_noise: float = 30e-6
+    max_acceleration: float = 100.0
+    outlier_threshold: float | None = 4.0
+    outlier_neighbours: int = 8
+    snapshots: int | None = None
+    statistics: StatisticsSettings = field(default_factory=StatisticsSettings)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "volume", check_box("volume", self.volume))
+        for name in ("tolerance", "max_speed", "position_noise", "max_acceleration"):
+            if name != "max_speed" or self.max_speed is not None:
+                object.__setattr__(self, name, positive(name, getattr(self, name)))
+        if self.outlier_threshold is not None:
+            object.__setattr__(
+                self, "outlier_threshold", positive("outlier_threshold", self.outlier_threshold)
+            )
+        if self.min_cameras is not None and (
+            isinstance(self.min_cameras, bool)
+            or not isinstance(self.min_cameras, int)
+            or self.min_cameras < 2
+        ):
+            raise ValueError(f"min_cameras must be an integer >= 2, got {self.min_cameras!r}")
+        if not isinstance(self.outlier_neighbours, int) or self.outlier_neighbours < 2:
+            raise ValueError(
+                f"outlier_neighbours must be an integer >= 2, got {self.outlier_neighbours!r}"
+            )
+        if self.snapshots is not None and not (
+            isinstance(self.snapshots, int)
+            and not isinstance(self.snapshots, bool)
+            and self.snapshots >= 1
+        ):
+            raise ValueError(f"snapshots must be an integer >= 1 or None, got {self.snapshots!r}")
+        if not isinstance(self.statistics, StatisticsSettings):
+            raise ValueError(
+                f"statistics must be a StatisticsSettings, got {type(self.statistics).__name__}"
+            )
+
+    def snapshot_count(self, frames: int) -> int:
+        """Snapshots processed of a run of ``frames`` frame pairs."""
+        return frames if self.snapshots is None else min(self.snapshots, frames)
+
+
+def default_min_cameras(n_cameras: int) -> int:
+    """Fewest cameras a match must use when the settings leave it out: all but one of
+    four or more cameras, two of two or three.
+
+    With two cameras every match is a pair. With three, a particle hidden from one camera
+    (behind another, or outside its view) is still matched by the other two. With four
+    or more, a pair of rays meets a wrong ray within the tolerance far more often than
+    three do, and every particle in the common view is still seen by all but one.
+    """
+    return max(2, n_cameras - 1) if n_cameras >= 4 else 2
+
+
+def link_radius(dt: float, settings: PipelineSettings) -> float:
+    """Link search radius max_speed·Δt + 5·position_noise, m.
+
+    Raises
+    ------
+    ValueError
+        ``settings.max_speed`` is None (not yet measured: :func:`resolve_settings`).
+    """
+    if settings.max_speed is None:
+        raise ValueError("max_speed is not known yet: measure it with resolve_settings")
+    return search_radius(
+        dt, u_rms=settings.max_speed, sigma_b=settings.position_noise, k_v=1.0, k_b=5.0
+    )
