@@ -60,14 +60,9 @@ class CaseSpec:
     electrons: float
 
 
+_PAPER = flow_preset("lem-10hz")
 #: The default scenario's rig, flow (at its largest Δt), tracer count and brightness.
-PAPER_CASE = CaseSpec(
-    "paper-stereo",
-    flow_preset("lem-10hz").parameters,
-    float(flow_preset("lem-10hz").dt[-1]),
-    2000,
-    2000.0,
-)
+PAPER_CASE = CaseSpec("paper-stereo", _PAPER.parameters, float(_PAPER.dt[-1]), 2000, 2000.0)
 _SLOW = TurbulenceParameters(u_rms=0.05, epsilon=1e-3)
 #: The slow-4cam scenario's: four cameras, u′ = 0.05 m/s, ε = 10⁻³ m²/s³, Δt = 0.2 τ_η.
 SLOW_CASE = CaseSpec("box-4cam", _SLOW, 0.2 * _SLOW.tau_eta, 1500, 2000.0)
