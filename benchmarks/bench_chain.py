@@ -53,7 +53,8 @@ def run(quick: bool) -> dict:
     warm = [(0, 10), (10, 20)]
     images = sum(m1 - m0 for m0, m1 in chunks) * (len(job.dt) + 1) * len(rig.cameras)
     cameras = list(rig.cameras)
-    settings = PipelineSettings()
+    # The paper rig's measured values: the benchmark times the chain, not the measurement.
+    settings = PipelineSettings(tolerance=1.5e-4, min_cameras=2, max_speed=1.04)
     figures: dict = {"machine": machine(), "chunks": n_chunks, "images": images}
     detections = None
     for workers in (1, 2):

@@ -3,9 +3,9 @@
 Only the calibration protocol is used (``pixel_to_ray``; docs/ptv.md §3). A candidate
 is a set of detections, one per camera in at least ``min_cameras`` cameras, whose rays
 all pass within ``tolerance`` of their least-squares point, that point lying inside
-the measurement volume (an axis-aligned box). Choose the tolerance at 2–3× the
-calibration error; the volume is the illuminated slab with a margin of about the
-tolerance.
+the measurement volume (an axis-aligned box). The pipeline measures the tolerance on
+the rig and the data (:mod:`ptv.matching.tolerance`); the volume is the illuminated
+slab with a margin of about the tolerance.
 
 Candidate search (vectorised, no all-pairs loop). Rays are parametrised along the
 box's depth axis ζ (the axis the rays cross most steeply, Z for the paper's rig): a ray

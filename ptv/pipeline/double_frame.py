@@ -6,16 +6,20 @@ source (detected from a dataset's images, or read from a detection store). For e
 
 1. match the cameras in frame a and in frame b (:func:`ptv.matching.stereo.match`) inside the
    measurement volume (default: the 100 × 100 × 10 mm sheet plus 1 mm) with the stereo
-   tolerance (default 0.15 mm, 2–3× the calibration error); with a shared first frame,
-   frame a of snapshot m is matched once for every Δt;
+   tolerance: 1.5 pixel footprints at the volume's centre, or 6 median ray distances of
+   the matches when the calibration's triangulation error is larger, measured on frame a
+   of the first snapshots unless the settings give it (:mod:`ptv.matching.tolerance`,
+   :func:`ptv.pipeline.resolve.resolve_matching`); with a shared first frame, frame a of
+   snapshot m is matched once for every Δt;
 2. link frame a to frame b one-to-one (:func:`ptv.tracking.linking.link`) within the radius
    r_k = max_speed·Δt_k + 5σ_b (σ_b: the position noise, default 30 µm): the Δt-scaled
    threshold of docs/ptv.md §4, which also rejects mismatches with |ΔX| beyond it.
    max_speed is the largest particle speed: measured on the links of the first snapshots
-   at the smallest Δt (:mod:`ptv.tracking.link_speed`, :func:`resolve_settings`)
-   unless the settings give it. Each snapshot counts its ambiguous links (a second
-   candidate within the radius) and the spacing of its particles, and a Δt whose links
-   are more than :data:`AMBIGUITY_WARNING` ambiguous is named in a warning;
+   at the smallest Δt unless the settings give it (:mod:`ptv.tracking.link_speed`,
+   :func:`ptv.pipeline.resolve.resolve_settings`). Each snapshot counts its ambiguous
+   links (a second candidate within the radius) and the spacing of its particles, and a
+   Δt whose links are more than :data:`AMBIGUITY_WARNING` ambiguous is named in a
+   warning;
 3. flag mislinks by the normalised median test (Westerweel & Scarano 2005) on the
    3-D displacements: a link is an outlier when |ΔX − m| > threshold·(r̃ + ε0), m the
    median displacement of its 8 nearest linked neighbours (same snapshot, by X(t)), r̃
@@ -44,36 +48,32 @@ results, ``validation`` draws and compares.
 
 import logging
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ptv.box import Box, inside_box
 from ptv.camera_model import CameraModel
 from ptv.io.dataset import cameras_in_order
-from ptv.matching.stereo import match
 from ptv.pipeline.frames import FrameDetections
-from ptv.pipeline.options import PipelineSettings, default_min_cameras, link_radius
+from ptv.pipeline.options import PipelineSettings, link_radius
+from ptv.pipeline.resolve import MeasuredSettings, match_frame, resolve_settings
 from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import PtvStatistics, compute_statistics
-from ptv.tracking.link_speed import LinkSpeed, link_speed, nearest_spacing
+from ptv.tracking.link_speed import nearest_spacing
 from ptv.tracking.linking import RecordingTracks, link
 from ptv.tracking.outliers import median_test_outliers
 
 __all__ = [
     "AMBIGUITY_WARNING",
-    "LINK_SPEED_SNAPSHOTS",
     "MatchedPoints",
     "PtvResult",
     "SnapshotMeasurement",
     "ambiguity_message",
-    "match_frame",
     "measure_snapshot",
     "measure_snapshots",
-    "resolve_settings",
     "run_particles",
     "run_pipeline",
-    "settings_with_measured_speed",
 ]
 
 log = logging.getLogger(__name__)
@@ -89,104 +89,6 @@ Progress = Callable[[int, int], None]
 #: are common (30 % at the largest Δt of a correctly linked slow flow) and harmless: the
 #: assignment picks the partner.
 AMBIGUITY_WARNING = 0.5
-#: Snapshots of the smallest Δt whose links measure max_speed when the settings leave it out.
-LINK_SPEED_SNAPSHOTS = 5
-
-
-def resolve_settings(
-    frames: FrameDetections, cameras: Sequence[CameraModel], settings: PipelineSettings
-) -> tuple[PipelineSettings, LinkSpeed | None]:
-    """The settings with min_cameras and max_speed known: as given, or from the camera
-    count (:func:`ptv.pipeline.options.default_min_cameras`) and measured on the data.
-
-    When ``settings.max_speed`` is None, the first :data:`LINK_SPEED_SNAPSHOTS` snapshots
-    of the smallest Δt with matched particles in both frames are matched and their links
-    measure it (:func:`ptv.tracking.link_speed.link_speed`).
-
-    Parameters
-    ----------
-    frames : FrameDetections
-        The detections.
-    cameras : sequence of CameraModel
-        Calibrations in the order of ``frames.cameras``.
-    settings : PipelineSettings
-        Options; max_speed None to measure it.
-
-    Returns
-    -------
-    (PipelineSettings, LinkSpeed or None)
-        The settings with min_cameras and max_speed set, and the measurement (None when
-        the settings gave max_speed).
-
-    Raises
-    ------
-    ValueError
-        No snapshot of the smallest Δt with matched particles, or too few links in them
-        to measure a speed.
-    """
-    if settings.min_cameras is None:
-        settings = replace(settings, min_cameras=default_min_cameras(len(cameras)))
-    if settings.max_speed is not None:
-        return settings, None
-    k = int(np.argmin(frames.dt))
-    pairs = []
-    for m in range(settings.snapshot_count(frames.frames[k])):
-        a, b = (match_frame(frames.detections(k, m, f), cameras, settings) for f in "ab")
-        if len(a) >= 2 and len(b):
-            pairs.append((a, b))
-        if len(pairs) == LINK_SPEED_SNAPSHOTS:
-            break
-    if not pairs:
-        raise ValueError(
-            f"no snapshot at Δt_{k} = {frames.dt[k]:.4g} s has matched particles in both "
-            "frames: nothing to link (check the images, the detection settings and that the "
-            "calibration is of this rig)"
-        )
-    return settings_with_measured_speed(settings, pairs, k, float(frames.dt[k]))
-
-
-def settings_with_measured_speed(
-    settings: PipelineSettings, pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int, dt: float
-) -> tuple[PipelineSettings, LinkSpeed]:
-    """The settings with max_speed measured on the matched points of some snapshots at Δt_k.
-
-    Parameters
-    ----------
-    settings : PipelineSettings
-        Options (position_noise is used).
-    pairs : sequence of (ndarray (N_a, 3), ndarray (N_b, 3))
-        Matched points of frames a and b of each snapshot, m.
-    k : int
-        Their Δt index (for the messages).
-    dt : float
-        Their Δt, s.
-
-    Returns
-    -------
-    (PipelineSettings, LinkSpeed)
-
-    Raises
-    ------
-    ValueError
-        Too few particles to measure a speed.
-    """
-    try:
-        measured = link_speed(pairs, dt, position_noise=settings.position_noise)
-    except ValueError as err:
-        raise ValueError(f"Δt_{k} = {dt:.4g} s: {err}") from None
-    log.info(
-        "max_speed %.3g m/s, measured on %d links of %d snapshots at Δt_%d = %.4g s "
-        "(mean velocity %s m/s, rms %s m/s; particle spacing %.3g mm)",
-        measured.max_speed,
-        measured.links,
-        measured.snapshots,
-        k,
-        measured.dt,
-        np.round(measured.mean_velocity, 4).tolist(),
-        np.round(measured.velocity_rms, 4).tolist(),
-        measured.spacing * 1e3,
-    )
-    return replace(settings, max_speed=measured.max_speed), measured
 
 
 # ------------------------------------------------------------------------ per snapshot
@@ -242,36 +144,6 @@ class SnapshotMeasurement:
             displacements=self.displacements[keep],
             outlier=self.outlier[keep],
         )
-
-
-def match_frame(
-    xy: Sequence[np.ndarray], cameras: Sequence[CameraModel], settings: PipelineSettings
-) -> np.ndarray:
-    """The matched 3-D points of one frame from the detections of every camera.
-
-    Parameters
-    ----------
-    xy : sequence of C ndarray, shape (N_c, 2)
-        Detected centres on each camera, px (the same instant).
-    cameras : sequence of C CameraModel
-        Their calibrations.
-    settings : PipelineSettings
-        Matching volume, tolerance and fewest cameras per match.
-
-    Returns
-    -------
-    ndarray, shape (N, 3)
-        Matched points, m.
-    """
-    if len(xy) != len(cameras):
-        raise ValueError(f"need detections per camera, got {len(xy)} for {len(cameras)} cameras")
-    return match(
-        cameras,
-        list(xy),
-        settings.volume,
-        tolerance=settings.tolerance,
-        min_cameras=settings.min_cameras or default_min_cameras(len(cameras)),
-    ).points
 
 
 def measure_snapshot(
@@ -434,7 +306,8 @@ def run_particles(
     settings : PipelineSettings
         Link radius (for the messages) and analysis volume.
     speed_measured : bool
-        max_speed was measured on the data (:func:`resolve_settings`), not given: the
+        max_speed was measured on the data
+        (:func:`ptv.pipeline.resolve.resolve_settings`), not given: the
         ambiguity warning then advises on the data rather than the setting.
 
     Returns
@@ -583,8 +456,9 @@ class PtvResult:
     recording : RecordingTracks or None
         The tracks through every frame of a time-resolved recording
         (:func:`ptv.tracking.recording.run_recording`; None otherwise).
-    link_speed : LinkSpeed or None
-        How max_speed was measured on the data (None when the settings gave it).
+    measured : MeasuredSettings
+        How the tolerance and max_speed were measured on the data (None where the
+        settings gave them).
     """
 
     source: FrameDetections
@@ -594,7 +468,7 @@ class PtvResult:
     statistics: PtvStatistics | None
     matched: MatchedPoints | None = None
     recording: RecordingTracks | None = None
-    link_speed: LinkSpeed | None = None
+    measured: MeasuredSettings = field(default_factory=MeasuredSettings)
 
 
 def run_pipeline(
@@ -638,7 +512,7 @@ def run_pipeline(
         raise ValueError(
             f"min_cameras is {settings.min_cameras} but the dataset has {len(cameras)} cameras"
         )
-    settings, measured_speed = resolve_settings(frames, cameras, settings)
+    settings, measured_settings = resolve_settings(frames, cameras, settings)
     total = sum(settings.snapshot_count(n) for n in frames.frames) + 1
     done = [0]
 
@@ -657,7 +531,7 @@ def run_pipeline(
             measured[k],
             len(cameras),
             settings,
-            speed_measured=measured_speed is not None,
+            speed_measured=measured_settings.link_speed is not None,
         )
         for k in range(len(frames.dt))
     ]
@@ -690,5 +564,5 @@ def run_pipeline(
             for s in run
             for f, points in enumerate(s.matched)
         ),
-        link_speed=measured_speed,
+        measured=measured_settings,
     )

@@ -23,14 +23,15 @@ class PipelineSettings:
     ----------
     volume : (lower, upper)
         Matching volume, m (default :data:`MEASUREMENT_VOLUME`).
-    tolerance : float
-        Stereo tolerance on the ray distances, m (default 0.15 mm).
+    tolerance : float or None
+        Stereo tolerance on the ray distances, m (default None: measured on the rig and
+        the data, :func:`ptv.pipeline.resolve.resolve_matching`).
     min_cameras : int or None
         Fewest cameras a match must use (at most the number of cameras; default None:
         :func:`default_min_cameras` of the camera count).
     max_speed : float or None
         Largest particle speed, m/s: sets the link radius (default None: measured on the
-        data, :func:`resolve_settings`).
+        data, :func:`ptv.pipeline.resolve.resolve_settings`).
     position_noise : float
         Expected position noise σ_b (one component), m: adds 5σ_b to the link radius
         (default 30 µm).
@@ -51,7 +52,7 @@ class PipelineSettings:
     """
 
     volume: Box = MEASUREMENT_VOLUME
-    tolerance: float = 1.5e-4
+    tolerance: float | None = None
     min_cameras: int | None = None
     max_speed: float | None = None
     position_noise: float = 30e-6
@@ -64,7 +65,7 @@ class PipelineSettings:
     def __post_init__(self) -> None:
         object.__setattr__(self, "volume", check_box("volume", self.volume))
         for name in ("tolerance", "max_speed", "position_noise", "max_acceleration"):
-            if name != "max_speed" or self.max_speed is not None:
+            if getattr(self, name) is not None:
                 object.__setattr__(self, name, positive(name, getattr(self, name)))
         if self.outlier_threshold is not None:
             object.__setattr__(
@@ -114,7 +115,8 @@ def link_radius(dt: float, settings: PipelineSettings) -> float:
     Raises
     ------
     ValueError
-        ``settings.max_speed`` is None (not yet measured: :func:`resolve_settings`).
+        ``settings.max_speed`` is None (not yet measured:
+        :func:`ptv.pipeline.resolve.resolve_settings`).
     """
     if settings.max_speed is None:
         raise ValueError("max_speed is not known yet: measure it with resolve_settings")

@@ -128,6 +128,11 @@ def _plateau_dict(plateau: Plateau | None) -> dict | None:
     }
 
 
+def _measured(measurement) -> dict | None:
+    """A measured setting's ``as_dict()``; None when the settings gave it."""
+    return None if measurement is None else measurement.as_dict()
+
+
 def _settings_dict(result: PtvResult) -> dict:
     s, st = result.settings, result.settings.statistics
     return {
@@ -205,8 +210,9 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     Keys: ``dataset``, ``calibration``, ``cameras``, ``settings``, ``dt``, ``counts``
     (per Δt: snapshots processed, kept and skipped, detections per camera and frame,
     matches per frame, links, links in the analysis volume, link radius, ambiguous links
-    and their fraction, particle spacing), ``link_speed`` (how max_speed was measured on
-    the data; None when the settings gave it), ``warnings`` (:func:`thin_data_warnings`
+    and their fraction, particle spacing), ``match_tolerance`` and ``link_speed`` (how
+    the matching tolerance and max_speed were measured on the data; None where the
+    settings gave them), ``warnings`` (:func:`thin_data_warnings`
     and :func:`ptv.pipeline.double_frame.ambiguity_message`), and those of
     :func:`statistics_summary` (only ``statistics_dt`` and ``errors``, both None, for a run
     of positions and links only);
@@ -214,7 +220,9 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     """
     counts = [_run_counts(run, result) for run in result.runs]
     ambiguous = [
-        ambiguity_message(run, result.settings, speed_measured=result.link_speed is not None)
+        ambiguity_message(
+            run, result.settings, speed_measured=result.measured.link_speed is not None
+        )
         for run in result.runs
     ]
     statistics = (
@@ -234,7 +242,8 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
         "statistics_dt": statistics.pop("statistics_dt"),
         "errors": statistics.pop("errors"),
         "counts": counts,
-        "link_speed": None if result.link_speed is None else result.link_speed.as_dict(),
+        "match_tolerance": _measured(result.measured.tolerance),
+        "link_speed": _measured(result.measured.link_speed),
         "warnings": thin_data_warnings(counts) + [line for line in ambiguous if line],
         **tracks,
         **statistics,

@@ -55,7 +55,7 @@ SECTIONS = {
 #: Fields whose "none" is written as false (a test turned off).
 _OFF_WITH_FALSE = ("outlier_threshold", "trajectory_threshold")
 #: Fields whose "none" is their absence.
-_NONE_WHEN_ABSENT = ("saturation", "snapshots", "max_speed", "min_cameras")
+_NONE_WHEN_ABSENT = ("saturation", "snapshots", "tolerance", "max_speed", "min_cameras")
 #: Units and meaning written beside each field by :func:`settings_toml`.
 _COMMENTS = {
     "threshold_sigmas": "detection threshold, noise σ above the background",
@@ -67,7 +67,8 @@ _COMMENTS = {
     "min_peak": "particles peaking less than this above the background are dropped, DN",
     "min_size": "particles with fewer pixels above threshold are dropped",
     "volume": "matching volume: lower and upper corners, m",
-    "tolerance": "largest ray distance from a matched point, m (2-3x the calibration error)",
+    "tolerance": "largest ray distance from a matched point, m (left out: 1.5 pixel footprints, "
+    "or 6 median ray distances of the matches when the calibration's error is larger)",
     "min_cameras": "fewest cameras a match must use (left out: all but one of 4 or more, else 2)",
     "max_speed": "largest particle speed, m/s: link radius max_speed·Δt + 5·position_noise "
     "(left out: measured on the links of the smallest Δt)",

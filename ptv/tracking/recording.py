@@ -5,7 +5,7 @@ frames n = first … last, τ = 1 / frame rate apart. :func:`run_recording`
 
 1. detects the particles on every frame of every camera (all of them, or those the
    first ``snapshots`` frame pairs span) and matches the cameras in each frame
-   (:func:`ptv.pipeline.double_frame.match_frame`): the 3-D points of every frame;
+   (:func:`ptv.pipeline.resolve.match_frame`): the 3-D points of every frame;
 2. links them frame to frame into tracks (:func:`ptv.tracking.linking.track_frames`): the first
    link of a track within r = max_speed·τ + 5σ_b (the double-frame link radius at
    Δt = τ), a longer track within r_p = max_acceleration·τ² + 5√3·σ_b of its
@@ -28,9 +28,10 @@ import numpy as np
 from ptv.camera_model import CameraModel
 from ptv.errors import DatasetError
 from ptv.io.dataset import cameras_in_order
-from ptv.pipeline.double_frame import PtvResult, match_frame, run_pipeline
+from ptv.pipeline.double_frame import PtvResult, run_pipeline
 from ptv.pipeline.frames import ChunkDetections, DetectedCentres, ImageDetector, exposures
 from ptv.pipeline.options import PipelineSettings, link_radius
+from ptv.pipeline.resolve import match_frame, resolve_matching
 from ptv.tracking.linking import RecordingTracks, track_frames
 
 __all__ = [
@@ -191,6 +192,7 @@ def run_recording(
         if progress is not None:
             progress(done[0], steps)
 
+    settings, tolerance = resolve_matching(detector, cameras, settings)
     recorded = measure_recording(detector, cameras, settings, numbers, tick=tick)
     pairs = pair_detections(detector, recorded, settings.snapshot_count(sequence.snapshots))
 
@@ -219,4 +221,5 @@ def run_recording(
         radius=radius,
         predicted_radius=predicted_radius,
     )
-    return replace(result, recording=recording)
+    measured = replace(result.measured, tolerance=tolerance)
+    return replace(result, recording=recording, measured=measured)

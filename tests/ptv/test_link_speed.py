@@ -16,9 +16,9 @@ from ptv.pipeline.double_frame import (
     SnapshotMeasurement,
     ambiguity_message,
     run_particles,
-    settings_with_measured_speed,
 )
 from ptv.pipeline.options import PipelineSettings, link_radius
+from ptv.pipeline.resolve import settings_with_measured_speed
 from ptv.tracking.link_speed import SPEED_SIGMAS, link_speed, nearest_spacing
 from ptv.tracking.linking import link
 

@@ -21,14 +21,10 @@ from scipy.spatial import cKDTree
 from ptv.calibration.grid_errors import nominal_positions
 from ptv.calibration.io import load_calibrations
 from ptv.io.dataset import DatasetError, open_dataset
-from ptv.pipeline.double_frame import (
-    match_frame,
-    measure_snapshot,
-    measure_snapshots,
-    run_pipeline,
-)
+from ptv.pipeline.double_frame import measure_snapshot, measure_snapshots, run_pipeline
 from ptv.pipeline.frames import ImageDetector
 from ptv.pipeline.options import PipelineSettings
+from ptv.pipeline.resolve import match_frame, resolve_matching
 from ptv.pipeline.results import save_results
 from ptv.stats.links import RunParticles, shared_snapshots
 from ptv.stats.mean_displacement import shared_mean_displacement
@@ -116,12 +112,13 @@ def test_matched_points_lie_on_the_true_particles(rendered, to_calibration_frame
     folder, _, calibrations = rendered
     detector = ImageDetector(open_dataset(folder))
     cameras = [calibrations[c] for c in detector.cameras]
+    settings, _ = resolve_matching(detector, cameras, PipelineSettings())
     visible_total = found = found_raw = matched = ghosts = 0
     errors = []
     for k in range(len(detector.dt)):
         truth, visible = _truth(folder, k)
         for f, frame in enumerate("ab"):
-            points = match_frame(detector.detections(k, 0, frame), cameras, PipelineSettings())
+            points = match_frame(detector.detections(k, 0, frame), cameras, settings)
             true_raw = truth[0, f][visible[0, f]]
             true_cal = to_calibration_frame(true_raw)
             tree = cKDTree(points)
@@ -315,9 +312,11 @@ def _tiny_dataset(folder, *, dt=(1e-4, 2e-4), frames=1, size=(64, 64), image=(64
 def test_all_frames_empty_is_a_clear_error(rendered, tmp_path, caplog):
     calibrations = rendered[2]
     dataset = open_dataset(_tiny_dataset(tmp_path / "empty"))
+    with pytest.raises(ValueError, match=r"no particle matched .* detections per camera \[0, 0\]"):
+        run_pipeline(ImageDetector(dataset), calibrations)  # the tolerance cannot be measured
     with pytest.raises(ValueError, match=r"no snapshot at Δt_0 .* has matched particles"):
-        run_pipeline(ImageDetector(dataset), calibrations)  # max_speed cannot be measured
-    given = PipelineSettings(max_speed=1.5)
+        run_pipeline(ImageDetector(dataset), calibrations, PipelineSettings(tolerance=1.5e-4))
+    given = PipelineSettings(max_speed=1.5, tolerance=1.5e-4)
     with pytest.raises(ValueError, match="multi-Δt method needs at least two"):
         run_pipeline(ImageDetector(dataset), calibrations, given)
     assert caplog.text.count("no matched particle") == 2
@@ -477,7 +476,7 @@ def test_a_shared_first_frame_is_measured_once_with_the_same_result(rendered):
     detector = ImageDetector(open_dataset(folder))
     assert detector.shared_first_frame
     cameras = [calibrations[name] for name in detector.cameras]
-    settings = PipelineSettings(max_speed=1.5)
+    settings, _ = resolve_matching(detector, cameras, PipelineSettings(max_speed=1.5))
     shared = measure_snapshots(detector, range(3), cameras, settings)
     for m in range(3):
         fresh = measure_snapshot(ImageDetector(open_dataset(folder)), 2, m, cameras, settings)

@@ -105,12 +105,14 @@ def test_a_missing_or_broken_file_is_named(tmp_path):
         load_settings(broken)
 
 
-def test_min_cameras_and_max_speed_left_out_follow_the_cameras_and_the_data():
+def test_min_cameras_tolerance_and_max_speed_left_out_follow_the_cameras_and_the_data():
     from ptv.pipeline.options import default_min_cameras
 
     assert [default_min_cameras(n) for n in (2, 3, 4, 5, 6)] == [2, 2, 3, 4, 5]
     defaults = PipelineSettings()
     assert defaults.min_cameras is None and defaults.max_speed is None
+    assert defaults.tolerance is None
     text = settings_toml()
-    assert "# max_speed = ...  # " in text and "# min_cameras = ...  # " in text
+    for name in ("max_speed", "min_cameras", "tolerance"):
+        assert f"# {name} = ...  # " in text
     assert settings_from_dict(tomllib.loads(text)).pipeline == defaults

@@ -218,8 +218,12 @@ def test_the_aim_point_images_at_the_principal_point(name):
     np.testing.assert_allclose(_offsets(camera, np.array([aim])), 0.0, atol=1e-6)
 
 
-@pytest.mark.parametrize(("name", "count"), [("box-3cam", 3), ("box-4cam", 4)])
-def test_box_presets_see_the_whole_sheet_through_the_front_wall(name, count):
+@pytest.mark.parametrize(
+    ("name", "count", "blur_px"),
+    # The 60 mm lenses of the unequal rig, at 1.05–1.1 m, blur a little more at f/8.
+    [("box-3cam", 3, 1.1), ("box-4cam", 4, 1.1), ("box-4cam-unequal", 4, 1.3)],
+)
+def test_box_presets_see_the_whole_sheet_through_the_front_wall(name, count, blur_px):
     rig = load_rig(name)
     assert len(rig.cameras) == count and rig.tank.kind == "box"
     corners = np.array(
@@ -231,7 +235,7 @@ def test_box_presets_see_the_whole_sheet_through_the_front_wall(name, count):
         np.testing.assert_allclose(camera.interfaces.offsets, [-0.162, -0.15], rtol=1e-14)
         assert np.isfinite(camera.project(corners)).all()
         # About a pixel at f/8, below the diffraction spot (2.44 λN ≈ 10 µm ≈ 1.9 px).
-        assert defocus_blur(camera, sheet_grid()).max() <= 1.1
+        assert defocus_blur(camera, sheet_grid()).max() <= blur_px
 
 
 @pytest.mark.parametrize(

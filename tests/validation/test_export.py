@@ -221,6 +221,25 @@ def test_openptv_readme_states_the_guesses(openptv):
         assert needle in text
 
 
+def test_tracking_bounds_follow_the_flow_of_the_dataset(openptv, dataset):
+    """track.par's displacement bounds at every Δt are max_speed·Δt, max_speed = |U| + 5
+    max σ_i of the true velocities (not a speed that suits one flow), about five times
+    the flow's u′ for kinematic simulation (no mean flow; 60 particles per snapshot)."""
+    with h5py.File(dataset / "truth.h5", "r") as f:
+        u_rms = float(f["flow"].attrs["u_rms"])
+        particles = f["particles"]
+        velocity = particles["dt0"]["velocity"][()].reshape(-1, 3)
+        dts = [particles[f"dt{k}"].attrs["dt"] for k in range(len(particles))]
+    velocity = velocity[np.isfinite(velocity).all(axis=1)]
+    speed = np.linalg.norm(velocity.mean(axis=0)) + 5 * velocity.std(axis=0).max()
+    assert 0.7 * 5 * u_rms < speed < 1.4 * 5 * u_rms
+    for k, dt in enumerate(dts):
+        bounds = np.array(
+            (openptv / f"parameters/track_dt{k}.par").read_text().split()[:6], dtype=float
+        )
+        np.testing.assert_allclose(np.abs(bounds), speed * dt * 1e3, rtol=1e-6)
+
+
 # -- MyPTV ----------------------------------------------------------------------------
 
 

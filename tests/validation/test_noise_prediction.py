@@ -1,9 +1,17 @@
 """The noise terms predicted for the multi-Δt fit from the measured noise."""
 
 import numpy as np
+import pytest
 
+from ptv.stats.multidt import wls_line
 from ptv.stats.pairs import LogBins
-from validation.run.checks import predicted_noise
+from validation.run.checks import (
+    C2_MARGIN,
+    NoisePrediction,
+    _c2_check,
+    c2_margin,
+    predicted_noise,
+)
 
 BINS = LogBins(1e-4, 1e-2, 4)
 BOX = (0.07, 0.07, 0.008)
@@ -34,3 +42,40 @@ def test_pair_noise_is_fitted_per_bin_against_dt_squared():
     np.testing.assert_allclose(got.c1_noise[:3], b[:3], rtol=1e-6, atol=1e-12)
     assert np.isnan(got.c2[3])
     assert np.all(got.c2_low[:3] <= got.c2[:3] * (1 + 1e-9))
+
+
+def test_the_exact_positions_c2_is_taken_off_before_the_noise_comparison():
+    """The fit's intercept holds the flow's own terms beyond Δt² besides the noise. On
+    slow-4cam (Δt = 0.04–0.2 τ_η, noise small against S2) the exact positions' c2 was
+    ~7e-12 m² beside a noise term of ~24e-12 m² at r > 10 mm: c2 alone read 1.2–1.3× the
+    noise prediction. Built here from a Δt⁴ term of that size: c2 alone fails the
+    comparison, c2 less the exact positions' c2 meets it."""
+    dt = np.array([1.265, 2.530, 3.795, 5.060, 6.325]) * 1e-3  # slow-4cam's Δt, s
+    x = dt**2
+    bins = 6
+    noise, truncation, c1 = 24e-12, 7e-12, 7e-4  # m², m², m²/s²
+    # The Δt⁴ coefficient whose straight-line fit over these Δt has the intercept above.
+    unit = wls_line(x, x**2, np.ones_like(x)).c2[0]
+    quartic = truncation / unit
+    exact = np.tile(c1 * x + quartic * x**2, (bins, 1))
+    sigma = np.ones_like(exact)
+    c2_exact = wls_line(x, exact, sigma).c2
+    c2_detected = wls_line(x, exact + noise, sigma).c2
+    np.testing.assert_allclose(c2_exact, truncation, rtol=1e-6)
+    prediction = NoisePrediction(np.full(bins, noise), np.full(bins, noise), np.zeros(bins))
+    sel = np.ones(bins, dtype=bool)
+    alone = _c2_check(c2_detected[sel], prediction, sel, None)
+    less = _c2_check(c2_detected[sel], prediction, sel, (c2_exact, np.zeros(bins)))
+    assert alone["median_over_prediction"] == pytest.approx(1 + truncation / noise)
+    assert not alone["consistent"]
+    assert less["median_over_prediction"] == pytest.approx(1.0)
+    assert less["consistent"]
+    np.testing.assert_allclose(less["noise_free_m2"], truncation, rtol=1e-6)
+
+
+def test_the_c2_margin_follows_the_error_of_the_median_where_it_is_larger():
+    """Nine bins each 30 % uncertain: the median is uncertain by √(π/2)·0.3/3 = 0.125, so
+    the margin is 0.25; bins 1 % uncertain keep the 5 % floor."""
+    assert c2_margin(np.full(9, 0.3)) == pytest.approx(2 * np.sqrt(np.pi / 2) * 0.1)
+    assert c2_margin(np.full(9, 0.01)) == C2_MARGIN
+    assert c2_margin(np.full(3, np.nan)) == C2_MARGIN

@@ -7,7 +7,7 @@ in ``synptv run``: :func:`ptv.detect.detect_particles` with the default
 :func:`ptv.pipeline.double_frame.measure_snapshot` (matching, linking, median test) with
 the default :class:`ptv.pipeline.options.PipelineSettings` (min_cameras from the camera
 count, max_speed measured on the case's own links:
-:func:`ptv.pipeline.double_frame.resolve_settings`) and the rig's true cameras, so that
+:func:`ptv.pipeline.resolve.resolve_settings`) and the rig's true cameras, so that
 no calibration error enters. Everything the claims compare with comes from the
 simulator: the exact image of every particle centre, its spot's σ and photo-electrons,
 and the particles' true positions.
@@ -23,9 +23,10 @@ from pathlib import Path
 import numpy as np
 
 from ptv.detect import detect_particles
-from ptv.pipeline.double_frame import SnapshotMeasurement, measure_snapshot, resolve_settings
+from ptv.pipeline.double_frame import SnapshotMeasurement, measure_snapshot
 from ptv.pipeline.frames import ChunkDetections, DetectedCentres, DetectorSettings
 from ptv.pipeline.options import PipelineSettings
+from ptv.pipeline.resolve import resolve_settings
 from simulator.particles import KSFlow, double_frame
 from simulator.presets import flow_preset
 from simulator.render.camera_frames import ParticleFrame, ParticleLighting, record_particles

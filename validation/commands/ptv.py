@@ -146,7 +146,18 @@ def _print_tracks(t: dict) -> None:
 
 
 def _print_counts(s: dict) -> None:
-    """The link speed and the counts per Δt of a ``synptv ptv`` summary."""
+    """The matching tolerance, the link speed and the counts per Δt of a ``synptv ptv``
+    summary."""
+    tolerance = s["match_tolerance"]
+    if tolerance is None:
+        print(f"matching tolerance {s['settings']['tolerance'] * 1e6:.4g} µm (given)")
+    else:
+        print(
+            f"matching tolerance {tolerance['tolerance'] * 1e6:.4g} µm "
+            f"({tolerance['tolerance'] / tolerance['pixel_footprint']:.3g} px of "
+            f"{tolerance['pixel_footprint'] * 1e6:.3g} µm; median ray distance "
+            f"{tolerance['median_ray_distance'] * 1e6:.3g} µm on {tolerance['rays']} rays)"
+        )
     speed = s["link_speed"]
     if speed is None:
         print(f"max_speed {s['settings']['max_speed']:.4g} m/s (given)")

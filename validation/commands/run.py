@@ -27,7 +27,9 @@ def run_experiment(args: argparse.Namespace) -> int:
     print(
         f"analysis: volume {' x '.join(f'{v * 1e3:.4g}' for v in p.analysis_volume)} mm, "
         f"r {p.r_range[0] * 1e3:.3g}-{p.r_range[1] * 1e3:.3g} mm in {p.bins} bins, plateau "
-        f"{p.plateau[0] * 1e3:.3g}-{p.plateau[1] * 1e3:.3g} mm, max_speed "
+        f"{p.plateau[0] * 1e3:.3g}-{p.plateau[1] * 1e3:.3g} mm, matching tolerance "
+        + ("measured" if p.tolerance is None else f"{p.tolerance * 1e6:g} µm (given)")
+        + ", max_speed "
         + ("measured on the data" if p.max_speed is None else f"{p.max_speed:g} m/s (given)")
     )
 

@@ -28,8 +28,6 @@ from validation.export.images import link_or_copy, noise_threshold
 from validation.export.source import ExportSource, rotation_angles
 
 MM = 1e3
-#: Largest particle speed the tracking bounds allow, m/s (synptv ptv's default).
-MAX_SPEED = 1.5
 #: Margin added around the laser sheet for the matching region, m.
 VOLUME_MARGIN = 2e-3
 
@@ -93,7 +91,7 @@ def params_file(source: ExportSource, threshold: int) -> str:
     sheet = source.rig.sheet
     lo = (np.asarray(sheet.centre) - np.asarray(sheet.size) / 2 - VOLUME_MARGIN) * MM
     hi = (np.asarray(sheet.centre) + np.asarray(sheet.size) / 2 + VOLUME_MARGIN) * MM
-    step = MAX_SPEED * source.dataset.dt[0] * MM
+    step = source.max_speed * source.dataset.dt[0] * MM
     names = ", ".join(source.cameras)
     blobs = ", ".join(f"blobs_{c}_dt0" for c in source.cameras)
     roi = ", ".join(f"{v:g}" for pair in zip(lo, hi, strict=True) for v in pair)
@@ -248,7 +246,8 @@ WHAT WAS CHOSEN OR GUESSED, AND WHY
     the first image of the first camera (in the 16-bit grey levels).
   * Matching region: the laser sheet plus {VOLUME_MARGIN * MM:g} mm; voxel size, blob distance and
     triangulation error limits are MyPTV's example values, not tuned.
-  * Tracking bounds: {MAX_SPEED:g} m/s x dt0. The pairs are double-frame exposures: only the
+  * Tracking bounds: {source.max_speed:.3g} m/s x dt0 (the true velocities' mean speed
+    plus five rms of a component). The pairs are double-frame exposures: only the
     a -> b link of each pair is meaningful.
   * This layout follows MyPTV's documentation; it has not been run through MyPTV here.
 """

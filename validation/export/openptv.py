@@ -40,8 +40,6 @@ from validation.export.source import ExportSource, rotation_angles
 
 #: OpenPTV's number of the first exposure of a sequence.
 FIRST_NUMBER = 10001
-#: Largest particle speed the tracking bounds allow, m/s (synptv ptv's default).
-MAX_SPEED = 1.5
 #: Half-width of the epipolar band of the correspondences, px (criteria.par eps0).
 EPIPOLAR_BAND_PX = 1.0
 #: Margin added around the laser sheet for the observed volume, m.
@@ -325,7 +323,7 @@ def _par_files(source: ExportSource, guesses: Guesses) -> dict[str, str]:
         sequence = _lines(
             *[f"img/dt{k}/{c}." for c in names], FIRST_NUMBER, frame_number(frames[k] - 1, "b")
         )
-        step = MAX_SPEED * dt * MM
+        step = source.max_speed * dt * MM
         track = _lines(-step, step, -step, step, -step, step, 120, 0.4 * step, 0)
         files[f"sequence_dt{k}.par"] = sequence
         files[f"track_dt{k}.par"] = track
@@ -485,6 +483,7 @@ WHAT WAS CHOSEN OR GUESSED, AND WHY
     since with two cameras each other particle inside the band makes a pair ambiguous
     (set it to about twice your calibration's RMS residual); OpenPTV's usual
     similarity limits (0.02) and corrmin 33.
-  * Tracking (track.par). Displacement bounds of +-{MAX_SPEED:g} m/s x dt per component; the
+  * Tracking (track.par). Displacement bounds of +-{source.max_speed:.3g} m/s x dt per
+    component (the true velocities' mean speed plus five rms of a component); the
     pairs are double-frame exposures, so only the a -> b link of each pair is meaningful.
 """

@@ -18,8 +18,12 @@ import numpy as np
 from ptv.calibration.experiment import nominal_grid, plate_setup
 from ptv.io.dataset import Dataset, open_dataset
 from ptv.io.experiment import read_experiment
+from ptv.tracking.link_speed import SPEED_SIGMAS
 from simulator.rigs import Rig
 from validation.dataset.truth_file import TruthFile
+
+#: Snapshots whose true velocities give the tracking bounds' speed.
+SPEED_SNAPSHOTS = 5
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +48,10 @@ class ExportSource:
         Plate image of camera c at traverse position j: ``plate_images[c][j]``.
     bit_depth : int or None
         Significant bits of the grey levels (experiment.json), None if not declared.
+    max_speed : float
+        Largest particle speed for the tracking bounds, m/s: |U| + 5 max_i σ_i of the true
+        velocities of the first snapshots (:func:`true_max_speed`), what a user who knows
+        the flow would type.
     """
 
     folder: Path
@@ -53,6 +61,7 @@ class ExportSource:
     dot_diameters: tuple[float, float]
     plate_images: list
     bit_depth: int | None
+    max_speed: float
 
     @property
     def cameras(self) -> tuple[str, ...]:
@@ -130,7 +139,19 @@ def read_source(folder: str | Path) -> ExportSource:
         dot_diameters=(setup.plate.dot_diameter, setup.plate.mark_diameter),
         plate_images=[setup.images[name] for name in dataset.cameras],
         bit_depth=bits,
+        max_speed=true_max_speed(truth),
     )
+
+
+def true_max_speed(truth: TruthFile) -> float:
+    """|U| + 5 max_i σ_i of the true particle velocities at t of the first snapshots
+    (at most :data:`SPEED_SNAPSHOTS`), m/s: U their mean, σ_i the rms of each component
+    about it; the rule synptv applies to its own measured links
+    (:mod:`ptv.tracking.link_speed`), here on the exact velocities."""
+    velocity = truth.runs(0, min(SPEED_SNAPSHOTS, truth.frames))[0].velocity.reshape(-1, 3)
+    velocity = velocity[np.isfinite(velocity).all(axis=1)]
+    mean = velocity.mean(axis=0)
+    return float(np.linalg.norm(mean) + SPEED_SIGMAS * velocity.std(axis=0).max())
 
 
 def rotation_angles(matrix: np.ndarray) -> tuple[float, float, float]:

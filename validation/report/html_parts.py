@@ -24,3 +24,8 @@ def table(header, rows) -> str:
         "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows
     )
     return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def percent(value: float | None) -> str:
+    """A fraction as a percentage for a table cell, to 3 significant digits ("–" for None)."""
+    return "–" if value is None else f"{100 * value:.3g} %"

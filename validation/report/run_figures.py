@@ -124,12 +124,17 @@ def budget_figure(
     return figure
 
 
+#: The noise figure's axis ends at this many times the prediction's largest value.
+OFF_SCALE = 2.5
+
+
 def noise_figure(
     r: np.ndarray,
     c2: Mapping[str, tuple[np.ndarray, np.ndarray]],
     prediction: NoisePrediction,
     check_range: tuple[float, float],
     *,
+    noise_free: np.ndarray | None = None,
     label: str = "",
     predicted_for: str = "",
 ) -> Figure:
@@ -145,6 +150,9 @@ def noise_figure(
         c2 predicted from the displacement noise measured against the truth.
     check_range : (float, float)
         r range of the checks, m (shaded).
+    noise_free : ndarray, shape (B,), optional
+        c2 of the same fit on the exact positions, m² (the flow's terms beyond Δt²):
+        drawn, and added to the prediction.
     label : str
         Which run (second title line).
     predicted_for : str
@@ -154,17 +162,31 @@ def noise_figure(
     um2 = 1e12
     ax.axvspan(*(v * 1e3 for v in check_range), color="0.93", label="check range")
     ok = np.isfinite(r)
+    offset = np.zeros_like(r) if noise_free is None else np.nan_to_num(noise_free)
     ax.fill_between(
         r[ok] * 1e3,
-        prediction.c2_low[ok] * um2,
-        prediction.c2[ok] * um2,
+        (prediction.c2_low[ok] + offset[ok]) * um2,
+        (prediction.c2[ok] + offset[ok]) * um2,
         color="k",
         alpha=0.15,
         label="from the measured noise"
-        + (f" ({predicted_for}'s particles)" if predicted_for else ""),
+        + (f" ({predicted_for}'s particles)" if predicted_for else "")
+        + (" + exact positions' c2" if noise_free is not None else ""),
     )
+    if noise_free is not None:
+        fit = ok & np.isfinite(noise_free)
+        ax.plot(
+            r[fit] * 1e3, noise_free[fit] * um2, "k--", lw=1, label="exact positions (no noise)"
+        )
+    # The axis shows the prediction; a measurement far above it (a poor calibration's
+    # ghosts and mislinks) is named in the legend with its median instead of flattening
+    # the rest.
+    band = (prediction.c2 + offset)[ok]
+    top = OFF_SCALE * float(np.nanmax(band)) if np.isfinite(band).any() else None
     for i, (name, (value, se)) in enumerate(c2.items()):
         fit = ok & np.isfinite(value)
+        median = float(np.median(value[fit])) if fit.any() else np.nan
+        off = top is not None and median > top
         ax.errorbar(
             r[fit] * 1e3 * (1 + 0.015 * i),
             value[fit] * um2,
@@ -173,11 +195,11 @@ def noise_figure(
             ms=3.5,
             capsize=2,
             color=f"C{i}",
-            label=name,
+            label=f"{name} (off scale: median {median * um2:.3g} µm²)" if off else name,
         )
     ax.set_xscale("log")
     plain_log_axis(ax.xaxis, ax.get_xlim())
-    ax.set_ylim(bottom=0)
+    ax.set_ylim(bottom=0, top=None if top is None else top * um2)
     ax.set_xlabel("r (mm)")
     ax.set_ylabel("c2 (µm²)")
     ax.set_title(

@@ -13,12 +13,12 @@ from dataclasses import replace
 from pathlib import Path
 
 from ptv.calibration.io import load_calibrations
-from ptv.pipeline.double_frame import AMBIGUITY_WARNING
 from simulator.rigs import load_rig
 from simulator.turbulence import TurbulenceParameters
 from validation.dataset.truth_file import TruthFile
 from validation.report.dns_report import dns_html
-from validation.report.html_parts import number, table
+from validation.report.html_parts import number, percent, table
+from validation.report.linking_table import linking_table
 from validation.report.png import save_figure
 from validation.report.run_figures import budget_figure, noise_figure
 from validation.run.checks import compare_variant, error_budget, float_array, predicted_noise
@@ -129,6 +129,9 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     noise = {"detection": predicted_noise(detection, settings.bins, box)}
     noise_source = {"detection": "detection"}  # whose particles' noise each prediction is
     summaries, comparisons, matching, populations = {}, {}, {}, {}
+    # The fit's c2 on the exact positions: the flow's terms beyond Δt², in every rung's c2.
+    exact_fit = _read(stages.ptv["exact"].folder / "summary.json")["structure_function"]
+    noise_free = (float_array(exact_fit["noise"]), float_array(exact_fit["se_noise"]))
     for variant, stage in stages.ptv.items():
         summary = _read(stage.folder / "summary.json")
         summary.pop("dataset", None)
@@ -153,6 +156,7 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
             check_range=check_range,
             noise=noise[variant],
             population=populations[variant],
+            noise_free_c2=None if variant == "exact" else noise_free,
         )
         if (stage.folder / "matching.json").is_file():
             matching[variant] = _read(stage.folder / "matching.json")
@@ -173,7 +177,13 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     }
     save_figure(
         noise_figure(
-            r, c2, noise[main], check_range, label=label, predicted_for=noise_source[main]
+            r,
+            c2,
+            noise[main],
+            check_range,
+            noise_free=noise_free[0],
+            label=label,
+            predicted_for=noise_source[main],
         ),
         figures / "noise.png",
     )
@@ -231,10 +241,6 @@ def _img(path: str, caption: str) -> str:
     )
 
 
-def _percent(value: float | None) -> str:
-    return "–" if value is None else f"{100 * value:.3g} %"
-
-
 def what_this_run_shows(results: dict, methods: Sequence[str]) -> str:
     """The run's finding in a few sentences, from its numbers: how good each calibration
     is (Table 1), and what it costs downstream (matching, c1, ε), compared between the
@@ -258,11 +264,11 @@ def what_this_run_shows(results: dict, methods: Sequence[str]) -> str:
         c1, epsilon = checks["c1"], checks["epsilon"]
         lo, hi = (v * 1e3 for v in c1["r_range_m"])
         sentences.append(
-            f"With the {m} calibration, matching finds {_percent(matching['yield'])} of the "
-            f"particles of the analysis volume with {_percent(matching['ghost_fraction'])} "
-            f"ghosts; c1 stays within {_percent(c1['max_abs_deviation'])} of the sample "
-            f"truth over {lo:.3g}–{hi:.3g} mm (mean {_percent(c1['mean_deviation'])}) and "
-            f"the plateau ε within {_percent(epsilon['relative_to_exact_d_ll'])} of the "
+            f"With the {m} calibration, matching finds {percent(matching['yield'])} of the "
+            f"particles of the analysis volume with {percent(matching['ghost_fraction'])} "
+            f"ghosts; c1 stays within {percent(c1['max_abs_deviation'])} of the sample "
+            f"truth over {lo:.3g}–{hi:.3g} mm (mean {percent(c1['mean_deviation'])}) and "
+            f"the plateau ε within {percent(epsilon['relative_to_exact_d_ll'])} of the "
             "estimator on the exact D_LL."
         )
     steps = [b for b in results["error_budget"] if b.get("c1_added") is not None]
@@ -477,7 +483,7 @@ def _statistics_section(results: dict, scenario: Scenario) -> list[str]:
             "pairs (the true particle within one voxel of each), so a particle a "
             "measurement misses does not count as its error.</p>"
         )
-    parts += _linking_table(results)
+    parts += linking_table(results)
     for variant in (main, *[m for m in scenario.ptv.methods if m != main]):
         parts.append(f"<h3>PTV with the {html.escape(variant)} calibration</h3>")
         for fig, caption in (
@@ -488,47 +494,6 @@ def _statistics_section(results: dict, scenario: Scenario) -> list[str]:
         ):
             parts.append(_img(f"ptv/{variant}/{fig}", caption))
     return parts
-
-
-def _linking_table(results: dict) -> list[str]:
-    """Per linked rung and Δt: the link radius, the particle spacing and the ambiguity."""
-    rows = []
-    for variant, entry in results["ptv"].items():
-        summary = entry["summary"]
-        speed = summary.get("link_speed")
-        source = "given" if speed is None else "measured"
-        for c in summary["counts"]:
-            if c["link_radius"] is None:
-                continue
-            rows.append(
-                (
-                    variant,
-                    f"{c['dt'] * 1e3:.4g}",
-                    f"{summary['settings']['max_speed']:.3g} ({source})",
-                    f"{c['link_radius'] * 1e3:.3g}",
-                    "–" if c["particle_spacing"] is None else f"{c['particle_spacing'] * 1e3:.3g}",
-                    _percent(c["ambiguity"]),
-                )
-            )
-    if not rows:
-        return []
-    header = [
-        "measurement",
-        "Δt (ms)",
-        "max_speed (m/s)",
-        "link radius (mm)",
-        "particle spacing (mm)",
-        "ambiguous links",
-    ]
-    return [
-        "<h3>Linking</h3>",
-        table(header, rows),
-        "<p>The link radius is max_speed·Δt + 5σ_b; max_speed is measured on the links of "
-        "the first snapshots at the smallest Δt unless the scenario gives it. The particle "
-        "spacing is the median distance from a matched particle to its nearest neighbour; "
-        "an ambiguous link had a second candidate within the radius (a Δt above "
-        f"{100 * AMBIGUITY_WARNING:g} % is warned about).</p>",
-    ]
 
 
 def _table3_section(results: dict, scenario: Scenario) -> list[str]:
@@ -606,8 +571,10 @@ def _noise_section(results: dict, scenario: Scenario) -> list[str]:
     ratio_detection = results["ptv"]["detection"]["checks"]["c2"].get("median_over_prediction")
     ratio_main = c["c2"].get("median_over_prediction")
     parts.append(
-        "<p>The noise term c2 against the c2 predicted from the displacement noise, "
-        "measured against the truth, of the particles each S2 used (median ratio over "
+        "<p>The noise term c2, less the c2 the same fit gives on the exact positions (the "
+        "flow's own terms beyond Δt², which the intercept takes up), against the c2 "
+        "predicted from the displacement noise, measured against the truth, of the "
+        "particles each S2 used (median ratio over "
         f"the check range): truth-paired detections {number(ratio_detection, 3)}, "
         f"the {html.escape(main)} run {number(ratio_main, 3)} "
         "(its ghosts and mislinks add noise that no true particle can be blamed for). "

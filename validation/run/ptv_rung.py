@@ -22,13 +22,12 @@ from ptv.pipeline.double_frame import (
     MatchedPoints,
     PtvResult,
     SnapshotMeasurement,
-    match_frame,
     measure_snapshots,
-    resolve_settings,
     run_particles,
 )
 from ptv.pipeline.frames import ChunkDetections
 from ptv.pipeline.options import PipelineSettings
+from ptv.pipeline.resolve import match_frame, resolve_settings
 from ptv.stats.run_statistics import compute_statistics
 from validation.workflow.chunk_map import map_chunks
 from validation.workflow.parallel import Executor
@@ -88,7 +87,7 @@ def ptv_rung(
         Calibrations in the store's camera order.
     settings : PipelineSettings
         Matching, linking, statistics; max_speed None to measure it on the first
-        snapshots (:func:`ptv.pipeline.double_frame.resolve_settings`).
+        snapshots (:func:`ptv.pipeline.resolve.resolve_settings`).
     chunks : sequence of (int, int)
         Snapshot ranges covering the run, in order.
     executor : Executor
@@ -106,7 +105,7 @@ def ptv_rung(
         result holds them too, as its ``matched`` points, which ``results.h5`` keeps
         for ``synptv score``).
     """
-    settings, measured_speed = resolve_settings(store, cameras, settings)
+    settings, measured = resolve_settings(store, cameras, settings)
     results = map_chunks(
         executor,
         ptv_chunk,
@@ -125,7 +124,7 @@ def ptv_rung(
             [s for r in results for s in r.measured[k]],
             len(cameras),
             settings,
-            speed_measured=measured_speed is not None,
+            speed_measured=measured.link_speed is not None,
         )
         for k in range(n_dt)
     ]
@@ -134,7 +133,5 @@ def ptv_rung(
     )
     frame_a = [points for r in results for _, points in sorted(r.frame_a.items())]
     matched = MatchedPoints.from_frames((0, m, 0, points) for m, points in enumerate(frame_a))
-    result = PtvResult(
-        store, store.cameras, settings, runs, statistics, matched, link_speed=measured_speed
-    )
+    result = PtvResult(store, store.cameras, settings, runs, statistics, matched, measured=measured)
     return result, frame_a

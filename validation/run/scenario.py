@@ -105,8 +105,9 @@ class PtvSection:
     statistics use, m; ``r_range`` the outer edges of the ``bins`` log-spaced
     separation bins, m; ``plateau`` the r range of the plateau ε, m; ``min_cameras``
     the fewest cameras a match must use (2 to the rig's camera count; left out, all but
-    one of four or more, else 2); ``max_speed`` the largest particle speed, m/s (left
-    out, measured on the data). Left out, ``analysis_volume``, ``r_range`` and
+    one of four or more, else 2); ``tolerance`` the matching tolerance on the ray
+    distances, m, and ``max_speed`` the largest particle speed, m/s (left out, both
+    measured on the rig and the data). Left out, ``analysis_volume``, ``r_range`` and
     ``plateau`` follow the rig and the flow (:mod:`validation.run.derived_ptv`).
     """
 
@@ -117,7 +118,7 @@ class PtvSection:
     plateau: tuple[float, float] = (2e-3, 20e-3)
     kolmogorov_c2: float = 2.0
     max_speed: float | None = None
-    tolerance: float = 1.5e-4
+    tolerance: float | None = None
     min_cameras: int | None = None
     n_boot: int = 200
 

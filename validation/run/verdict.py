@@ -146,9 +146,8 @@ def run_checks(detection: dict, detected: dict, calibration: dict | None) -> lis
             _row(
                 "stats.c2_matches_noise (detection)",
                 c2["median_over_prediction"],
-                f"median c2 / noise prediction in [{lo:.2f}, {hi:.2f}]",
+                f"median (c2 − exact positions' c2) / noise prediction in [{lo:.2f}, {hi:.2f}]",
                 c2["consistent"],
-                c2.get("informative"),
             )
         )
     return rows

@@ -15,13 +15,9 @@ estimator on the exact D_LL.
 
 import numpy as np
 
-from ptv.pipeline.double_frame import (
-    LINK_SPEED_SNAPSHOTS,
-    SnapshotMeasurement,
-    run_particles,
-    settings_with_measured_speed,
-)
+from ptv.pipeline.double_frame import SnapshotMeasurement, run_particles
 from ptv.pipeline.options import PipelineSettings, link_radius
+from ptv.pipeline.resolve import LINK_SPEED_SNAPSHOTS, settings_with_measured_speed
 from ptv.pipeline.results import statistics_summary
 from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import compute_statistics

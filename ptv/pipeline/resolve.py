@@ -1,0 +1,231 @@
+"""The settings of the double-frame PTV that follow the rig and the data, resolved
+before the snapshots are measured: the fewest cameras per match (from the camera
+count), the matching tolerance (:mod:`ptv.matching.tolerance`) and the largest particle
+speed (:mod:`ptv.tracking.link_speed`), each as the settings give it or derived; and
+:func:`match_frame`, which matches one frame with them."""
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ptv.camera_model import CameraModel
+from ptv.matching.stereo import match
+from ptv.matching.tolerance import MatchTolerance, match_tolerance
+from ptv.pipeline.frames import FrameDetections
+from ptv.pipeline.options import PipelineSettings, default_min_cameras
+from ptv.tracking.link_speed import LinkSpeed, link_speed
+
+__all__ = [
+    "LINK_SPEED_SNAPSHOTS",
+    "MeasuredSettings",
+    "match_frame",
+    "resolve_matching",
+    "resolve_settings",
+    "settings_with_measured_speed",
+]
+
+log = logging.getLogger(__name__)
+
+#: Snapshots of the smallest Δt whose links measure max_speed when the settings leave it out.
+LINK_SPEED_SNAPSHOTS = 5
+
+
+@dataclass(frozen=True)
+class MeasuredSettings:
+    """What :func:`resolve_settings` measured on the data.
+
+    Attributes
+    ----------
+    tolerance : MatchTolerance or None
+        How the matching tolerance was measured (None when the settings gave it).
+    link_speed : LinkSpeed or None
+        How max_speed was measured (None when the settings gave it).
+    """
+
+    tolerance: MatchTolerance | None = None
+    link_speed: LinkSpeed | None = None
+
+
+def resolve_matching(
+    frames: FrameDetections, cameras: Sequence[CameraModel], settings: PipelineSettings
+) -> tuple[PipelineSettings, MatchTolerance | None]:
+    """The settings with min_cameras and the matching tolerance known: as given, or from
+    the camera count (:func:`ptv.pipeline.options.default_min_cameras`) and measured on
+    frame a of the first :data:`LINK_SPEED_SNAPSHOTS` snapshots of the smallest Δt
+    (:func:`ptv.matching.tolerance.match_tolerance`).
+
+    Parameters
+    ----------
+    frames : FrameDetections
+        The detections.
+    cameras : sequence of CameraModel
+        Calibrations in the order of ``frames.cameras``.
+    settings : PipelineSettings
+        Options; min_cameras and tolerance None to derive them.
+
+    Returns
+    -------
+    (PipelineSettings, MatchTolerance or None)
+        The settings with both set, and the measurement (None when the settings gave the
+        tolerance).
+
+    Raises
+    ------
+    ValueError
+        A camera does not image the matching volume's centre, or no particle matched.
+    """
+    if settings.min_cameras is None:
+        settings = replace(settings, min_cameras=default_min_cameras(len(cameras)))
+    if settings.tolerance is not None:
+        return settings, None
+    k = int(np.argmin(frames.dt))
+    count = min(LINK_SPEED_SNAPSHOTS, settings.snapshot_count(frames.frames[k]))
+    sample = [frames.detections(k, m, "a") for m in range(count)]
+    try:
+        measured = match_tolerance(
+            cameras, sample, settings.volume, min_cameras=settings.min_cameras
+        )
+    except ValueError as err:
+        raise ValueError(f"matching tolerance, Δt_{k} = {frames.dt[k]:.4g} s: {err}") from None
+    log.info(
+        "matching tolerance %.3g µm (%.3g px of %.3g µm; median ray distance %.3g µm on "
+        "%d rays of %d frames)",
+        measured.tolerance * 1e6,
+        measured.tolerance / measured.pixel_footprint,
+        measured.pixel_footprint * 1e6,
+        measured.median_ray_distance * 1e6,
+        measured.rays,
+        measured.frames,
+    )
+    return replace(settings, tolerance=measured.tolerance), measured
+
+
+def resolve_settings(
+    frames: FrameDetections, cameras: Sequence[CameraModel], settings: PipelineSettings
+) -> tuple[PipelineSettings, MeasuredSettings]:
+    """The settings with min_cameras, the tolerance and max_speed known: as given, or
+    derived from the rig and measured on the data.
+
+    min_cameras and the tolerance come from :func:`resolve_matching`. When
+    ``settings.max_speed`` is None, the first :data:`LINK_SPEED_SNAPSHOTS` snapshots of
+    the smallest Δt with matched particles in both frames are matched and their links
+    measure it (:func:`ptv.tracking.link_speed.link_speed`).
+
+    Parameters
+    ----------
+    frames : FrameDetections
+        The detections.
+    cameras : sequence of CameraModel
+        Calibrations in the order of ``frames.cameras``.
+    settings : PipelineSettings
+        Options; min_cameras, tolerance and max_speed None to derive them.
+
+    Returns
+    -------
+    (PipelineSettings, MeasuredSettings)
+        The settings with all three set, and what was measured.
+
+    Raises
+    ------
+    ValueError
+        No particle matched at the tolerance's floor; no snapshot of the smallest Δt with
+        matched particles in both frames, or too few links in them to measure a speed.
+    """
+    settings, tolerance = resolve_matching(frames, cameras, settings)
+    if settings.max_speed is not None:
+        return settings, MeasuredSettings(tolerance=tolerance)
+    k = int(np.argmin(frames.dt))
+    pairs = []
+    for m in range(settings.snapshot_count(frames.frames[k])):
+        a, b = (match_frame(frames.detections(k, m, f), cameras, settings) for f in "ab")
+        if len(a) >= 2 and len(b):
+            pairs.append((a, b))
+        if len(pairs) == LINK_SPEED_SNAPSHOTS:
+            break
+    if not pairs:
+        raise ValueError(
+            f"no snapshot at Δt_{k} = {frames.dt[k]:.4g} s has matched particles in both "
+            "frames: nothing to link (check the images, the detection settings and that the "
+            "calibration is of this rig)"
+        )
+    settings, speed = settings_with_measured_speed(settings, pairs, k, float(frames.dt[k]))
+    return settings, MeasuredSettings(tolerance=tolerance, link_speed=speed)
+
+
+def settings_with_measured_speed(
+    settings: PipelineSettings, pairs: Sequence[tuple[np.ndarray, np.ndarray]], k: int, dt: float
+) -> tuple[PipelineSettings, LinkSpeed]:
+    """The settings with max_speed measured on the matched points of some snapshots at Δt_k.
+
+    Parameters
+    ----------
+    settings : PipelineSettings
+        Options (position_noise is used).
+    pairs : sequence of (ndarray (N_a, 3), ndarray (N_b, 3))
+        Matched points of frames a and b of each snapshot, m.
+    k : int
+        Their Δt index (for the messages).
+    dt : float
+        Their Δt, s.
+
+    Returns
+    -------
+    (PipelineSettings, LinkSpeed)
+
+    Raises
+    ------
+    ValueError
+        Too few particles to measure a speed.
+    """
+    try:
+        measured = link_speed(pairs, dt, position_noise=settings.position_noise)
+    except ValueError as err:
+        raise ValueError(f"Δt_{k} = {dt:.4g} s: {err}") from None
+    log.info(
+        "max_speed %.3g m/s, measured on %d links of %d snapshots at Δt_%d = %.4g s "
+        "(mean velocity %s m/s, rms %s m/s; particle spacing %.3g mm)",
+        measured.max_speed,
+        measured.links,
+        measured.snapshots,
+        k,
+        measured.dt,
+        np.round(measured.mean_velocity, 4).tolist(),
+        np.round(measured.velocity_rms, 4).tolist(),
+        measured.spacing * 1e3,
+    )
+    return replace(settings, max_speed=measured.max_speed), measured
+
+
+def match_frame(
+    xy: Sequence[np.ndarray], cameras: Sequence[CameraModel], settings: PipelineSettings
+) -> np.ndarray:
+    """The matched 3-D points of one frame from the detections of every camera.
+
+    Parameters
+    ----------
+    xy : sequence of C ndarray, shape (N_c, 2)
+        Detected centres on each camera, px (the same instant).
+    cameras : sequence of C CameraModel
+        Their calibrations.
+    settings : PipelineSettings
+        Matching volume, tolerance and fewest cameras per match (known:
+        :func:`resolve_matching`).
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        Matched points, m.
+    """
+    if len(xy) != len(cameras):
+        raise ValueError(f"need detections per camera, got {len(xy)} for {len(cameras)} cameras")
+    if settings.tolerance is None or settings.min_cameras is None:
+        raise ValueError("the tolerance and min_cameras are not known yet: resolve_matching")
+    return match(
+        cameras,
+        list(xy),
+        settings.volume,
+        tolerance=settings.tolerance,
+        min_cameras=settings.min_cameras,
+    ).points
