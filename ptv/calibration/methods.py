@@ -61,6 +61,29 @@ CALIBRATION_METHODS: dict[str, Callable[[Sequence[PlaneObservation], CameraSheet
     "soloff": _soloff,
 }
 
+#: Fewest plate positions with distinct Z each method can be fitted on: Soloff's
+#: polynomial is quadratic in Z, the others need two planes to fix the depth.
+MIN_PLANES = {"model-free": 2, "tsai": 2, "pinhole": 2, "soloff": 3}
+
+
+def check_planes(methods: Sequence[str], planes: int) -> None:
+    """Refuse, before any dot is searched, methods that cannot be fitted on ``planes``
+    plate positions with distinct Z.
+
+    Raises
+    ------
+    ValueError
+        Naming the methods that need more planes and those that can run on these.
+    """
+    short = [m for m in methods if planes < MIN_PLANES[m]]
+    if short:
+        possible = [m for m in CALIBRATION_METHODS if planes >= MIN_PLANES[m]]
+        needs = ", ".join(f"{m} needs {MIN_PLANES[m]}" for m in short)
+        raise ValueError(
+            f"the traverse gives {planes} plate position(s) with distinct Z: {needs}; "
+            f"methods that can run on {planes}: {', '.join(possible) or 'none'}"
+        )
+
 
 def calibrate(
     method: str, observations: Sequence[PlaneObservation], sheet: CameraSheet

@@ -227,6 +227,27 @@ def test_calibrate_command_refuses_bad_methods_before_reading(capsys, tmp_path, 
     assert err.count("\n") == 1
 
 
+def test_methods_the_traverse_cannot_fit_are_refused_before_any_dot_search(
+    dataset, capsys, tmp_path, monkeypatch
+):
+    """Two plate positions and the default methods: Soloff (quadratic in Z) needs three.
+    Refused by name, with the methods that can run, before a plate image is searched."""
+    import validation.dataset.calibrate as module
+
+    def no_search(*args, **kwargs):
+        raise AssertionError("the dots were searched before the methods were checked")
+
+    monkeypatch.setattr(module, "find_traverse_dots", no_search)
+    out, _ = dataset
+    args = ["calibrate", "--dataset", str(out), "--out", str(tmp_path / "cal"), "--quiet"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "2 plate position(s) with distinct Z: soloff needs 3" in err
+    assert "methods that can run on 2: model-free, tsai, pinhole" in err
+    assert err.count("\n") == 1
+    assert not (tmp_path / "cal").exists()
+
+
 def test_a_method_that_fails_leaves_no_calibration_file(dataset, capsys, tmp_path, monkeypatch):
     import ptv.calibration.experiment as module
 

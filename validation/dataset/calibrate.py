@@ -27,7 +27,7 @@ from ptv.calibration.experiment import (
 )
 from ptv.calibration.grid_errors import PositionErrors, TraverseDots, table1_errors
 from ptv.calibration.io import save_calibrations
-from ptv.calibration.methods import CALIBRATION_METHODS
+from ptv.calibration.methods import CALIBRATION_METHODS, check_planes
 from ptv.calibration.plate_offsets import MODES as PLATE_OFFSET_MODES
 from ptv.calibration.plate_offsets import PlateOffsets, estimate_plate_offsets
 from ptv.calibration.point_experiment import (
@@ -220,7 +220,9 @@ def calibrate_dataset(
     FileNotFoundError
         ``folder`` holds no experiment.json.
     ValueError
-        An unknown method; or (:class:`ptv.io.dataset.DatasetError`) a bad field of
+        An unknown method, or one the traverse has too few planes for
+        (:func:`ptv.calibration.methods.check_planes`); or
+        (:class:`ptv.io.dataset.DatasetError`) a bad field of
         experiment.json, a plate image missing or unreadable, an unreadable truth.h5,
         all found before any dot is searched; a required method that cannot fit a
         camera (:class:`ptv.calibration.experiment.CameraCalibrationError`). Nothing is
@@ -233,6 +235,8 @@ def calibrate_dataset(
         )
     folder = Path(folder)
     setup = plate_setup(folder)
+    fitted_z = setup.z if fit_planes is None else [setup.z[j] for j in fit_planes]
+    check_planes(methods, len(set(fitted_z)))
     true = _true_positions(folder)  # read before the long work: a bad file fails now
     if true is not None and true.shape[0] != len(setup.z):
         raise DatasetError(
