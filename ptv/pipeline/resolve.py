@@ -28,7 +28,8 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Snapshots of the smallest Δt whose links measure max_speed when the settings leave it out.
+#: Snapshots of the smallest Δt whose matches measure the tolerance, and whose links
+#: max_speed, when the settings leave them out.
 LINK_SPEED_SNAPSHOTS = 5
 
 
