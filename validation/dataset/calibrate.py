@@ -236,7 +236,10 @@ def calibrate_dataset(
     folder = Path(folder)
     setup = plate_setup(folder)
     fitted_z = setup.z if fit_planes is None else [setup.z[j] for j in fit_planes]
-    check_planes(methods, len(set(fitted_z)))
+    try:
+        check_planes(methods, len(set(fitted_z)))
+    except ValueError as error:
+        raise DatasetError(f"{folder / 'experiment.json'}: traverse_z: {error}") from None
     true = _true_positions(folder)  # read before the long work: a bad file fails now
     if true is not None and true.shape[0] != len(setup.z):
         raise DatasetError(
