@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+from collections.abc import Callable
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -27,6 +28,8 @@ _MIN_SCORE = 0.5
 _MAX_MARK_CANDIDATES = 6
 #: Residual of the final cubic grid fit above which a dot is dropped, in pitches.
 _OUTLIER_TOL = 0.25
+#: Fewest indexed dots for the gross-outlier check against one smooth cubic grid.
+_SMOOTH_GRID_DOTS = 20
 #: Index support radius (Chebyshev, grid steps) of the local affine predictions.
 _SUPPORT_RADIUS = 2
 #: Image direction of each word a single mark's axes are given in (x right, y down).
@@ -48,8 +51,112 @@ class SeedDotsError(ValueError):
 
 #: A seed dot takes the dot nearest to its pixel within this fraction of a pitch.
 _SEED_REACH = 0.4
-#: Seed dots further than this (pitches) from the affine grid of all of them contradict.
+#: Seed dots further than this (pitches) from the grid of all of them contradict.
 _SEED_TOL = 0.3
+#: Smallest ratio of the DLT's two least singular values for which four or more seeds
+#: fix a homography (below it three of them lie on a line).
+_HOMOGRAPHY_RANK_TOL = 1e-9
+
+
+class NoDotAtSeedError(SeedDotsError):
+    """A seed dot with no detected dot within reach of its pixel.
+
+    Attributes
+    ----------
+    pixel : tuple of float
+        The seed's pixel (x, y).
+    reach : float
+        The search radius, px.
+    """
+
+    def __init__(self, message: str, pixel: tuple[float, float], reach: float) -> None:
+        super().__init__(message)
+        self.pixel = pixel
+        self.reach = reach
+
+
+def _normalising(points: np.ndarray) -> np.ndarray:
+    """(3, 3) similarity taking ``points`` (N, 2) to zero mean and mean norm √2."""
+    centre = points.mean(axis=0)
+    scale = np.sqrt(2.0) / max(np.linalg.norm(points - centre, axis=1).mean(), 1e-12)
+    return np.array([[scale, 0, -scale * centre[0]], [0, scale, -scale * centre[1]], [0, 0, 1]])
+
+
+def _homography(nodes: np.ndarray, pixels: np.ndarray) -> np.ndarray | None:
+    """(3, 3) H with pixel ∝ H @ [i, j, 1], the least-squares DLT on normalised points
+    (exact for four seeds); None when three of the seeds lie on a line."""
+    t_nodes, t_pixels = _normalising(nodes), _normalising(pixels)
+    a = np.column_stack([nodes, np.ones(len(nodes))]) @ t_nodes.T
+    b = np.column_stack([pixels, np.ones(len(pixels))]) @ t_pixels.T
+    zero = np.zeros_like(a)
+    rows = np.concatenate(
+        [
+            np.hstack([a, zero, -b[:, :1] * a]),
+            np.hstack([zero, a, -b[:, 1:2] * a]),
+        ]
+    )
+    _, sigma, vt = np.linalg.svd(rows)
+    if sigma[7] < _HOMOGRAPHY_RANK_TOL * sigma[0]:  # the solution is not one line
+        return None
+    return np.linalg.solve(t_pixels, vt[-1].reshape(3, 3) @ t_nodes)
+
+
+def _seed_grid(
+    nodes: np.ndarray, pixels: np.ndarray
+) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """The grid the seeds at ``nodes`` (N, 2) and ``pixels`` (N, 2) fix: a homography (a
+    plate seen in perspective) from four or more, an affine grid from three or where a
+    homography is not fixed. It takes grid nodes (M, 2) to their pixels (M, 2) and the
+    smaller grid step at each (M,), px."""
+    h = _homography(nodes, pixels) if len(nodes) >= 4 else None
+    if h is None:
+        design = np.column_stack([nodes, np.ones(len(nodes))])
+        fit, *_ = np.linalg.lstsq(design, pixels, rcond=None)
+        step = np.linalg.norm(fit[:2], axis=1).min()
+
+        def affine(at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return np.column_stack([at, np.ones(len(at))]) @ fit, np.full(len(at), step)
+
+        return affine
+
+    def perspective(at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        mapped = np.column_stack([at, np.ones(len(at))]) @ h.T
+        w = mapped[:, 2:]
+        on_grid = mapped[:, :2] / w
+        # d(pixel)/d(i, j) = (H[:2, :2] − pixel ⊗ H[2, :2]) / w
+        jacobian = (h[None, :2, :2] - on_grid[:, :, None] * h[None, 2:, :2]) / w[:, :, None]
+        return on_grid, np.linalg.norm(jacobian, axis=1).min(axis=1)
+
+    return perspective
+
+
+def _around_seeds(
+    pts: np.ndarray,
+    tree: cKDTree,
+    usable: np.ndarray,
+    seed_rows: dict[tuple[int, int], int],
+    description: PlateDescription,
+) -> dict[tuple[int, int], int]:
+    """The seeds and the dots next to them (Chebyshev distance 1) on the grid the seeds'
+    dots fix, so that a grid grown from a few far-apart seeds starts from local patches
+    rather than from one affine fit of a plate seen in perspective."""
+    nodes = np.array(list(seed_rows), dtype=float)
+    grid = _seed_grid(nodes, pts[list(seed_rows.values())])
+    around = np.unique((nodes[:, None, :] + _NEIGHBOURS[None]).reshape(-1, 2), axis=0)
+    around = around[description.in_extent(around.astype(int))]
+    around = np.array([n for n in around.tolist() if tuple(int(v) for v in n) not in seed_rows])
+    assigned = dict(seed_rows)
+    if len(around) == 0:
+        return assigned
+    predicted, steps = grid(around.reshape(-1, 2))
+    distance, rows = tree.query(predicted)
+    used = set(assigned.values())
+    for k in np.argsort(distance, kind="stable"):
+        row = int(rows[k])
+        if distance[k] < _MATCH_TOL * steps[k] and usable[row] and row not in used:
+            assigned[tuple(int(v) for v in around[k])] = row
+            used.add(row)
+    return assigned
 
 
 def _seed_rows(
@@ -64,8 +171,11 @@ def _seed_rows(
     Raises
     ------
     SeedDotsError
-        Fewer than three seeds or all on a line; a seed with no dot near its pixel; two
-        seeds on one dot; seeds that no single affine grid holds (with four or more).
+        Fewer than three seeds or all on a line; two seeds on one dot; five or more
+        seeds that no single grid seen in perspective holds (four fix one exactly: a
+        wrong index among them shows after the grid is grown, :func:`index_grid`).
+    NoDotAtSeedError
+        A seed with no dot within ``_SEED_REACH`` of a pitch of its pixel.
     """
     nodes = np.array(list(seeds), dtype=float).reshape(-1, 2)
     pixels = np.array(list(seeds.values()), dtype=float).reshape(-1, 2)
@@ -74,17 +184,17 @@ def _seed_rows(
             f"seed dots for {source}: need at least three, not on one line, got "
             f"{[tuple(int(v) for v in n) for n in nodes]}"
         )
-    fit, *_ = np.linalg.lstsq(np.column_stack([nodes, np.ones(len(nodes))]), pixels, rcond=None)
-    step = np.linalg.norm(fit[:2], axis=1).min()
-    off = np.linalg.norm(np.column_stack([nodes, np.ones(len(nodes))]) @ fit - pixels, axis=1)
-    if len(nodes) > 3 and off.max() > _SEED_TOL * step:
+    on_grid, steps = _seed_grid(nodes, pixels)(nodes)
+    step = steps.min()
+    off = np.linalg.norm(on_grid - pixels, axis=1) / steps
+    if off.max() > _SEED_TOL:
         given = ", ".join(
             f"{tuple(int(v) for v in n)} at ({x:.1f}, {y:.1f})"
             for n, (x, y) in zip(nodes, pixels, strict=True)
         )
         raise SeedDotsError(
             f"seed dots for {source} contradict each other: no grid holds {given} (one is "
-            f"{off.max() / step:.2f} pitches off; check the indices)"
+            f"{off.max():.2f} pitches off; check the indices)"
         )
     distance, rows = tree.query(pixels)
     reach = _SEED_REACH * min(step, pitch_px)
@@ -92,9 +202,13 @@ def _seed_rows(
     if len(far):
         n = far[0]
         x, y = pixels[n]
-        raise SeedDotsError(
+        raise NoDotAtSeedError(
             f"seed dot {tuple(int(v) for v in nodes[n])} of {source}: no dot within "
-            f"{reach:.1f} px of ({x:.1f}, {y:.1f})"
+            f"{reach:.1f} px of ({x:.1f}, {y:.1f}) (the search radius: {_SEED_REACH} × the "
+            f"smaller of the seeds' grid step, {step:.1f} px, and the pitch the dots' size "
+            f"gives with target.dot_diameter, {pitch_px:.1f} px)",
+            (float(x), float(y)),
+            float(reach),
         )
     if len(set(rows.tolist())) < len(rows):
         raise SeedDotsError(f"seed dots for {source}: two seeds name the same dot")
@@ -362,7 +476,8 @@ def index_grid(
     tree = cKDTree(np.where(usable[:, None], pts, -1e9))  # usable blobs only (others far)
     pitch_px = 2.0 * np.sqrt(dot_area / np.pi) * description.pitch / description.dot_diameter
     if seeds:
-        start, mark_rows = _seed_rows(pts, tree, seeds, pitch_px, source), {}
+        seed_rows, mark_rows = _seed_rows(pts, tree, seeds, pitch_px, source), {}
+        start = _around_seeds(pts, tree, usable, seed_rows, description)
     elif len(description.marks) == 1:
         mark_rows = _single_mark(usable, relative_area, description, source)
         start = _axes_start(pts, tree, usable, *mark_rows.values(), description, source)
@@ -375,12 +490,19 @@ def index_grid(
     nodes = np.array(list(assigned), dtype=np.int64)
     det = np.array(list(assigned.values()), dtype=np.int64)
     outliers = np.empty(0, dtype=np.int64)
+    if seeds and len(det) < min(_SMOOTH_GRID_DOTS, int(usable.sum())):
+        raise SeedDotsError(
+            f"seed dots for {source} contradict each other: the grid grown from them stops "
+            f"at {len(det)} of the {int(usable.sum())} dots found (check the indices)"
+        )
     # Gross-outlier check against one smooth cubic of the whole grid.
-    if len(det) >= 20:
+    if len(det) >= _SMOOTH_GRID_DOTS:
         poly = fit_polynomial2d(nodes.astype(float), pts[det], degree=3)
         resid = np.linalg.norm(poly(nodes.astype(float)) - pts[det], axis=1)
         step = np.linalg.norm(poly.jacobian(nodes.astype(float)), axis=1).min(axis=1)
         bad = resid > _OUTLIER_TOL * step
+        if seeds:
+            _check_seeds_on_grid(det, bad, seed_rows, source)
         is_mark = np.isin(det, list(mark_rows.values()))
         if np.any(bad & is_mark):
             raise MarkersNotFoundError(
@@ -391,6 +513,29 @@ def index_grid(
             outliers = det[bad]
             nodes, det = nodes[~bad], det[~bad]
     return nodes, det, mark_rows, outliers
+
+
+def _check_seeds_on_grid(
+    det: np.ndarray,
+    off_grid: np.ndarray,
+    seed_rows: dict[tuple[int, int], int],
+    source: str,
+) -> None:
+    """Refuse seeds whose dot the grid grown from them puts off its smooth fit: four
+    seeds fix a perspective grid exactly, so a wrong index among them shows only here.
+
+    Raises
+    ------
+    SeedDotsError
+        Naming the seeds off the grid.
+    """
+    bad_rows = set(det[off_grid].tolist())
+    wrong = [ij for ij, row in seed_rows.items() if row in bad_rows]
+    if wrong:
+        raise SeedDotsError(
+            f"seed dots for {source} contradict each other: no smooth grid grown from them "
+            f"holds {', '.join(str(ij) for ij in wrong)} (check the indices)"
+        )
 
 
 def missing_nodes(

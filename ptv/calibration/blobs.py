@@ -61,7 +61,6 @@ class NoTargetError(ValueError):
     """The image shows no calibration target (too few dot-like blobs)."""
 
 
-
 def _check_image(image: object, source: str) -> np.ndarray:
     arr = np.asarray(image)
     if arr.ndim != 2:
@@ -96,7 +95,6 @@ def _background_and_noise(image: np.ndarray, tile: int) -> tuple[np.ndarray, flo
     rows, cols = np.divmod(np.arange(h * w), w)
     level = bilinear(estimate.level, np.column_stack([cols, rows]), (h, w)).reshape(h, w)
     return level, float(np.median(estimate.noise))
-
 
 
 @dataclass(frozen=True)
@@ -201,7 +199,6 @@ def _relative_area(centroid: np.ndarray, area: np.ndarray) -> np.ndarray:
         return np.ones(len(area))
     _, nb = cKDTree(centroid).query(centroid, k=k + 1)
     return area / np.median(area[nb[:, 1:]], axis=1)
-
 
 
 def _check_find_options(
@@ -322,8 +319,6 @@ def sizes_against_neighbours(
     if usable < MIN_BLOBS:
         raise NoTargetError(f"no target in {source}: only {usable} blob(s) of a plausible dot size")
     return rel
-
-
 
 
 def threshold_blobs(
@@ -457,5 +452,3 @@ def find_blobs(
     )[-1]
     usable = blobs.reason == ""
     return TargetBlobs(pixels=blobs.centroid[usable], area=blobs.area[usable])
-
-

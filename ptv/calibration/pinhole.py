@@ -229,8 +229,7 @@ def project_parameters(
     h = 1e-6
     for col, (ex, ey) in ((TAU_X, (h, 0.0)), (TAU_Y, (0.0, h))):
         dm = (
-            tilt_matrix(p[TAU_X] + ex, p[TAU_Y] + ey)
-            - tilt_matrix(p[TAU_X] - ex, p[TAU_Y] - ey)
+            tilt_matrix(p[TAU_X] + ex, p[TAU_Y] + ey) - tilt_matrix(p[TAU_X] - ex, p[TAU_Y] - ey)
         ) / (2 * h)
         dw = dm[2, 0] * xd + dm[2, 1] * yd + dm[2, 2]
         jac[:, 0, col] = focal[0] * ((dm[0, 0] * xd + dm[0, 1] * yd + dm[0, 2]) - xt * dw) / w

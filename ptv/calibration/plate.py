@@ -213,7 +213,6 @@ def _grid_pair(value: object, what: str) -> tuple[int, int]:
     return int(arr[0]), int(arr[1])
 
 
-
 @dataclass(frozen=True, eq=False)
 class PlaneDots:
     """The identified dots of one plate image.
@@ -276,4 +275,3 @@ class PlaneDots:
         return PlaneObservation(
             z=float(z), pixels=self.pixels.copy(), world_xy=self.world_xy.copy()
         )
-

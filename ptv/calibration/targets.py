@@ -50,6 +50,9 @@ Steps
    Scheimpflug tilt, lens distortion and refraction. A final cubic fit of all
    pixels against their indices flags gross outliers (> 0.25 pitch), which are
    dropped.
+   Seed dots given by the user replace the marks: four or more fix a homography, whose
+   prediction gives the dots next to each seed before the grid grows; a seed off the
+   cubic fit is a wrong index, refused.
 6. **Missing nodes.** Grid nodes that should be seen but were not: inside the plate's
    ``extent`` (when known; else inside the index box of the found dots) and within two
    grid steps of found dots, predicted with their whole window on the image.
@@ -70,6 +73,7 @@ import numpy as np
 from ptv.calibration._plate_grid import (  # raised by find_dots: part of its API
     MarkersNotFoundError as MarkersNotFoundError,
 )
+from ptv.calibration._plate_grid import NoDotAtSeedError as NoDotAtSeedError
 from ptv.calibration._plate_grid import SeedDotsError as SeedDotsError
 from ptv.calibration._plate_grid import index_grid, missing_nodes
 from ptv.calibration.blobs import Blobs, sizes_against_neighbours, threshold_blobs
@@ -133,8 +137,6 @@ def _plane_dots(
         threshold=float(np.median(background + level)),
         source=source,
     )
-
-
 
 
 def find_dots(
@@ -227,9 +229,16 @@ def find_dots(
     usable = reason == ""
     pts = blobs.centroid
     dot_area = float(np.median(blobs.area[usable]))
-    nodes, det, mark_rows, outliers = index_grid(
-        pts, usable, rel, description, dot_area, (w, h), source, seeds=dict(seeds or {})
-    )
+    try:
+        nodes, det, mark_rows, outliers = index_grid(
+            pts, usable, rel, description, dot_area, (w, h), source, seeds=dict(seeds or {})
+        )
+    except NoDotAtSeedError as error:
+        above = signal - background
+        why = _what_set_the_threshold(
+            above, level, noise, threshold, threshold_fraction, threshold_sigmas, error
+        )
+        raise NoDotAtSeedError(f"{error}; {why}", error.pixel, error.reach) from None
     reason[usable & ~np.isin(np.arange(len(reason)), det)] = "unindexed"
     reason[outliers] = "outlier"
     return _plane_dots(
@@ -247,6 +256,48 @@ def find_dots(
         level=level,
         source=source,
     )
+
+
+def _what_set_the_threshold(
+    above: np.ndarray,
+    level: np.ndarray | float,
+    noise: float,
+    threshold: str,
+    threshold_fraction: float,
+    threshold_sigmas: float,
+    missed: NoDotAtSeedError,
+) -> str:
+    """Why a seed found no dot, as far as the threshold tells: how high the image rises
+    above the background near the seed against the mask level there, and which term
+    set that level. ``above`` (H, W) is the signal above the background."""
+    h, w = above.shape
+    x, y = missed.pixel
+    r = int(np.ceil(missed.reach))
+    col, row = round(x), round(y)
+    window = (
+        slice(max(row - r, 0), min(row + r + 1, h)),
+        slice(max(col - r, 0), min(col + r + 1, w)),
+    )
+    local = np.broadcast_to(level, above.shape)[window]
+    if local.size == 0:
+        return "the seed is off the image"
+    rise, at = float(above[window].max()), float(np.median(local))
+    there = (
+        f"the image rises {rise:.3g} above the background there, the {threshold} "
+        f"threshold is {at:.3g}"
+    )
+    if threshold == "local" or rise >= at:
+        return there
+    peak = float(np.percentile(above, 99.9))
+    if threshold_fraction * peak > threshold_sigmas * noise:
+        return (
+            f"{there}, set by {threshold_fraction:g} × the image's 99.9th percentile above the "
+            f"background ({peak:.3g}, against {threshold_sigmas:g} noise σ = "
+            f"{threshold_sigmas * noise:.3g}): if a bright region (a banner, a reflection, a "
+            'window frame) set it rather than the dots, use "threshold": "local" in the '
+            "target or mask that region (cameras.<name>.mask)"
+        )
+    return f"{there}, {threshold_sigmas:g} noise σ (σ = {noise:.3g}): the dot is too faint"
 
 
 # -- several planes -----------------------------------------------------------------------

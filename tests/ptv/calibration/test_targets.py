@@ -18,6 +18,7 @@ from ptv.calibration.model_free import PlaneObservation, calibrate_model_free
 from ptv.calibration.plate import FLAG_MARK, PlateDescription
 from ptv.calibration.targets import (
     MarkersNotFoundError,
+    NoDotAtSeedError,
     NoTargetError,
     SeedDotsError,
     find_dots,
@@ -162,12 +163,32 @@ def test_seed_dots_that_miss_or_line_up_are_named(stereo, nodes, shift, message)
         find_dots(shot.noisy, UNMARKED, seeds=_seeds(shot.truth, nodes, shift), source="p.tif")
 
 
-def test_seed_dots_that_contradict_each_other_are_named(stereo):
-    shot = stereo[0, 6]
-    seeds = _seeds(shot.truth, [(0, 0), (3, 0), (0, 3), (3, 3)])
-    seeds[5, 3] = seeds.pop((3, 3))  # the fourth seed with the wrong index
-    message = r"p\.tif contradict each other: no grid holds .*\(5, 3\) at"
-    with pytest.raises(SeedDotsError, match=message):
+CORNERS = [(-10, -10), (10, -10), (-10, 10), (10, 10)]
+
+
+def test_four_corner_seeds_of_a_plate_seen_in_perspective_index_it_as_the_marks_do(stereo):
+    # The oblique camera's far plane: an affine grid through the four corners misses one
+    # by 0.3 pitch; the homography they fix holds them all.
+    shot = stereo[1, 12]
+    seeded = find_dots(shot.noisy, UNMARKED, seeds=_seeds(shot.truth, CORNERS))
+    np.testing.assert_array_equal(seeded.indices, find_dots(shot.noisy, DESCRIPTION).indices)
+    assert len(seeded) == 441
+
+
+@pytest.mark.parametrize(
+    ("nodes", "wrong", "index"),
+    [
+        ([(0, 0), (3, 0), (0, 3), (3, 3)], (3, 3), (5, 3)),
+        (CORNERS, (10, 10), (9, 10)),  # one step off over twenty: four seeds fit exactly
+        (CORNERS, (-10, -10), (-9, -10)),
+        ([*CORNERS, (0, 0)], (0, 0), (1, 0)),  # five: the homography's residual shows it
+    ],
+)
+def test_seed_dots_that_contradict_each_other_are_named(stereo, nodes, wrong, index):
+    shot = stereo[1, 12]
+    seeds = _seeds(shot.truth, nodes)
+    seeds[index] = seeds.pop(wrong)  # one seed with the wrong index
+    with pytest.raises(SeedDotsError, match=r"p\.tif contradict each other: no .*grid"):
         find_dots(shot.noisy, UNMARKED, seeds=seeds, source="p.tif")
 
 
@@ -382,6 +403,37 @@ def test_a_saturated_region_beside_the_plate_drives_the_global_threshold_not_the
     assert wrong == 0 and len(locally) == 441 and len(locally.missing) == 0
     assert rms(err) < 0.05
     assert locally.threshold < globally.threshold
+
+
+def test_a_seed_under_a_threshold_a_bright_region_set_says_so(stereo):
+    # The dots right of x = 1200 px lit at 30 %: found, until a saturated banner (a
+    # camera's time stamp) sets the global threshold and they fall below it. The message
+    # says what set it and what to do; the local threshold finds them.
+    shot = stereo[0, 6]
+    image = shot.noisy.astype(float)
+    image[:, 1200:] = SENSOR.offset + 0.3 * (image[:, 1200:] - SENSOR.offset)
+    seeds = _seeds(shot.truth, [(6, -2), (9, -2), (6, 1)])
+    assert len(find_dots(np.round(image).astype(np.uint16), UNMARKED, seeds=seeds)) == 441
+    image[1000:1080, 1500:] = SENSOR.max_dn
+    image = np.round(image).astype(np.uint16)
+    with pytest.raises(NoDotAtSeedError) as refused:
+        find_dots(image, UNMARKED, seeds=seeds, source="p.tif")
+    message = str(refused.value)
+    assert "seed dot (6, -2) of p.tif: no dot within" in message
+    assert "the pitch the dots' size gives with target.dot_diameter" in message
+    assert "99.9th percentile" in message and '"threshold": "local"' in message
+    assert "cameras.<name>.mask" in message
+    rise = float(message.split("the image rises ")[1].split()[0])
+    level = float(message.split("global threshold is ")[1].split(",")[0])
+    assert 6 * shot_noise(image) < rise < level  # a dot stands out, under the threshold
+    found = find_dots(image, UNMARKED, seeds=seeds, threshold="local")
+    np.testing.assert_array_equal(found.indices, find_dots(shot.noisy, DESCRIPTION).indices)
+
+
+def shot_noise(image):
+    """Noise σ of an image from its horizontal pixel differences, DN (1.4826·MAD/√2)."""
+    d = np.diff(image.astype(float), axis=1).ravel()
+    return 1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2)
 
 
 # -- errors ----------------------------------------------------------------------------------
