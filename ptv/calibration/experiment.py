@@ -197,17 +197,28 @@ def read_seed_dots(
 
 
 def _file_paths(
-    folder: Path, pattern: str, field: str, camera: str, planes: int, first_j: int = 0
+    folder: Path,
+    pattern: str | Sequence[str],
+    field: str,
+    camera: str,
+    planes: int,
+    first_j: int = 0,
 ) -> list[Path]:
-    """The files of ``camera`` experiment.json's ``field`` names by ``pattern``, one per
-    traverse position ({j} from ``first_j``), each present."""
+    """The files of ``camera`` experiment.json's ``field`` names, one per traverse
+    position, each present: by one ``pattern`` ({j} from ``first_j``), or by a list of
+    patterns with {camera} only, one per position (checked to be as long as the traverse
+    by :func:`ptv.io.experiment.description_problems`)."""
     try:
-        paths = [folder / pattern.format(camera=camera, j=first_j + j) for j in range(planes)]
+        if isinstance(pattern, str):
+            names = [pattern.format(camera=camera, j=first_j + j) for j in range(planes)]
+        else:
+            names = [entry.format(camera=camera) for entry in pattern]
     except (KeyError, IndexError, ValueError) as err:
+        use = "{camera} and {j}" if isinstance(pattern, str) else "{camera} only in each entry"
         raise DatasetError(
-            f"{folder / 'experiment.json'}: bad '{field}' pattern {pattern!r} "
-            f"(use {{camera}} and {{j}}: {err})"
+            f"{folder / 'experiment.json'}: bad '{field}' pattern {pattern!r} (use {use}: {err})"
         ) from None
+    paths = [folder / name for name in names]
     missing = [path for path in paths if not path.is_file()]
     if missing:
         what = "plate image" if field == "calibration_images" else "dot list"

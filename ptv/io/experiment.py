@@ -160,6 +160,7 @@ def description_problems(spec: object, needs: Iterable[str] = ()) -> list[str]:
                     problems.append(([choice[0]], text))
             if need == "particles" and spec.get("particle_images", "") is None:
                 problems.append((["particle_images"], "particle_images: null, no particle images"))
+        problems += _listed_images_problems(spec)
         cameras = spec.get("cameras")
         if isinstance(cameras, dict) and not points:
             problems += [
@@ -184,6 +185,26 @@ def description_problems(spec: object, needs: Iterable[str] = ()) -> list[str]:
             ]
     problems.sort(key=lambda p: [str(part) for part in p[0]])
     return [text for _, text in problems]
+
+
+def _listed_images_problems(spec: dict) -> list[tuple[list, str]]:
+    """A list of plate images (``calibration_images``) as long as the traverse, no entry
+    twice."""
+    listed, z = spec.get("calibration_images"), spec.get("traverse_z")
+    if not (isinstance(listed, list) and isinstance(z, list)):
+        return []
+    if not all(isinstance(entry, str) for entry in listed):
+        return []  # the schema names the entry
+    if len(listed) != len(z):
+        text = (
+            f"calibration_images: {len(listed)} entries, but traverse_z gives {len(z)} "
+            "plate positions (one image pattern per position)"
+        )
+        return [(["calibration_images"], text)]
+    twice = sorted({entry for entry in listed if listed.count(entry) > 1}, key=str)
+    if twice:
+        return [(["calibration_images"], f"calibration_images: {twice[0]!r} given twice")]
+    return []
 
 
 def read_experiment(folder: str | Path, needs: Iterable[str] = ()) -> dict:

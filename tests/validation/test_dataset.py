@@ -193,6 +193,26 @@ def test_png_plates_under_their_own_pattern_calibrate_as_the_tiff_ones(dataset, 
             np.testing.assert_array_equal(a.pixels, b.pixels)
 
 
+def test_plate_images_numbered_in_any_way_are_listed_one_per_plane(dataset, tmp_path):
+    # Planes numbered 01 and 11, as a lab's traverse names them: no {j} pattern holds them.
+    from ptv.calibration.experiment import plate_setup
+
+    out, _ = dataset
+    listed = tmp_path / "listed"
+    spec = json.loads((out / "experiment.json").read_text())
+    spec["calibration_images"] = ["plates/{camera}_z01.tif", "plates/{camera}_z11.tif"]
+    for name in spec["cameras"]:
+        for j, number in enumerate(("01", "11")):
+            path = listed / "plates" / f"{name}_z{number}.tif"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.symlink_to(out / "calibration" / name / f"plane_{j:02d}.tif")
+    (listed / "experiment.json").write_text(json.dumps(spec))
+    shutil.copy(out / "truth.h5", listed / "truth.h5")
+    original, renamed = plate_setup(out), plate_setup(listed)
+    for name in spec["cameras"]:
+        assert [p.resolve() for p in renamed.images[name]] == original.images[name]
+
+
 def test_a_local_threshold_finds_the_same_dots_as_the_global_one(dataset, tmp_path):
     from ptv.calibration.experiment import find_traverse_dots, plate_setup
 
@@ -274,6 +294,12 @@ def _spoil_experiment(spec: dict, case: str) -> None:
         del spec["target"]["pitch"]
     elif case == "unknown threshold":
         spec["target"]["threshold"] = "median"
+    elif case == "short image list":
+        spec["calibration_images"] = ["calibration/{camera}/plane_00.tif"]
+    elif case == "image listed twice":
+        spec["calibration_images"] = ["calibration/{camera}/plane_00.tif"] * 2
+    elif case == "listed image without camera":
+        spec["calibration_images"] = ["calibration/cam1/plane_00.tif", "b/{camera}.tif"]
 
 
 @pytest.mark.parametrize(
@@ -284,6 +310,9 @@ def _spoil_experiment(spec: dict, case: str) -> None:
         ("string image size", "experiment.json", "image_size: '2048x1088' is not of type"),
         ("target without pitch", "experiment.json", "target: 'pitch' is a required property"),
         ("unknown threshold", "experiment.json", "target.threshold: 'median' is not one of"),
+        ("short image list", "experiment.json", "1 entries, but traverse_z gives 2 plate"),
+        ("image listed twice", "experiment.json", "plane_00.tif' given twice"),
+        ("listed image without camera", "experiment.json", "does not match '\\\\{camera"),
         ("missing plane", "plane_01.tif", "plate image missing"),
         ("text as a plane", "plane_00.tif", "not readable as a TIFF image"),
         ("truncated truth", "truth.h5", "cannot read plate/dots_world"),
