@@ -167,6 +167,12 @@ def test_calibrate_command_finds_every_dot_and_scores_against_nominal_and_truth(
     assert report["table1"]["model-free"]["true"]["d_um"] > nominal["d_um"]
     assert report["table1"]["tsai"]["nominal"]["d_um"] > 3 * nominal["d_um"]
     assert all(v < 2.0 for v in report["max_plane_residual_px"].values())  # paper: < 2 px
+    # Per image: every dot, reprojected within the plate's scatter (5 µm ≈ 0.05 px) and
+    # the detection noise; the pinhole Tsai misses the refraction by pixels.
+    for rows in report["per_image"].values():
+        assert [row["dots"] for row in rows] == [441, 441]
+        assert all(row["rms_px"]["model-free"] < 0.1 for row in rows)
+        assert all(row["rms_px"]["tsai"] > 3 * row["rms_px"]["model-free"] for row in rows)
     assert report["leave_one_plane_out"] == {}  # two plate positions
     assert "only 2 plate positions" in report["warnings"][0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model-free.h5", "tsai.h5"]

@@ -65,6 +65,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
                 "leave_one_plane_out": result.leave_one_plane_out,
                 "files": result.files,
                 "max_plane_residual_px": result.max_plane_residual_px,
+                "per_image": result.per_image,
                 "plate_offsets": (
                     None if result.plate_offsets is None else result.plate_offsets.summary()
                 ),
@@ -86,6 +87,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
                 f"{method:12s} {ref:9s} {t['d_X_um']:7.2f} {t['d_Y_um']:7.2f} "
                 f"{t['d_Z_um']:7.2f} {t['d_um']:7.2f}"
             )
+    _print_per_image(result.per_image, list(result.table1))
     for method, held in result.leave_one_plane_out.items():
         planes = ", ".join(f"{d:.1f}" for d in held["planes_d_um"])
         print(f"{method:12s} leave-one-plane-out d {held['d_um']:.2f} um (per plane {planes})")
@@ -94,6 +96,22 @@ def run_calibrate(args: argparse.Namespace) -> int:
     for method, path in result.files.items():
         print(f"{method} calibration written to {path}")
     return 0
+
+
+def _print_per_image(per_image: dict, methods: list[str]) -> None:
+    """Per plate image: its dots found and each method's reprojection RMS, px."""
+    width = max(len(row["image"]) for rows in per_image.values() for row in rows)
+    print("per plate image: dots found and each method's reprojection RMS (px)")
+    print(
+        f"{'camera':12s} {'image':{width}s} {'Z (mm)':>8s} {'dots':>5s} "
+        + " ".join(f"{m:>10s}" for m in methods)
+    )
+    for camera, rows in per_image.items():
+        for row in rows:
+            print(
+                f"{camera:12s} {row['image']:{width}s} {1e3 * row['z_m']:8.3f} "
+                f"{row['dots']:5d} " + " ".join(f"{row['rms_px'][m]:10.3f}" for m in methods)
+            )
 
 
 def _print_plate_offsets(offsets, path: Path) -> None:

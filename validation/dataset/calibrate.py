@@ -36,6 +36,7 @@ from ptv.calibration.point_experiment import (
     target_errors,
 )
 from ptv.calibration.point_target import PointTargetFit
+from ptv.calibration.reprojection import large_plane_residual, reprojection_rms
 from ptv.io.dataset import DatasetError
 from validation.workflow.files import staged_output
 
@@ -73,6 +74,9 @@ class DatasetCalibration:
     failed : dict
         ``{method: {"camera", "reason"}}``: the methods that could not fit a camera and
         were not required (none of their results or files is kept).
+    per_image : dict
+        ``{camera: [{"image", "z_m", "dots", "rms_px": {method: px}}, ...]}``: per plate
+        image, its dots found and each method's reprojection RMS of them, px.
     """
 
     dots: list
@@ -84,6 +88,7 @@ class DatasetCalibration:
     warnings: list[str]
     plate_offsets: PlateOffsets | None = None
     failed: dict = field(default_factory=dict)
+    per_image: dict = field(default_factory=dict)
 
 
 #: Fewest plate positions for a leave-one-plane-out error (two are needed to calibrate).
@@ -296,6 +301,7 @@ def calibrate_dataset(
                 name: max(p.residual_px.max() for p in model.planes)
                 for name, model in calibrations.items()
             }
+            warnings += _large_plane_residuals(setup, fitted_dots, calibrations, fit_planes)
         models = list(calibrations.values())
         per_camera = [dots[name] for name in calibrations]
         errors[method] = {
@@ -313,8 +319,63 @@ def calibrate_dataset(
             save_calibrations(staging / f"{method}.h5", calibrations, metadata=metadata)
     files = {method: str(out / f"{method}.h5") for method in fitted_models}
     return DatasetCalibration(
-        list(dots.values()), residuals, table1, files, errors, held_out, warnings, offsets, failed
+        list(dots.values()),
+        residuals,
+        table1,
+        files,
+        errors,
+        held_out,
+        warnings,
+        offsets,
+        failed,
+        _per_image(setup, fitted_dots, fitted_models),
     )
+
+
+def _image_names(setup: PlateSetup, camera: str) -> list[str]:
+    """Each plate position's image of ``camera`` as the messages name it: the file
+    name, or the position with dot lists."""
+    if setup.images:
+        return [path.name for path in setup.images[camera]]
+    return [f"plate position {j}" for j in range(len(setup.z))]
+
+
+def _per_image(setup: PlateSetup, dots: dict, models: dict) -> dict:
+    """``DatasetCalibration.per_image``: per camera and plate image, the dots found and
+    each method's reprojection RMS of them."""
+    return {
+        name: [
+            {
+                "image": image,
+                "z_m": plane.z,
+                "dots": len(plane.indices),
+                "rms_px": {
+                    method: reprojection_rms(calibrations[name], plane)
+                    for method, calibrations in models.items()
+                },
+            }
+            for plane, image in zip(dots[name], _image_names(setup, name), strict=True)
+        ]
+        for name in setup.cameras
+    }
+
+
+def _large_plane_residuals(
+    setup: PlateSetup, dots: dict, calibrations: dict, fit_planes: Sequence[int] | None
+) -> list[str]:
+    """Warnings for the model-free plane fits that miss a dot by more than the paper's
+    2 px (:func:`ptv.calibration.reprojection.large_plane_residual`)."""
+    fitted = range(len(setup.z)) if fit_planes is None else fit_planes
+    warnings = (
+        large_plane_residual(
+            name,
+            model,
+            [dots[name][j] for j in fitted],
+            [_image_names(setup, name)[j] for j in fitted],
+        )
+        for name, model in calibrations.items()
+    )
+    return [warning for warning in warnings if warning is not None]
 
 
 #: The one method a point target calibrates with.
