@@ -2,7 +2,8 @@
 
 Layout (format ``synptv-calibration``, version :data:`FORMAT_VERSION`)::
 
-    /                     attrs: format, format_version, written_by, + user metadata
+    /                     attrs: format, format_version, written_by, calibrated_volume
+                          (2, 3) m when known, + user metadata
     /cameras/<name>       attrs: model (a registered name below), then the model's data
 
 ``model-free`` (:class:`~ptv.calibration.model_free.ModelFreeCalibration`)::
@@ -54,6 +55,7 @@ import h5py
 import numpy as np
 from scipy.spatial import Delaunay
 
+from ptv.box import Box, check_box
 from ptv.calibration.model_free import ModelFreeCalibration, PlaneFit
 from ptv.calibration.pinhole import PinholeCalibration, PinholeModel
 from ptv.calibration.polynomial import Polynomial2D
@@ -327,6 +329,7 @@ def save_calibrations(
     calibrations: Mapping[str, CameraModel],
     *,
     metadata: Mapping[str, str | int | float] | None = None,
+    calibrated_volume: Box | None = None,
 ) -> Path:
     """Write the calibrations of a rig's cameras to one file, atomically.
 
@@ -339,6 +342,9 @@ def save_calibrations(
         ``TsaiCalibration``).
     metadata : mapping of str to str, int or float, optional
         Stored as root attributes (e.g. the dataset it was made from).
+    calibrated_volume : (lower, upper), optional
+        The box the calibration was fitted in (the plate's dots over the traverse, or a
+        target's points), m: what :func:`read_calibrated_volume` gives back.
 
     Returns
     -------
@@ -365,7 +371,9 @@ def save_calibrations(
                 f"(the file format knows {known})"
             )
         codecs[check_file_name(name, "camera name")] = codec
-    reserved = {"format", "format_version", "written_by"}
+    reserved = {"format", "format_version", "written_by", "calibrated_volume"}
+    if calibrated_volume is not None:
+        calibrated_volume = check_box("calibrated_volume", calibrated_volume)
     for key in metadata or {}:
         if not isinstance(key, str) or key in reserved:
             raise ValueError(
@@ -379,6 +387,8 @@ def save_calibrations(
             f.attrs["written_by"] = "synptv ptv.calibration.io"
             for key, value in (metadata or {}).items():
                 f.attrs[key] = value
+            if calibrated_volume is not None:
+                f.attrs["calibrated_volume"] = np.asarray(calibrated_volume, dtype=np.float64)
             cameras = f.create_group("cameras", track_order=True)
             for name, cal in calibrations.items():
                 group = cameras.create_group(name)
@@ -468,3 +478,23 @@ def load_calibrations(path: str | os.PathLike) -> dict[str, CameraModel]:
                     f"{path}: camera {name!r} ({model}): corrupt or incomplete entry: {err}"
                 ) from None
     return out
+
+
+def read_calibrated_volume(path: str | os.PathLike) -> Box | None:
+    """The box a calibration file records it was fitted in, m, or None when it records
+    none (a file written before synptv recorded it, or without the dots).
+
+    Raises
+    ------
+    CalibrationFileError
+        A recorded box that is not (2, 3) finite numbers with lower < upper.
+    """
+    path = Path(path)
+    with h5py.File(path, "r") as f:
+        value = f.attrs.get("calibrated_volume")
+    if value is None:
+        return None
+    try:
+        return check_box("calibrated_volume", np.asarray(value, dtype=np.float64))
+    except ValueError as err:
+        raise CalibrationFileError(f"{path}: corrupt calibration file: {err}") from None

@@ -169,23 +169,27 @@ def _settings_dict(result: PtvResult) -> dict:
 THIN_MATCH_FRACTION = 0.5
 
 
-def thin_data_warnings(counts: list[dict]) -> list[str]:
-    """Why a run is too thin to measure, one line per Δt and frame at fault.
+def thin_data_warnings(counts: list[dict], *, statistics: bool = True) -> list[str]:
+    """Why a run is too thin to measure: one line for the frames at fault, and one per
+    Δt without a link.
 
     Parameters
     ----------
     counts : list of dict
         The ``counts`` entries of :func:`summary`.
+    statistics : bool
+        Whether the statistics were asked for (a Δt without a link matters only then).
 
     Returns
     -------
     list of str
-        Empty for a healthy run. A frame (a or b) of a Δt is reported when its matches
+        Empty for a healthy run. Frames (a or b of a Δt) are reported when their matches
         are fewer than :data:`THIN_MATCH_FRACTION` of the detections of the camera that
         sees fewest particles (a blank or saturated frame, a calibration of another rig
-        or swapped cameras), and a Δt with no link used at all.
+        or swapped cameras, particles outside the matching volume): the worst named, and
+        how many there are; with ``statistics``, each Δt with no link used at all.
     """
-    lines = []
+    thin = []  # (fraction matched, text)
     for c in counts:
         where = f"Δt = {c['dt'] * 1e3:.4g} ms"
         for frame in ("a", "b"):
@@ -194,13 +198,27 @@ def thin_data_warnings(counts: list[dict]) -> list[str]:
             matched = c["matches"][frame]
             if matched < THIN_MATCH_FRACTION * seen[fewest] or seen[fewest] == 0:
                 per_camera = ", ".join(f"{camera} {n}" for camera, n in seen.items())
-                lines.append(
+                text = (
                     f"{where}, frame {frame}: {matched} matches from {per_camera} detections "
-                    f"(camera {fewest} sees fewest): check that frame's images and that the "
-                    "calibration is of this rig, cameras in the same order"
+                    f"(camera {fewest} sees fewest)"
                 )
-        if c["links_used"] == 0:
-            lines.append(f"{where}: no link used: S2 and ε have no data at this Δt")
+                thin.append((matched / max(seen[fewest], 1), text))
+    lines = []
+    if thin:
+        worst = min(thin)[1]
+        more = (
+            f" (and {len(thin) - 1} more of the {2 * len(counts)} frames)" if len(thin) > 1 else ""
+        )
+        lines.append(
+            f"{worst}{more}: check the images, that the calibration is of this rig, cameras "
+            "in the same order, and that the matching volume holds the particles"
+        )
+    if statistics:
+        lines += [
+            f"Δt = {c['dt'] * 1e3:.4g} ms: no link used: S2 and ε have no data at this Δt"
+            for c in counts
+            if c["links_used"] == 0
+        ]
     return lines
 
 
@@ -244,7 +262,8 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
         "counts": counts,
         "match_tolerance": _measured(result.measured.tolerance),
         "link_speed": _measured(result.measured.link_speed),
-        "warnings": thin_data_warnings(counts) + [line for line in ambiguous if line],
+        "warnings": thin_data_warnings(counts, statistics=result.statistics is not None)
+        + [line for line in ambiguous if line],
         **tracks,
         **statistics,
     }

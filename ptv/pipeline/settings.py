@@ -193,9 +193,12 @@ def _toml(value: object) -> str:
     return "[" + ", ".join(_toml(v) for v in value) + "]"
 
 
-def settings_toml(settings: PtvSettings | None = None) -> str:
+def settings_toml(
+    settings: PtvSettings | None = None, *, left_out: dict[str, str] | None = None
+) -> str:
     """The settings (default: the defaults) as a commented TOML file that
-    :func:`load_settings` reads back."""
+    :func:`load_settings` reads back; the fields of ``left_out`` (name → what takes
+    their place when they are left out) are written commented out, with that text."""
     settings = PtvSettings() if settings is None else settings
     objects = {
         DetectorSettings: settings.detection,
@@ -208,6 +211,9 @@ def settings_toml(settings: PtvSettings | None = None) -> str:
         for name in names:
             value = getattr(objects[cls], name)
             comment = _COMMENTS[name]
+            if name in (left_out or {}):
+                lines.append(f"# {name} = ...  # {comment} (left out: {left_out[name]})")
+                continue
             if value is None and name in _NONE_WHEN_ABSENT:
                 lines.append(f"# {name} = ...  # {comment}")
                 continue

@@ -357,7 +357,9 @@ def _usable(runs: Sequence[RunParticles], settings: StatisticsSettings) -> list[
         raise ValueError(
             f"only {len(usable)} Δt value(s) with particle links in the analysis volume "
             f"{settings.analysis_volume} m: the multi-Δt method needs at least two "
-            "(are the frames empty, or the calibration, volume or max speed wrong?)"
+            "(are the frames empty, or the calibration, volume or max speed wrong? Set "
+            "[statistics] analysis_volume to where the particles are, or ask for positions "
+            "and links only: synptv ptv --positions-only)"
         )
     return usable
 

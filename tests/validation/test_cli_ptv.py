@@ -12,11 +12,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from ptv.calibration.io import load_calibrations, save_calibrations
+from ptv.calibration.io import load_calibrations, read_calibrated_volume, save_calibrations
+from ptv.pipeline.settings import PtvSettings
 from simulator.particles import Box
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.cli import main
+from validation.commands.ptv import with_derived_volumes
 from validation.dataset.calibrate import calibrate_dataset
 from validation.dataset.render import RenderSettings, particle_job, write_dataset
 from validation.report.ptv_figures import FIGURE_FILES
@@ -98,6 +100,59 @@ def test_a_settings_file_sets_every_stage_and_the_command_line_overrides_it(
     assert "threshold_sigmas = 7.0" in printed and "n_bins = 12" in printed
 
 
+def test_the_volumes_left_out_are_the_calibrated_volume_and_its_core(dataset, tmp_path, capsys):
+    # The plate's 21 × 21 dots, 5 mm apart, over the traverse experiment.json gives.
+    folder, calibration = dataset
+    z = json.loads((folder / "experiment.json").read_text())["traverse_z"]
+    plate = ((-0.05, -0.05, min(z)), (0.05, 0.05, max(z)))
+    np.testing.assert_allclose(read_calibrated_volume(calibration), plate, atol=1e-12)
+    out = tmp_path / "derived"
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration), "--quiet"]
+    assert main([*argv, "--out", str(out), "--snapshots", "1", "--positions-only"]) == 0
+    printed = capsys.readouterr()
+    assert "matching volume 100 × 100 × " in printed.out and "the calibrated volume" in printed.out
+    # The traverse spans 2 mm of the 10 mm sheet: most particles lie outside the volume
+    # calibrated, and one line says so (nothing about S2: positions only).
+    (line,) = printed.err.splitlines()
+    assert "that the matching volume holds the particles" in line
+    used = json.loads((out / "summary.json").read_text())["settings"]
+    np.testing.assert_allclose(used["volume"], plate, atol=1e-12)
+    derived, line = with_derived_volumes(PtvSettings(), set(), calibration, statistics=True)
+    depth = max(z) - min(z)
+    core = ((-0.035, -0.035, -0.4 * depth), (0.035, 0.035, 0.4 * depth))
+    np.testing.assert_allclose(derived.pipeline.statistics.analysis_volume, core, atol=1e-12)
+    assert "analysis volume 70 × 70 × " in line
+    # --print-settings leaves them out, saying what takes their place
+    assert main(["ptv", "--print-settings"]) == 0
+    printed = capsys.readouterr().out
+    assert "# volume = ...  # matching volume" in printed and "the calibrated volume" in printed
+    assert "# analysis_volume = ...  # statistics box" in printed
+
+
+def test_a_calibration_without_its_volume_is_refused_before_any_work(dataset, tmp_path, capsys):
+    folder, calibration = dataset
+    older = save_calibrations(tmp_path / "older.h5", load_calibrations(calibration))
+    out = tmp_path / "older"
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(older), "--out", str(out)]
+    assert main([*argv, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "older.h5: the file records no calibrated volume" in err
+    assert "set [matching] volume and [statistics] analysis_volume" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_an_analysis_volume_off_the_particles_names_the_setting(dataset, tmp_path, capsys):
+    folder, calibration = dataset
+    settings = tmp_path / "off.toml"
+    settings.write_text("[statistics]\nanalysis_volume = [[1.0, 1.0, 1.0], [1.1, 1.1, 1.1]]\n")
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration), "--quiet"]
+    argv += ["--settings", str(settings), "--snapshots", "1", "--max-speed", "1.2"]
+    assert main([*argv, "--out", str(tmp_path / "off")]) == 2
+    err = capsys.readouterr().err
+    assert "only 0 Δt value(s) with particle links in the analysis volume" in err
+    assert "[statistics] analysis_volume" in err and "--positions-only" in err
+
+
 def test_ptv_command_reports_bad_input_in_one_line(dataset, tmp_path, capsys):
     folder, calibration = dataset
     out = str(tmp_path / "bad")
@@ -126,6 +181,21 @@ def test_ptv_command_reports_bad_input_in_one_line(dataset, tmp_path, capsys):
     assert main([*argv, "--min-cameras", "1", "--quiet"]) == 2
     assert "min_cameras must be an integer >= 2" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+@pytest.mark.parametrize("value", ["-15.0", "'large'", "15.0\nbackground = 'tophat'"])
+def test_a_bad_particle_diameter_is_refused_in_one_line_before_anything_is_written(
+    tmp_path, capsys, value
+):
+    settings = tmp_path / "settings.toml"
+    settings.write_text(f"[detection]\ndiameter = {value}\n")
+    before = sorted(tmp_path.rglob("*"))
+    argv = ["ptv", "--dataset", str(tmp_path / "ds"), "--calibration", str(tmp_path / "c.h5")]
+    code = main([*argv, "--settings", str(settings), "--out", str(tmp_path / "out")])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1
+    assert f"{settings}: [detection] diameter" in lines[0]
+    assert sorted(tmp_path.rglob("*")) == before
 
 
 def test_a_failure_after_the_pipeline_leaves_the_earlier_output_untouched(
@@ -233,7 +303,12 @@ def test_tracks_link_every_frame_of_a_recording(dataset, recording, tmp_path, ca
     _, calibration = dataset
     folder, truth = recording
     settings = tmp_path / "settings.toml"
-    settings.write_text("[linking]\nmax_acceleration = 400.0\n")
+    # The calibration's traverse spans 2 mm of the sheet: the matching volume is given
+    # (the paper's sheet and 1 mm).
+    settings.write_text(
+        "[linking]\nmax_acceleration = 400.0\n"
+        "[matching]\nvolume = [[-0.051, -0.051, -0.006], [0.051, 0.051, 0.006]]\n"
+    )
     out = tmp_path / "tracks"
     argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration), "--quiet"]
     argv += ["--settings", str(settings), "--out", str(out)]

@@ -241,6 +241,10 @@ def test_calibrate_accepts_or_refuses_any_experiment_json(small_dataset, data, c
         assert_accepted_or_refused_in_one_line(argv, copy / "experiment.json", root, capsys)
 
 
+#: A calibrated volume for the calibration the ptv fuzz does not read, m.
+CALIBRATED = ((-0.05, -0.05, -0.005), (0.05, 0.05, 0.005))
+
+
 @FUZZ
 @given(data=st.data())
 def test_ptv_accepts_or_refuses_any_experiment_json(small_dataset, data, capsys, tmp_path_factory):
@@ -252,6 +256,8 @@ def test_ptv_accepts_or_refuses_any_experiment_json(small_dataset, data, capsys,
         _dataset_with(small_dataset, spec) as (root, copy),
         mock.patch("ptv.pipeline.double_frame.run_pipeline", _stop),
         mock.patch("ptv.calibration.io.load_calibrations", lambda path: {}),
+        mock.patch("ptv.io.dataset.cameras_in_order", lambda dataset, calibrations: []),
+        mock.patch("ptv.calibration.io.read_calibrated_volume", lambda path: CALIBRATED),
     ):
         argv = ["ptv", "--dataset", str(copy), "--calibration", str(calibration)]
         argv += ["--out", str(root / "out"), "--quiet"]

@@ -181,8 +181,15 @@ def test_synptv_ptv_output_scores_as_synptv_run_reports(run, tmp_path, capsys):
     frame; those synptv run scores (frame a at Δt_0) give its yield and ghosts."""
     out = tmp_path / "ptv"
     calibration = run / "calibrations" / "model-free.h5"
+    # synptv run matches in the laser sheet (and 1 mm), which the CI traverse's 6 mm does
+    # not cover, and analyses its 70 × 70 × 8 mm core: the same volumes here.
+    settings = tmp_path / "run_volumes.toml"
+    settings.write_text(
+        "[matching]\nvolume = [[-0.051, -0.051, -0.006], [0.051, 0.051, 0.006]]\n"
+        "[statistics]\nanalysis_volume = [[-0.035, -0.035, -0.004], [0.035, 0.035, 0.004]]\n"
+    )
     argv = ["ptv", "--dataset", str(run / "dataset"), "--calibration", str(calibration)]
-    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    assert main([*argv, "--settings", str(settings), "--out", str(out), "--quiet"]) == 0
     capsys.readouterr()
     with h5py.File(out / "results.h5") as f:
         g = f["positions"]

@@ -3,11 +3,13 @@
 import argparse
 import dataclasses
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
 
 from validation.commands.common import COUNT, UsageError, say_took_over
+from validation.run.derived_ptv import SHEET_FRACTION
 from validation.workflow.files import check_output_folder, hold_output_folder, staged_output
 from validation.workflow.progress import ProgressBar
 
@@ -26,19 +28,86 @@ def _ptv_settings(args: argparse.Namespace):
     return dataclasses.replace(settings, pipeline=dataclasses.replace(settings.pipeline, **given))
 
 
+#: What takes the place of each volume ``synptv ptv`` derives when the settings leave it
+#: out.
+DERIVED_VOLUMES = {
+    "matching.volume": "the calibrated volume the calibration file records, the plate's "
+    "dots over the traverse (or the target's points)",
+    "statistics.analysis_volume": "the centred {:g} × {:g} × {:g} of the matching volume, "
+    "as synptv run takes of the laser sheet".format(*SHEET_FRACTION),
+}
+
+
+def _given_fields(path: str | None) -> set[str]:
+    """The ``section.field`` names a settings file gives (read by
+    :func:`ptv.pipeline.settings.load_settings` first, so it is valid TOML)."""
+    if path is None:
+        return set()
+    spec = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    return {f"{section}.{name}" for section, fields in spec.items() for name in fields}
+
+
+def with_derived_volumes(settings, given: set[str], calibration: str, *, statistics: bool):
+    """The settings with the matching and analysis volumes the settings file leaves out
+    derived (:data:`DERIVED_VOLUMES`; the analysis volume only with ``statistics``), and
+    one line saying what was derived (None when nothing was).
+
+    Raises
+    ------
+    UsageError
+        The matching volume is left out and the calibration file records no calibrated
+        volume.
+    """
+    from ptv.calibration.io import read_calibrated_volume
+
+    pipeline = settings.pipeline
+    volume, said = pipeline.volume, []
+    if "matching.volume" not in given:
+        volume = read_calibrated_volume(calibration)
+        if volume is None:
+            raise UsageError(
+                f"--calibration {calibration}: the file records no calibrated volume (it was "
+                "written before synptv recorded it, or by another path): set [matching] "
+                "volume and [statistics] analysis_volume in --settings, m"
+            )
+        said.append(f"matching volume {_box_text(volume)}: the calibrated volume")
+    analysis = pipeline.statistics.analysis_volume
+    if statistics and "statistics.analysis_volume" not in given:
+        lower, upper = (np.asarray(corner) for corner in volume)
+        half = 0.5 * np.asarray(SHEET_FRACTION) * (upper - lower)
+        centre = 0.5 * (lower + upper)
+        analysis = (tuple(centre - half), tuple(centre + half))
+        said.append(
+            f"analysis volume {_box_text(analysis)}: "
+            "{:g} × {:g} × {:g} of the matching volume".format(*SHEET_FRACTION)
+        )
+    statistics = dataclasses.replace(pipeline.statistics, analysis_volume=analysis)
+    pipeline = dataclasses.replace(pipeline, volume=volume, statistics=statistics)
+    line = f"{'; '.join(said)} (set [matching] volume, [statistics] analysis_volume)"
+    return dataclasses.replace(settings, pipeline=pipeline), line if said else None
+
+
+def _box_text(box) -> str:
+    """A box as the user reads it: its size and centre, mm."""
+    lower, upper = (1e3 * np.asarray(corner) for corner in box)
+    size = " × ".join(f"{v:.4g}" for v in upper - lower)
+    centre = ", ".join(f"{v:.4g}" for v in 0.5 * (lower + upper))
+    return f"{size} mm at ({centre}) mm"
+
+
 def _say_paper_ranges(statistics) -> None:
     """Warn when the statistics ranges are the defaults, which suit the paper's flow: a
     recording's η and L_int are not known to the stack, so they cannot be derived."""
     from ptv.stats.run_statistics import StatisticsSettings
 
     default = StatisticsSettings()
-    names = ("analysis_volume", "r_min", "r_max", "plateau")
+    names = ("r_min", "r_max", "plateau")
     if any(_same(getattr(statistics, n), getattr(default, n)) for n in names):
         print(
-            "synptv ptv: warning: the analysis volume, r range or plateau is the default, "
-            "chosen for the paper's 10 Hz flow (r 0.5-35 mm, plateau 2-20 mm): it is not "
-            "derived from this recording; set [statistics] analysis_volume, r_min, r_max and "
-            "plateau for your flow (about 10η to L_int and 40η to L_int/2)",
+            "synptv ptv: warning: the r range or plateau is the default, chosen for the "
+            "paper's 10 Hz flow (r 0.5-35 mm, plateau 2-20 mm): it is not derived from this "
+            "recording; set [statistics] r_min, r_max and plateau for your flow (about 10η "
+            "to L_int and 40η to L_int/2)",
             file=sys.stderr,
         )
 
@@ -49,7 +118,7 @@ def _same(a, b) -> bool:
 
 def run_ptv(args: argparse.Namespace) -> int:
     from ptv.calibration.io import load_calibrations
-    from ptv.io.dataset import open_dataset
+    from ptv.io.dataset import cameras_in_order, open_dataset
     from ptv.pipeline.double_frame import run_pipeline
     from ptv.pipeline.frames import ImageDetector
     from ptv.pipeline.results import save_results, save_tracks_csv, summary
@@ -59,7 +128,13 @@ def run_ptv(args: argparse.Namespace) -> int:
     from validation.report.track_figure import save_tracks_figure
 
     if args.print_settings:
-        print(settings_toml(_ptv_settings(args)), end="")
+        given = _given_fields(args.settings)
+        left_out = {
+            field.split(".")[1]: text
+            for field, text in DERIVED_VOLUMES.items()
+            if field not in given
+        }
+        print(settings_toml(_ptv_settings(args), left_out=left_out), end="")
         return 0
     missing = [f"--{name}" for name in ("dataset", "calibration", "out") if not getattr(args, name)]
     if missing:
@@ -82,6 +157,15 @@ def run_ptv(args: argparse.Namespace) -> int:
             f"min_cameras is {settings.pipeline.min_cameras} but the dataset has "
             f"{len(dataset.cameras)} cameras"
         )
+    cameras_in_order(dataset, calibrations)  # the same cameras, before the volumes
+    settings, volumes = with_derived_volumes(
+        settings,
+        _given_fields(args.settings),
+        args.calibration,
+        statistics=not args.positions_only,
+    )
+    if volumes is not None:
+        print(volumes)
     bar = ProgressBar("ptv", enabled=not args.quiet)
     run = run_recording if args.tracks else run_pipeline
     tracked = []  # tracks.csv and tracks.png, with --tracks

@@ -316,7 +316,12 @@ def calibrate_dataset(
     metadata = {"dataset": str(folder)}
     with staged_output(out) as staging:
         for method, calibrations in fitted_models.items():
-            save_calibrations(staging / f"{method}.h5", calibrations, metadata=metadata)
+            save_calibrations(
+                staging / f"{method}.h5",
+                calibrations,
+                metadata=metadata,
+                calibrated_volume=_plate_volume(fitted_dots),
+            )
     files = {method: str(out / f"{method}.h5") for method in fitted_models}
     return DatasetCalibration(
         list(dots.values()),
@@ -330,6 +335,28 @@ def calibrate_dataset(
         failed,
         _per_image(setup, fitted_dots, fitted_models),
     )
+
+
+def _plate_volume(dots: dict) -> tuple | None:
+    """The box the plate's dots span over the traverse, m: every dot any camera found
+    (its plate position, offsets included) at its traverse reading."""
+    world = np.concatenate(
+        [
+            np.column_stack([o.world_xy, np.full(len(o.world_xy), o.z)])
+            for planes in dots.values()
+            for o in (plane.observation() for plane in planes)
+        ]
+    )
+    return _spanned_box(world)
+
+
+def _spanned_box(points: np.ndarray) -> tuple | None:
+    """(lower, upper) corners of the points (N, 3), m; None when they are flat on an
+    axis (a box needs depth)."""
+    lower, upper = points.min(axis=0), points.max(axis=0)
+    if not np.all(lower < upper):
+        return None
+    return tuple(float(v) for v in lower), tuple(float(v) for v in upper)
 
 
 def _image_names(setup: PlateSetup, camera: str) -> list[str]:
@@ -457,8 +484,12 @@ def calibrate_point_dataset(
     out = Path(out) if out is not None else folder / "calibrations"
     calibrations = {name: fit.calibration for name, fit in fits.items()}
     with staged_output(out) as staging:
+        used = setup.target.points[np.unique(np.concatenate([f.rows for f in fits.values()]))]
         save_calibrations(
-            staging / f"{POINT_TARGET_METHOD}.h5", calibrations, metadata={"dataset": str(folder)}
+            staging / f"{POINT_TARGET_METHOD}.h5",
+            calibrations,
+            metadata={"dataset": str(folder)},
+            calibrated_volume=_spanned_box(used),
         )
     return PointTargetCalibration(
         fits, errors, {POINT_TARGET_METHOD: str(out / f"{POINT_TARGET_METHOD}.h5")}
