@@ -331,6 +331,25 @@ class PointTargetFit:
         }
 
 
+def principal_point_warning(camera: str, fit: PointTargetFit) -> str | None:
+    """A warning when the fitted principal point lies off the sensor, None otherwise.
+
+    A pinhole fitted to a target whose points lie nearly in one plane, or that fills
+    little of the image, can trade the principal point for the camera's rotation: the
+    reprojection stays small while the point wanders off the sensor.
+    """
+    cx, cy = (float(v) for v in fit.calibration.params[2:4])
+    width, height = fit.calibration.image_size
+    if -0.5 <= cx <= width - 0.5 and -0.5 <= cy <= height - 0.5:
+        return None
+    return (
+        f"{camera}: the fitted principal point ({cx:.0f}, {cy:.0f}) px lies off the "
+        f"{width} × {height} px sensor: the fit traded it for the camera's rotation (target "
+        "points nearly in one plane, or filling little of the image); check the target "
+        'points triangulated back, or set target.principal_point = "centre"'
+    )
+
+
 def _seed_residuals(params: np.ndarray, world: np.ndarray, pixels: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
         xy, valid = project_parameters(params, world)

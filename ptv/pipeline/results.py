@@ -165,8 +165,10 @@ def _settings_dict(result: PtvResult) -> dict:
 
 
 #: Below this fraction of the particles seen by the camera that sees fewest, a frame's
-#: matches are reported as too few (a healthy stereo pair matches 80–90 % of them).
-THIN_MATCH_FRACTION = 0.5
+#: matches are reported as too few: a calibration of another rig matches by chance (a
+#: tenth of them or fewer), a healthy stereo pair 80–90 %, and 35–40 % where each real
+#: particle must be seen by all three cameras (examples/myptv).
+THIN_MATCH_FRACTION = 0.25
 
 
 def thin_data_warnings(counts: list[dict], *, statistics: bool = True) -> list[str]:

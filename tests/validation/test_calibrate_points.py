@@ -17,11 +17,22 @@ EXAMPLE = Path(__file__).parents[2] / "examples" / "myptv"
 def test_myptv_cameras_from_their_target_images(tmp_path, capsys):
     argv = ["calibrate", "--dataset", str(EXAMPLE), "--out", str(tmp_path / "cal"), "--json"]
     assert main([*argv, "--quiet"]) == 0
-    report = json.loads(capsys.readouterr().out)
+    printed = capsys.readouterr()
+    report = json.loads(printed.out)
     for name, cam in report["cameras"].items():
         # MyPTV's own calibration associated 421, 432 and 411 of the 437 points.
         assert cam["points"] >= 410, name
         assert cam["rms_px"] < 0.45, name
+    # A principal point off the 1280 × 1024 sensor is said, not taken silently.
+    off = sorted(
+        name
+        for name, cam in report["cameras"].items()
+        if not (
+            0 <= cam["principal_point_px"][0] < 1280 and 0 <= cam["principal_point_px"][1] < 1024
+        )
+    )
+    assert sorted(w.split(":")[0] for w in report["warnings"]) == off
+    assert printed.err.count("lies off the 1280 × 1024 px sensor") == len(off)
     assert report["target_points"]["points"] >= 420
     assert report["target_points"]["d_um"] < 80.0
     cameras = load_calibrations(report["files"]["pinhole"])

@@ -145,6 +145,8 @@ def _calibrate_point_target(args: argparse.Namespace, dataset: Path, out: Path) 
         except FileNotFoundError as err:
             raise UsageError(str(err)) from None
     summary = result.as_dict()
+    for line in result.warnings:
+        print(f"synptv calibrate: warning: {line}", file=sys.stderr)
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         print()

@@ -35,7 +35,7 @@ from ptv.calibration.point_experiment import (
     point_target_setup,
     target_errors,
 )
-from ptv.calibration.point_target import PointTargetFit
+from ptv.calibration.point_target import PointTargetFit, principal_point_warning
 from ptv.calibration.reprojection import large_plane_residual, reprojection_rms
 from ptv.io.dataset import DatasetError
 from validation.workflow.files import staged_output
@@ -422,11 +422,15 @@ class PointTargetCalibration:
         listed positions.
     files : dict
         ``{"pinhole": path}`` of the written calibration file.
+    warnings : list of str
+        A camera whose fitted principal point lies off its sensor
+        (:func:`ptv.calibration.point_target.principal_point_warning`).
     """
 
     fits: dict[str, PointTargetFit]
     errors: PositionErrors
     files: dict
+    warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict:
         """JSON-able: per camera the fit's summary (reprojection RMS, points used, ...),
@@ -438,6 +442,7 @@ class PointTargetCalibration:
                 "points": len(self.errors.truth),
             },
             "files": self.files,
+            "warnings": self.warnings,
         }
 
 
@@ -491,6 +496,10 @@ def calibrate_point_dataset(
             metadata={"dataset": str(folder)},
             calibrated_volume=_spanned_box(used),
         )
+    warnings = [principal_point_warning(name, fit) for name, fit in fits.items()]
     return PointTargetCalibration(
-        fits, errors, {POINT_TARGET_METHOD: str(out / f"{POINT_TARGET_METHOD}.h5")}
+        fits,
+        errors,
+        {POINT_TARGET_METHOD: str(out / f"{POINT_TARGET_METHOD}.h5")},
+        [warning for warning in warnings if warning is not None],
     )

@@ -37,6 +37,7 @@ class ProgressBar:
         self.start = time.monotonic()
         self._last = self.start
         self._state: tuple[int, int] | None = None
+        self._first: tuple[int, float] | None = None  # the first report: (done, time)
         self._lock = threading.Lock()
         isatty = getattr(self.stream, "isatty", None)
         self.terminal = bool(isatty and isatty())
@@ -58,8 +59,8 @@ class ProgressBar:
                 return
             self._last = now
             elapsed = now - self.start
-            eta = elapsed / done * (total - done) if done else float("nan")
-            timing = f"{_count(done, total)} {elapsed:5.0f} s elapsed, {eta:4.0f} s left"
+            left = self._left(done, total, now)
+            timing = f"{_count(done, total)} {elapsed:5.0f} s elapsed, {left}"
             if self.terminal:
                 width = 30
                 filled = int(width * done / max(total, 1))
@@ -70,6 +71,19 @@ class ProgressBar:
             else:
                 self.stream.write(f"{self.label}: {timing}\n")
             self.stream.flush()
+
+    def _left(self, done: int, total: int, now: float) -> str:
+        """The time left, from the pace since the first report: the first unit of work
+        also pays for starting up (compiling kernels, opening files), so its pace is no
+        guide; ``? s left`` until a second report."""
+        if done >= total:
+            return "   0 s left"
+        if self._first is None and done > 0:
+            self._first = (done, now)
+        if self._first is None or done <= self._first[0] or now <= self._first[1]:
+            return "   ? s left"
+        pace = (now - self._first[1]) / (done - self._first[0])
+        return f"{pace * (total - done):4.0f} s left"
 
     def beat(self) -> None:
         """In a log, a ``still working`` line when none was written for
