@@ -6,7 +6,8 @@
   between resolved maxima, sub-pixel centres (least-squares Gaussian refined by joint
   fits of pixel-integrated spots, 3-point Gaussian or threshold-subtracted centroid),
   blends of unresolved particles split by a model test, intensity, peak, size and
-  flags.
+  flags; particle images larger than about 6 px, given their diameter, on sums of
+  pixel blocks at their scale (:mod:`ptv.detect._blocks`).
 - :mod:`ptv.detect.detections`: the :class:`Detections` result and its flags.
 - :mod:`ptv.detect.peaklocking`: histogram of the fractional positions and a test of
   its uniformity (peak-locking diagnostic).

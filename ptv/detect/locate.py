@@ -1,6 +1,8 @@
 """Particle detection: threshold, local maxima, region splitting, sub-pixel centres, blends.
 
-Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`):
+Pipeline (the compiled passes are in :mod:`ptv.detect._kernels`), made for spots of about
+3 px; for larger ones, given their ``diameter``, it runs on sums of pixel blocks
+(:mod:`ptv.detect._blocks`):
 
 1. Background level B and noise σ_n (:func:`ptv.detect.estimate_background`, median and
    MAD, globally or per tile); threshold T = B + k·σ_n (k: ``threshold_sigmas``).
@@ -141,7 +143,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.stats import chi2
 
-from ptv.detect import _kernels
+from ptv.detect import _blocks, _kernels
 from ptv.detect import _refine as _refine_kernels
 from ptv.detect import _split as _split_kernels
 from ptv.detect._groups import GROUP_DISTANCE_PX, MAX_GROUP, Groups, fit_groups
@@ -577,6 +579,7 @@ def detect_particles(
     saturation: float | None = None,
     tiles: tuple[int, int] = (1, 1),
     background: BackgroundEstimate | None = None,
+    diameter: float | None = None,
 ) -> Detections:
     """Detect particles on a camera image and locate their centres to sub-pixel accuracy.
 
@@ -614,6 +617,13 @@ def detect_particles(
     background : BackgroundEstimate or None
         A background estimate to use instead of estimating one from ``image`` (e.g. from
         a set of frames); its shape must match the image.
+    diameter : float or None
+        Expected particle image diameter, px (e⁻² diameter, σ = diameter/4), > 0, at
+        most the image's smaller side. None (default) or below 6 px: the detector's own
+        scale, spots of about 3 px. From 6 px it runs on sums of b × b pixels,
+        b = ⌊diameter/3⌋ (:mod:`ptv.detect._blocks`), where ``radius`` counts blocks and
+        ``min_size`` pixels: a large particle is one detection, two are split down to
+        about 0.4 diameters apart, and a much smaller one is located to about a block.
 
     Returns
     -------
@@ -639,6 +649,27 @@ def detect_particles(
     max_elongation = _number("max_elongation", max_elongation, low=1.0)
     min_size = _integer("min_size", min_size, low=1)
     sat = _saturation_level(saturation, np.asarray(image).dtype)
+    block = 1
+    if diameter is not None:
+        diameter = _number("diameter", diameter, low=0.0, strict=True)
+        block = _blocks.block_size(diameter, img.shape)
+    if block > 1:
+        given = _image_background(background, img, tiles)
+        sums, summed_saturation = _blocks.block_sums(img, block, sat, given)
+        summed = _blocks.block_background(None if background is None else given, sums, block, tiles)
+        found = detect_particles(
+            sums,
+            threshold_sigmas=threshold_sigmas,
+            estimator=estimator,
+            radius=radius,
+            min_dip=min_dip,
+            dip_sigmas=dip_sigmas,
+            max_elongation=max_elongation,
+            min_size=-(-min_size // block**2),
+            saturation=summed_saturation,
+            background=summed,
+        )
+        return _blocks.from_blocks(found, img, block, summed.at(found.xy)[0])
     background = _image_background(background, img, tiles)
     options = (_ESTIMATORS[estimator], radius, min_dip, dip_sigmas, max_elongation, sat)
     *columns, crowded = _measure_regions(img, background, threshold_sigmas, options)

@@ -18,6 +18,7 @@ it whatever k.
 
 import dataclasses
 import hashlib
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -99,6 +100,12 @@ class DetectorSettings:
         dropped, DN, >= 0.
     min_size : int
         Particles with fewer pixels above threshold are dropped, >= 1.
+    diameter : float or None
+        Expected particle image diameter, px (e⁻² diameter, σ = diameter/4), > 0; with
+        ``background = "tophat"``, at most 2·``tophat_radius``. None (default): spots of
+        about 3 px. From 6 px the detector works at the particles' scale
+        (:func:`ptv.detect.detect_particles`), so that a large particle is one
+        detection.
     """
 
     threshold_sigmas: float = 6.0
@@ -109,6 +116,7 @@ class DetectorSettings:
     median_frames: int = 25
     min_peak: float = 0.0
     min_size: int = 1
+    diameter: float | None = None
 
     def __post_init__(self) -> None:
         positive("threshold_sigmas", self.threshold_sigmas)
@@ -129,6 +137,14 @@ class DetectorSettings:
             isinstance(self.min_peak, int | float) and self.min_peak >= 0
         ):
             raise ValueError(f"min_peak must be a number >= 0 (DN), got {self.min_peak!r}")
+        if self.diameter is not None:
+            positive("diameter", self.diameter)
+            if self.background == "tophat" and self.diameter > 2 * self.tophat_radius:
+                raise ValueError(
+                    f"diameter {self.diameter!r} px is wider than the top-hat's disc "
+                    f"(tophat_radius {self.tophat_radius} px), which would remove the "
+                    f"particles: set tophat_radius >= {math.ceil(self.diameter / 2)}"
+                )
 
     @property
     def raw(self) -> bool:
@@ -136,8 +152,12 @@ class DetectorSettings:
         return self.particles == "bright" and self.background == "none"
 
     def as_dict(self) -> dict:
-        """JSON-able form (what detections depend on besides the images)."""
-        return dataclasses.asdict(self)
+        """JSON-able form (what detections depend on besides the images); ``diameter``
+        only when given, so that the records of earlier runs stay as they were."""
+        fields = dataclasses.asdict(self)
+        if self.diameter is None:
+            del fields["diameter"]
+        return fields
 
 
 def exposures(
@@ -347,6 +367,7 @@ class ImageDetector:
             saturation=s.saturation if s.raw else None,
             min_size=s.min_size,
             background=background,
+            diameter=s.diameter,
         )
         if s.min_peak > 0:
             found = found.select(found.peak >= s.min_peak)

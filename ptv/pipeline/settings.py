@@ -3,7 +3,7 @@
 Sections and the dataclass fields they fill (SI units: m, s, m/s, m/s²)::
 
     [detection]    DetectorSettings: threshold_sigmas, saturation, particles, background,
-                   tophat_radius, median_frames, min_peak, min_size
+                   tophat_radius, median_frames, min_peak, min_size, diameter
     [matching]     PipelineSettings: volume, tolerance, min_cameras
     [linking]      PipelineSettings: max_speed, position_noise, max_acceleration,
                    outlier_threshold, outlier_neighbours
@@ -14,11 +14,12 @@ Sections and the dataclass fields they fill (SI units: m, s, m/s, m/s²)::
 
 A missing section or field keeps its default. Boxes are ``[[x0, y0, z0], [x1, y1, z1]]``
 (lower and upper corners). TOML has no null: a field whose default is "none"
-(``saturation``: the image type's maximum; ``snapshots``: all; ``max_speed``: measured
-on the data; ``min_cameras``: from the camera count) is left out for that
-default, and ``outlier_threshold`` or ``trajectory_threshold`` = false turns that test
-off. Unknown sections or fields, wrong types and values the settings refuse are
-:class:`SettingsError` naming the file, the section and the field.
+(``saturation``: the image type's maximum; ``diameter``: spots of about 3 px;
+``snapshots``: all; ``max_speed``: measured on the data; ``min_cameras``: from the
+camera count) is left out for that default, and ``outlier_threshold`` or
+``trajectory_threshold`` = false turns that test off. Unknown sections or fields,
+wrong types and values the settings refuse are :class:`SettingsError` naming the file,
+the section and the field.
 """
 
 import dataclasses
@@ -55,7 +56,7 @@ SECTIONS = {
 #: Fields whose "none" is written as false (a test turned off).
 _OFF_WITH_FALSE = ("outlier_threshold", "trajectory_threshold")
 #: Fields whose "none" is their absence.
-_NONE_WHEN_ABSENT = ("saturation", "snapshots", "tolerance", "max_speed", "min_cameras")
+_NONE_WHEN_ABSENT = ("saturation", "diameter", "snapshots", "tolerance", "max_speed", "min_cameras")
 #: Units and meaning written beside each field by :func:`settings_toml`.
 _COMMENTS = {
     "threshold_sigmas": "detection threshold, noise σ above the background",
@@ -66,6 +67,8 @@ _COMMENTS = {
     "median_frames": "frames spread over the recording whose per-pixel median is the background",
     "min_peak": "particles peaking less than this above the background are dropped, DN",
     "min_size": "particles with fewer pixels above threshold are dropped",
+    "diameter": "expected particle image diameter, px (left out: about 3 px); from 6 px the "
+    "particles are detected at that scale",
     "volume": "matching volume: lower and upper corners, m",
     "tolerance": "largest ray distance from a matched point, m (left out: 1.5 pixel footprints, "
     "or 6 median ray distances of the matches when the calibration's error is larger)",

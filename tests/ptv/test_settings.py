@@ -62,6 +62,7 @@ def ptv_settings(draw):
     detection = DetectorSettings(
         threshold_sigmas=draw(st.floats(1.0, 20.0)),
         saturation=draw(st.none() | st.floats(100.0, 65535.0)),
+        diameter=draw(st.none() | st.floats(0.5, 60.0) | st.integers(1, 60)),
     )
     return PtvSettings(detection=detection, pipeline=pipeline)
 
@@ -81,6 +82,11 @@ def test_any_settings_survive_writing_and_reading_back(chosen):
         ("[linking]\nmax_speed = -1.0\n", "[linking] max_speed must be a finite number > 0"),
         ("[linking]\nmax_acceleration = 0\n", "[linking] max_acceleration must be a finite"),
         ("[detection]\nsaturation = 'x'\n", "[detection] saturation must be a finite number"),
+        ("[detection]\ndiameter = -15\n", "[detection] diameter must be a finite number > 0"),
+        (
+            "[detection]\nbackground = 'tophat'\ndiameter = 15.0\n",
+            "[detection] diameter 15.0 px is wider than the top-hat's disc (tophat_radius 4",
+        ),
         ("[statistics]\nplateau = [0.02, 0.002]\n", "[statistics] plateau must be"),
         ("[statistics]\nanalysis_volume = [1, 2]\n", "[statistics] analysis_volume"),
         ("[run]\nsnapshots = 0\n", "[run] snapshots must be an integer >= 1"),

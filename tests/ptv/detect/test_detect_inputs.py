@@ -69,6 +69,11 @@ def test_check_image_dtypes():
         ({"tiles": (2, 100)}, "tiles must be"),
         ({"tiles": 3}, "tiles must be"),
         ({"background": 12.0}, "background must be"),
+        ({"diameter": 0}, "diameter must be a finite number > 0"),
+        ({"diameter": float("nan")}, "diameter must be a finite number > 0"),
+        ({"diameter": True}, "diameter must be a finite number > 0"),
+        ({"diameter": 25.0}, r"diameter 25 px is larger than the image \(20 x 30 px\)"),
+        ({"diameter": 15.0, "background": 12.0}, "background must be"),
     ],
 )
 def test_bad_options_are_named(option, match):
