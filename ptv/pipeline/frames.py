@@ -29,7 +29,13 @@ import numpy as np
 from ptv._checks import positive
 from ptv.detect import Detections, detect_particles
 from ptv.detect.background import BackgroundEstimate, estimate_background
-from ptv.detect.preprocess import BACKGROUND_REMOVALS, invert, median_background, tophat
+from ptv.detect.preprocess import (
+    BACKGROUND_REMOVALS,
+    invert,
+    median_background,
+    particles_left_by_median,
+    tophat,
+)
 from ptv.io.dataset import Dataset, DatasetError
 
 __all__ = [
@@ -72,6 +78,14 @@ class FrameDetections(Protocol):
         """Centres (N_c, 2), px, on frame ``frame`` ("a" or "b") of snapshot m at Δt_k,
         one array per camera."""
         ...
+
+
+#: A frame that keeps less than this fraction of its particle images once its temporal
+#: median is subtracted lost them to it: the median removes only the fixed structure as
+#: narrow as a particle (a glint, a scratch), a few of them on a usable recording.
+STILL_FRACTION = 0.25
+#: Fewest particle images on the frame for that check to speak.
+MIN_STILL_CHECK = 10
 
 
 @dataclass(frozen=True)
@@ -285,6 +299,9 @@ class ImageDetector:
     ----------
     settings : DetectorSettings
         The settings used, saturation resolved.
+    warnings : list of str
+        What the detection found wrong with the images, per camera: a temporal median
+        that kept the particles (slow particles, :data:`STILL_FRACTION`).
     """
 
     def __init__(self, dataset: Dataset, settings: DetectorSettings = DetectorSettings()) -> None:
@@ -301,6 +318,7 @@ class ImageDetector:
         self.detector = self.settings.as_dict()
         self._frame_a: tuple[int, tuple[bytes, ...], list[Detections]] | None = None
         self._medians: dict[str, np.ndarray] = {}
+        self.warnings: list[str] = []
 
     def detect(self, k: int, m: int, frame: str) -> list[Detections]:
         """Detections on frame ``frame`` of snapshot m at Δt_k, one per camera.
@@ -412,4 +430,26 @@ class ImageDetector:
                 image = self.dataset.read_frame(max(k, 0), camera, m, frame)
                 frames.append(invert(image, self.settings.saturation) if dark else image)
             self._medians[camera] = median_background(frames)
+            self._check_median(camera, frames)
         return self._medians[camera]
+
+    def _check_median(self, camera: str, frames: list[np.ndarray]) -> None:
+        """Add to :attr:`warnings` when ``camera``'s median erases the particles of its
+        frames (:func:`ptv.detect.preprocess.particles_left_by_median`)."""
+        s = self.settings
+        radius = max(s.tophat_radius, math.ceil((s.diameter or 0) / 2))
+        before, after = particles_left_by_median(
+            self._medians[camera],
+            frames[len(frames) // 2],
+            radius=radius,
+            threshold_sigmas=s.threshold_sigmas,
+            diameter=s.diameter,
+        )
+        if before >= MIN_STILL_CHECK and after < STILL_FRACTION * before:
+            self.warnings.append(
+                f"{camera}: one of the {len(frames)} frames of the temporal median shows "
+                f"{before} particle images, {after} once the median is subtracted: the "
+                "particles move less than their size between those frames, so the median "
+                "keeps them and erases them from the frames; take median_frames from a "
+                'longer stretch of the recording, or background = "tophat"'
+            )

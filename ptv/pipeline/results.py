@@ -232,7 +232,8 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     matches per frame, links, links in the analysis volume, link radius, ambiguous links
     and their fraction, particle spacing), ``match_tolerance`` and ``link_speed`` (how
     the matching tolerance and max_speed were measured on the data; None where the
-    settings gave them), ``warnings`` (:func:`thin_data_warnings`
+    settings gave them), ``warnings`` (an image detector's
+    :attr:`~ptv.pipeline.frames.ImageDetector.warnings`, :func:`thin_data_warnings`
     and :func:`ptv.pipeline.double_frame.ambiguity_message`), and those of
     :func:`statistics_summary` (only ``statistics_dt`` and ``errors``, both None, for a run
     of positions and links only);
@@ -264,7 +265,10 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
         "counts": counts,
         "match_tolerance": _measured(result.measured.tolerance),
         "link_speed": _measured(result.measured.link_speed),
-        "warnings": thin_data_warnings(counts, statistics=result.statistics is not None)
+        # An image detector (ImageDetector) first: what it found wrong with the images
+        # explains the thin data after it.
+        "warnings": list(getattr(result.source, "warnings", ()))
+        + thin_data_warnings(counts, statistics=result.statistics is not None)
         + [line for line in ambiguous if line],
         **tracks,
         **statistics,

@@ -158,6 +158,29 @@ def test_shadows_15_px_across_are_one_detection_each(tmp_path):
     assert np.sqrt(np.mean(np.sum(np.square(errors), axis=1))) <= 0.2
 
 
+@pytest.mark.parametrize("step_px", [0.0, 0.02])
+def test_a_median_of_slow_particles_is_said_to_erase_them(tmp_path, step_px):
+    # The particles (4 px across) move 0 or 0.02 px a frame: over the median's frames
+    # they never leave their pixels, so the median holds them and the frames lose them.
+    start = _positions(20, 1)[0]
+    positions = [start + f * step_px * np.array([1.0, -0.5]) for f in range(16)]
+    dataset = _backlit_dataset(tmp_path / "ds", positions)
+    settings = DetectorSettings(particles="dark", background="median", median_frames=5)
+    detector = ImageDetector(dataset, settings)
+    detector.detections(0, 2, "a")
+    assert [line.split(":")[0] for line in detector.warnings] == ["c1", "c2"]
+    assert all("of the 5 frames of the temporal median shows" in line for line in detector.warnings)
+    assert "move less than their size" in detector.warnings[0]
+
+
+def test_a_median_of_moving_particles_says_nothing(tmp_path):
+    dataset = _backlit_dataset(tmp_path / "ds", _positions(20, 16))  # 1.9 px a frame
+    settings = DetectorSettings(particles="dark", background="median")
+    detector = ImageDetector(dataset, settings)
+    detector.detections(0, 2, "a")
+    assert detector.warnings == []
+
+
 def test_without_the_options_a_backlit_frame_gives_no_particle(tmp_path):
     positions = _positions(20, 16)
     dataset = _backlit_dataset(tmp_path / "ds", positions)
