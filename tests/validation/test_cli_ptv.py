@@ -129,6 +129,29 @@ def test_the_volumes_left_out_are_the_calibrated_volume_and_its_core(dataset, tm
     assert "# analysis_volume = ...  # statistics box" in printed
 
 
+def test_overlays_draw_the_detections_of_the_snapshots_asked_for(dataset, tmp_path, capsys):
+    folder, calibration = dataset
+    out = tmp_path / "overlay"
+    argv = ["ptv", "--dataset", str(folder), "--calibration", str(calibration), "--quiet"]
+    argv += ["--snapshots", "1", "--positions-only", "--out", str(out)]
+    assert main([*argv, "--overlay", "1"]) == 0
+    assert "detections drawn over 4 images" in capsys.readouterr().out
+    width, height = json.loads((folder / "experiment.json").read_text())["cameras"]["cam1"][
+        "image_size"
+    ]
+    for camera in ("cam1", "cam2"):
+        for frame in "ab":
+            picture = matplotlib.image.imread(out / f"overlay_{camera}_000001_{frame}.png")
+            assert picture.shape == (height, width, 3)
+    # Up front: a snapshot the dataset does not have, or no number, and nothing written.
+    refused = tmp_path / "refused"
+    assert main([*argv[:-1], str(refused), "--overlay", "2"]) == 2
+    assert "--overlay 2: the dataset has 2 snapshots" in capsys.readouterr().err
+    assert main([*argv[:-1], str(refused), "--overlay", "first"]) == 2
+    assert "expected snapshot numbers >= 0" in capsys.readouterr().err
+    assert not refused.exists()
+
+
 def test_a_calibration_without_its_volume_is_refused_before_any_work(dataset, tmp_path, capsys):
     folder, calibration = dataset
     older = save_calibrations(tmp_path / "older.h5", load_calibrations(calibration))

@@ -95,6 +95,34 @@ def _box_text(box) -> str:
     return f"{size} mm at ({centre}) mm"
 
 
+def _overlay_snapshots(given: list[int] | None, dataset) -> list[int]:
+    """The snapshots ``--overlay`` names, each checked against the dataset's count at
+    the first Δt (before any work)."""
+    if not given:
+        return []
+    count = dataset.frames[0]
+    beyond = [m for m in given if m >= count]
+    if beyond:
+        raise UsageError(
+            f"--overlay {beyond[0]}: the dataset has {count} snapshots at the first dt "
+            f"(0 … {count - 1})"
+        )
+    return sorted(set(given))
+
+
+def _snapshot_list(text: str) -> list[int]:
+    """``--overlay``'s argument: snapshot numbers, comma-separated, each >= 0."""
+    try:
+        numbers = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        numbers = []
+    if not numbers or min(numbers) < 0:
+        raise argparse.ArgumentTypeError(
+            f"expected snapshot numbers >= 0, comma-separated (e.g. 0,5), got {text!r}"
+        )
+    return numbers
+
+
 def _say_paper_ranges(statistics) -> None:
     """Warn when the statistics ranges are the defaults, which suit the paper's flow: a
     recording's η and L_int are not known to the stack, so they cannot be derived."""
@@ -124,6 +152,7 @@ def run_ptv(args: argparse.Namespace) -> int:
     from ptv.pipeline.results import save_results, save_tracks_csv, summary
     from ptv.pipeline.settings import settings_toml
     from ptv.tracking.recording import run_recording
+    from validation.report.overlay import save_overlays
     from validation.report.ptv_figures import save_ptv_figures
     from validation.report.track_figure import save_tracks_figure
 
@@ -166,14 +195,20 @@ def run_ptv(args: argparse.Namespace) -> int:
     )
     if volumes is not None:
         print(volumes)
+    overlay = _overlay_snapshots(args.overlay, dataset)
     bar = ProgressBar("ptv", enabled=not args.quiet)
     run = run_recording if args.tracks else run_pipeline
     tracked = []  # tracks.csv and tracks.png, with --tracks
     with hold_output_folder(out, "synptv ptv") as took_over:
         say_took_over("ptv", took_over)
+        detector = ImageDetector(dataset, settings.detection)
+        if overlay:
+            with staged_output(out) as staging:  # before the run: to judge the settings
+                drawn = save_overlays(detector, overlay, staging)
+            print(f"detections drawn over {len(drawn)} images: {out}/overlay_*.png")
         try:
             result = run(
-                ImageDetector(dataset, settings.detection),
+                detector,
                 calibrations,
                 settings.pipeline,
                 progress=bar,
@@ -343,6 +378,14 @@ def add_ptv_parser(sub) -> None:
         action="store_true",
         help="a time-resolved recording only: also match every frame and link the points "
         "frame to frame into tracks (tracks.csv, /tracks in results.h5, tracks.png)",
+    )
+    ptv.add_argument(
+        "--overlay",
+        type=_snapshot_list,
+        metavar="M[,M...]",
+        help="draw the detections over frames a and b of these snapshots at the first dt, "
+        "one PNG per camera (OUT/overlay_<camera>_<m>_<a|b>.png), written before the run "
+        "to judge the detection settings",
     )
     ptv.add_argument("--quiet", action="store_true", help="no progress bar")
     ptv.set_defaults(run=run_ptv)
