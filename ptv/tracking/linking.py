@@ -131,9 +131,10 @@ def _candidates(predicted: np.ndarray, radius: np.ndarray, targets: np.ndarray):
 def _link_step(predicted, radius, targets):
     """One-to-one links from predictions to targets; (i, j, d, ambiguous, candidates)."""
     i, j, d = _candidates(predicted, radius, targets)
-    ambiguous = int(np.sum(np.bincount(i, minlength=len(predicted)) > 1))
     chosen = assign(i, j, (d / radius[i]) ** 2, (len(predicted), len(targets)))
     chosen = chosen[np.argsort(i[chosen], kind="stable")]
+    # Of the links, those whose particle had another candidate (a fraction of the links).
+    ambiguous = int(np.sum(np.bincount(i, minlength=len(predicted))[i[chosen]] > 1))
     return i[chosen], j[chosen], d[chosen], ambiguous, len(i)
 
 
@@ -150,7 +151,7 @@ class Links:
     displacements : ndarray, shape (N, 3)
         ΔX = X(t + Δt) − X(t), m.
     ambiguous : int
-        Particles of frame a with more than one candidate within the radius.
+        Links whose particle of frame a had more than one candidate within the radius.
     candidates : int
         Candidate links before the one-to-one resolution.
     """

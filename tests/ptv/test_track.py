@@ -85,6 +85,15 @@ def test_the_assignment_is_one_to_one_and_minimises_the_total():
     assert links.ambiguous == 1 and links.candidates == 3
 
 
+def test_ambiguous_counts_links_not_particles_left_unlinked():
+    # Three particles, two targets, every pair within the radius: two links, both with
+    # another candidate; the third particle, unlinked, is no ambiguous link.
+    a = np.array([[0.0, 0, 0], [0.05, 0, 0], [0.1, 0, 0]])
+    b = np.array([[0.02, 0, 0], [0.08, 0, 0]])
+    links = link(a, b, radius=0.2)
+    assert len(links) == 2 and links.ambiguous == 2
+
+
 def test_empty_frames_and_bad_input(largest_dt_pair):
     _, (a, b), _ = largest_dt_pair
     for x, y in ((np.empty((0, 3)), b), (a, np.empty((0, 3))), ([], [])):
