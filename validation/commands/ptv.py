@@ -81,8 +81,8 @@ def with_derived_volumes(settings, given: set[str], calibration: str, *, statist
             f"analysis volume {_box_text(analysis)}: "
             "{:g} × {:g} × {:g} of the matching volume".format(*SHEET_FRACTION)
         )
-    statistics = dataclasses.replace(pipeline.statistics, analysis_volume=analysis)
-    pipeline = dataclasses.replace(pipeline, volume=volume, statistics=statistics)
+    in_analysis = dataclasses.replace(pipeline.statistics, analysis_volume=analysis)
+    pipeline = dataclasses.replace(pipeline, volume=volume, statistics=in_analysis)
     line = f"{'; '.join(said)} (set [matching] volume, [statistics] analysis_volume)"
     return dataclasses.replace(settings, pipeline=pipeline), line if said else None
 
