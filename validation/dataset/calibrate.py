@@ -320,7 +320,7 @@ def calibrate_dataset(
                 staging / f"{method}.h5",
                 calibrations,
                 metadata=metadata,
-                calibrated_volume=_plate_volume(fitted_dots),
+                calibrated_volume=_plate_volume(fitted_dots, fit_planes),
             )
     files = {method: str(out / f"{method}.h5") for method in fitted_models}
     return DatasetCalibration(
@@ -337,14 +337,17 @@ def calibrate_dataset(
     )
 
 
-def _plate_volume(dots: dict) -> tuple | None:
-    """The box the plate's dots span over the traverse, m: every dot any camera found
-    (its plate position, offsets included) at its traverse reading."""
+def _plate_volume(dots: dict, fit_planes: Sequence[int] | None) -> tuple | None:
+    """The box the plate's dots span over the traverse positions fitted on (default:
+    all), m: every dot any camera found (its plate position, offsets included) at its
+    traverse reading."""
     world = np.concatenate(
         [
             np.column_stack([o.world_xy, np.full(len(o.world_xy), o.z)])
             for planes in dots.values()
-            for o in (plane.observation() for plane in planes)
+            for j, plane in enumerate(planes)
+            if fit_planes is None or j in fit_planes
+            for o in (plane.observation(),)
         ]
     )
     return _spanned_box(world)
