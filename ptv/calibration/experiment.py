@@ -398,15 +398,28 @@ def calibrate_cameras(
     Raises
     ------
     CameraCalibrationError
-        A camera the method cannot fit, named, with the method's reason.
+        A camera the method cannot fit, named, with the method's reason; or one whose
+        fitted model has no ray at any of the dots it was fitted on (a fit that
+        diverged, as the OpenCV pinhole did on a strongly distorted oblique rig: every
+        dot would then be left out of Table 1, silently).
     """
     calibrations = {}
     for name, sheet in setup.sheets.items():
         planes = dots[name] if fit_planes is None else [dots[name][j] for j in fit_planes]
+        observations = [d.observation() for d in planes]
         try:
-            calibrations[name] = calibrate(method, [d.observation() for d in planes], sheet)
+            model = calibrate(method, observations, sheet)
         except ValueError as err:
             raise CameraCalibrationError(name, method, str(err)) from err
+        pixels = np.concatenate([o.pixels for o in observations])
+        if len(pixels) and not np.isfinite(model.pixel_to_ray(pixels).directions).all(1).any():
+            raise CameraCalibrationError(
+                name,
+                method,
+                f"the fitted model has no ray at any of the {len(pixels)} dots it was "
+                "fitted on (the fit diverged)",
+            )
+        calibrations[name] = model
     return calibrations
 
 

@@ -28,7 +28,13 @@ Resolution of ambiguities, so that every detection is used at most once:
   tolerance); the tuples are re-triangulated and checked. Tuples are then accepted
   greedily: most cameras first, then by increasing mean (d_c/tol)², skipping any
   that reuses a detection. (The multi-camera assignment is NP-hard; the greedy order
-  is the usual practical choice.)
+  is the usual practical choice.) The ray that extended a pair may be a stranger's:
+  where a camera merged a particle's image with a neighbour's, the one detection
+  there is the neighbour's, and the neighbour's own tuple takes it. So each tuple
+  turned down (or failing the check) leaves the tuples one camera short of it as
+  candidates of the next level (while they keep ``min_cameras``), checked like the
+  others: without them, 2-of-3 matching lost a quarter of the particles that only two
+  cameras detected on the box rigs (docs/run.md §10).
 
 Matching in two cameras leaves ghosts. Two particles lying (to within the detection
 noise) in one epipolar plane give four rays that all meet: the true and the swapped
@@ -307,64 +313,143 @@ def _match_many(prepared, sizes, h, z0, perm, tol, lower, upper, min_cameras) ->
     local = local[np.sum(local >= 0, axis=1) >= min_cameras]
     if len(local) == 0:
         return _empty(n_cam)
+    check = _TupleCheck(prepared, tol, lower, upper)
     local = np.unique(local, axis=0)
-    # Re-triangulate every tuple with all its cameras and check it.
-    origins = np.full((n_cam, len(local), 3), np.nan)
-    directions = np.full((n_cam, len(local), 3), np.nan)
-    for c, cam in enumerate(prepared):
-        has = local[:, c] >= 0
-        origins[c, has] = cam.origins[local[has, c]]
-        directions[c, has] = cam.directions[local[has, c]]
-    tri = closest_points(origins, directions)
-    d = tri.ray_distances.T  # (T, C)
+    good, d, points = check(local)
     used = local >= 0
-    good = (
-        np.all(~used | (d < tol), axis=1)
-        & np.isfinite(tri.points).all(axis=1)
-        & np.all((tri.points >= lower) & (tri.points <= upper), axis=1)
-    )
-    local, d, points, used = local[good], d[good], tri.points[good], used[good]
     ambiguous = np.array(
         [
-            int(np.sum(np.bincount(local[used[:, c], c], minlength=len(cam.index)) > 1))
+            int(np.sum(np.bincount(local[good & used[:, c], c], minlength=len(cam.index)) > 1))
             for c, cam in enumerate(prepared)
         ]
     )
-    if len(local) == 0:
+    if not good.any():
         return _empty(n_cam, ambiguous)
-    n_used = used.sum(axis=1)
-    cost = np.nansum(np.where(used, (d / tol) ** 2, 0.0), axis=1) / n_used
-    order = np.lexsort((cost, -n_used))
-    taken = [np.zeros(len(cam.index), dtype=bool) for cam in prepared]
-    accept = []
-    for t in order:
-        row = local[t]
-        if any(row[c] >= 0 and taken[c][row[c]] for c in range(n_cam)):
-            continue
-        for c in range(n_cam):
-            if row[c] >= 0:
-                taken[c][row[c]] = True
-        accept.append(t)
-    accept = np.sort(np.asarray(accept, dtype=np.int64))
-    chosen = local[accept]
+    chosen, d, points = _accept(local, good, d, points, check, min_cameras)
     indices = np.full_like(chosen, -1)
     for c, cam in enumerate(prepared):
         has = chosen[:, c] >= 0
         indices[has, c] = cam.index[chosen[has, c]]
     log.debug(
         "matched %d tuples from %d candidates (%s ambiguous) of %s detections",
-        len(accept),
-        len(local),
+        len(chosen),
+        int(good.sum()),
         ambiguous.tolist(),
         sizes,
     )
     return Matches(
         indices=indices,
-        points=points[accept],
-        ray_distances=np.where(used[accept], d[accept], np.nan),
+        points=points,
+        ray_distances=np.where(chosen >= 0, d, np.nan),
         ambiguous=ambiguous,
-        candidates=len(local),
+        candidates=int(good.sum()),
     )
+
+
+@dataclass(frozen=True, eq=False)
+class _TupleCheck:
+    """Re-triangulates tuples of local ray indices with all their cameras and checks
+    them: every ray within the tolerance of the point, the point inside the volume."""
+
+    prepared: list
+    tol: float
+    lower: np.ndarray
+    upper: np.ndarray
+
+    def __call__(self, local: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(good (T,) bool, ray distances (T, C) m, points (T, 3) m) of tuples (T, C)."""
+        n_cam = len(self.prepared)
+        origins = np.full((n_cam, len(local), 3), np.nan)
+        directions = np.full((n_cam, len(local), 3), np.nan)
+        for c, cam in enumerate(self.prepared):
+            has = local[:, c] >= 0
+            origins[c, has] = cam.origins[local[has, c]]
+            directions[c, has] = cam.directions[local[has, c]]
+        tri = closest_points(origins, directions)
+        d = tri.ray_distances.T  # (T, C)
+        good = (
+            np.all((local < 0) | (d < self.tol), axis=1)
+            & np.isfinite(tri.points).all(axis=1)
+            & np.all((tri.points >= self.lower) & (tri.points <= self.upper), axis=1)
+        )
+        return good, d, tri.points
+
+
+def _accept(local, good, d, points, check: _TupleCheck, min_cameras: int):
+    """Accept tuples greedily, most cameras first, then by increasing mean (d_c/tol)²,
+    skipping any that reuses a detection; the tuples one camera short of each tuple
+    turned down (or failing the check) join the next level, checked, as fallbacks.
+
+    Parameters
+    ----------
+    local : ndarray of int, shape (T, C)
+        Candidate tuples of local ray indices, −1 where a camera has none.
+    good : ndarray of bool, shape (T,)
+        Those that passed the check.
+    d : ndarray, shape (T, C)
+        Ray distances to their points, m.
+    points : ndarray, shape (T, 3)
+        Their points, m.
+    check : _TupleCheck
+        Checks the fallbacks.
+    min_cameras : int
+        Fewest cameras of a tuple.
+
+    Returns
+    -------
+    (ndarray of int (N, C), ndarray (N, C), ndarray (N, 3))
+        The accepted tuples in lexicographic order, their ray distances (m) and
+        points (m).
+    """
+    n_cam = local.shape[1]
+    taken = [np.zeros(len(cam.index), dtype=bool) for cam in check.prepared]
+    n_used = np.sum(local >= 0, axis=1)
+    fallback = (np.empty((0, n_cam), dtype=np.int64), np.empty(0, dtype=bool))
+    fallback += (np.empty((0, n_cam)), np.empty((0, 3)))
+    kept = []
+    for k in range(n_cam, min_cameras - 1, -1):
+        level = n_used == k
+        rows, ok, dist, point = (
+            np.concatenate([x[level], f])
+            for x, f in zip((local, good, d, points), fallback, strict=True)
+        )
+        cost = np.nansum(np.where(rows >= 0, (dist / check.tol) ** 2, 0.0), axis=1) / k
+        accept = np.zeros(len(rows), dtype=bool)
+        for t in np.argsort(cost, kind="stable"):
+            row = rows[t]
+            if not ok[t] or any(row[c] >= 0 and taken[c][row[c]] for c in range(n_cam)):
+                continue
+            for c in range(n_cam):
+                if row[c] >= 0:
+                    taken[c][row[c]] = True
+            accept[t] = True
+        kept.append((rows[accept], dist[accept], point[accept]))
+        if k > min_cameras:
+            short = _free(_one_camera_short(rows[~accept]), taken)
+            fallback = (short, *check(short))
+    rows, dist, point = (np.concatenate(x) for x in zip(*kept, strict=True))
+    order = np.lexsort(rows.T[::-1])
+    return rows[order], dist[order], point[order]
+
+
+def _one_camera_short(rows: np.ndarray) -> np.ndarray:
+    """The distinct tuples (T', C) made by dropping one used camera from tuples (T, C)."""
+    parts = []
+    for c in range(rows.shape[1]):
+        has = rows[:, c] >= 0
+        part = rows[has].copy()
+        part[:, c] = -1
+        parts.append(part)
+    return np.unique(np.concatenate(parts), axis=0)
+
+
+def _free(rows: np.ndarray, taken: Sequence[np.ndarray]) -> np.ndarray:
+    """The tuples (T, C) none of whose detections is ``taken`` (per camera, bool)."""
+    free = np.ones(len(rows), dtype=bool)
+    for c, used in enumerate(taken):
+        has = rows[:, c] >= 0
+        free[has] &= ~used[rows[has, c]]
+    return rows[free]
 
 
 def match(

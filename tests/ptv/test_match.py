@@ -178,6 +178,38 @@ def test_third_camera_removes_ghosts(rig3):
     assert np.all(np.isnan(m23.ray_distances) == (m23.indices < 0))
 
 
+def _parallel_rays(points, direction):
+    """Rays along ``direction`` (3,) through ``points`` (N, 3), m, their origins 0.5 m
+    back along it: a camera far away."""
+    direction = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    directions = np.tile(direction, (len(points), 1))
+    return Rays(points - 0.5 * directions, directions)
+
+
+@pytest.mark.parametrize("n_cam", [3, 4])
+def test_a_particle_missed_by_one_camera_keeps_its_pair_when_a_neighbour_takes_the_ray(n_cam):
+    """Camera 2 (and 3) merged particle A's image with its neighbour S's, so its only
+    ray there is S's, passing 0.4 tolerance from A. S is seen by every camera; A by the
+    others. Extending A's pair with S's ray makes a tuple S's own tuple outbids: A must
+    still be matched from the cameras that saw it (enough: n_cam − 1 ≥ min_cameras)."""
+    tol = 1.5e-4
+    a = np.array([0.004, -0.003, 0.001])
+    views = [(-0.6, 0.0, 1.0), (0.6, 0.0, 1.0), (0.0, 0.55, 1.0), (0.0, -0.55, 1.0)][:n_cam]
+    hidden = 2  # the camera that lost A
+    v = np.asarray(views[hidden]) / np.linalg.norm(views[hidden])
+    across = np.cross(v, [1.0, 0.0, 0.0])
+    s = a + 2e-3 * v + 0.4 * tol * across / np.linalg.norm(across)  # S's ray in camera 2
+    both = np.array([a, s])
+    rays = [_parallel_rays(both if c != hidden else s[None], views[c]) for c in range(n_cam)]
+    m = match_rays(rays, VOLUME, tolerance=tol, min_cameras=n_cam - 1)
+    assert len(m) == 2
+    row_a = np.flatnonzero(m.indices[:, 0] == 0)[0]
+    expected = [0 if c != hidden else -1 for c in range(n_cam)]
+    assert m.indices[row_a].tolist() == expected
+    assert np.linalg.norm(m.points[row_a] - a) < 1e-9  # exact rays meet at A
+    assert m.indices[1 - row_a].tolist() == [1 if c != hidden else 0 for c in range(n_cam)]
+
+
 def test_detections_outside_the_calibration_or_nan_are_never_matched(rig, calibrations):
     rng = np.random.default_rng(6)
     points = SHEET.sample(50, rng)

@@ -3,10 +3,12 @@ left out and the work goes on, a required method stops it."""
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 import ptv.calibration.experiment as experiment
 from ptv.calibration.experiment import CameraCalibrationError
+from ptv.rays import Rays
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.dataset.calibrate import calibrate_dataset
@@ -66,6 +68,39 @@ def test_a_baseline_that_fails_on_a_camera_is_named_and_left_out(
         checks
     )
     assert camera in checks["rungs"]["tsai"]["checks"][0]["tolerance"]
+
+
+class _Nowhere:
+    """A fitted model whose rays are defined nowhere, as the OpenCV pinhole's were on an
+    oblique rig with strong distortion (its principal point fitted 2.7-2.9k px beyond the
+    sensor's edge)."""
+
+    def pixel_to_ray(self, xy):
+        nan = np.full((len(xy), 3), np.nan)
+        return Rays(nan, nan)
+
+    def project(self, points):
+        return np.full((len(points), 2), np.nan)
+
+
+def test_a_baseline_fitted_with_no_ray_at_its_dots_is_named_and_left_out(
+    folder, tmp_path, monkeypatch
+):
+    calibrate, calls = experiment.calibrate, []
+
+    def diverging(method, observations, sheet):
+        model = calibrate(method, observations, sheet)
+        calls.append(method)
+        return _Nowhere() if calls.count("tsai") == 2 and method == "tsai" else model
+
+    monkeypatch.setattr(experiment, "calibrate", diverging)
+    result = calibrate_dataset(
+        folder, methods=("model-free", "tsai"), out=tmp_path / "cal", required=("model-free",)
+    )
+    camera = load_rig("paper-stereo").camera_names[1]
+    assert list(result.failed) == ["tsai"] and result.failed["tsai"]["camera"] == camera
+    assert "no ray at any of the" in result.failed["tsai"]["reason"]
+    assert set(result.table1) == {"model-free"}
 
 
 def test_a_required_method_that_fails_stops_with_the_camera_named(

@@ -265,6 +265,11 @@ class TruthFile:
                 return parameters, ModalStructure(group["shell_k"][()], group["shell_energy"][()])
             return parameters, SpectrumStructure(SPECTRA[str(attrs["spectrum"])](parameters))
 
+    def plate_dots(self) -> np.ndarray:
+        """True centres of the plate's dots at every traverse position, (N_Z, D, 3), m."""
+        with h5py.File(self.path, "r") as f:
+            return f["plate/dots_world"][:]
+
     def runs(self, m0: int = 0, m1: int | None = None) -> list[TruthRun]:
         """The truth of snapshots m0 … m1 − 1 (default: all), one TruthRun per Δt."""
         m1 = self.frames if m1 is None else m1

@@ -21,6 +21,7 @@ from validation.report.html_parts import number, percent, table
 from validation.report.linking_table import linking_table
 from validation.report.png import save_figure
 from validation.report.run_figures import budget_figure, noise_figure
+from validation.report.sheet_region_table import sheet_region_table
 from validation.run.checks import compare_variant, error_budget, float_array, predicted_noise
 from validation.run.dns_checks import dns_section
 from validation.run.experiment import REFERENCE_VARIANTS, ExperimentStages, run_label
@@ -460,7 +461,7 @@ def _detection_section(results: dict, scenario: Scenario) -> list[str]:
         "particles count the analysis volume; “sheet” the whole lit sheet, whose dim wings "
         "lose more particles to detection.</p>"
     )
-    return parts
+    return parts + sheet_region_table(results)
 
 
 def _statistics_section(results: dict, scenario: Scenario) -> list[str]:

@@ -75,6 +75,7 @@ from validation.run.scenario import Scenario, pipeline_settings
 from validation.run.truth_rungs import detected_runs, detection_chunk, exact_runs
 from validation.truth.flow import flow_truth, population_truth
 from validation.truth.matching import score_matching
+from validation.truth.sheet_regions import SheetRegions
 from validation.workflow.chunk_map import map_chunks
 from validation.workflow.parallel import Executor, InProcess
 from validation.workflow.stages import StageOutcome, is_built, run_stage, stage_key, staging_folder
@@ -484,6 +485,7 @@ class RungBuilder:
             settings, statistics=replace(settings.statistics, trajectory_threshold=None)
         )
         self.voxel = object_pixel(truth.rig)
+        self.regions = SheetRegions.of_dataset(truth)
         self.true_cameras = dict(zip(truth.rig.camera_names, truth.rig.cameras, strict=True))
 
     def reference_result(self, runs) -> PtvResult:
@@ -523,7 +525,12 @@ class RungBuilder:
             self.save(result, target, described, label)
             scored = self.truth.runs(0, len(frame_a))[0]
             quality = score_matching(
-                frame_a, scored, self.store.cameras, self.run.settings, voxel=self.voxel
+                frame_a,
+                scored,
+                self.store.cameras,
+                self.run.settings,
+                voxel=self.voxel,
+                regions=self.regions,
             )
             _write_json(target / "matching.json", quality.as_dict())
             self.save_population(result, target, quality.rotation, quality.translation)

@@ -11,8 +11,9 @@ points are therefore brought into the world frame by the rigid transform that be
 their nearest true particles (Kabsch, :func:`align_to_truth`) before they are scored.
 
 ``synptv run`` scores the matched points of frame a of its first snapshots
-(:func:`score_matching`); ``synptv score`` scores any code's positions with the same
-functions (:mod:`validation.score`).
+(:func:`score_matching`), and breaks the whole sheet's yield down by region of the
+sheet (:mod:`validation.truth.sheet_regions`); ``synptv score`` scores any code's
+positions with the same functions (:mod:`validation.score`).
 """
 
 from collections.abc import Callable, Iterable, Sequence
@@ -24,6 +25,7 @@ from scipy.spatial import cKDTree
 from ptv.box import Box, inside_box
 from ptv.pipeline.options import PipelineSettings
 from validation.dataset.truth_file import TruthRun
+from validation.truth.sheet_regions import SheetRegions, region_counts, region_table
 
 #: Nearest-neighbour distance within which pairs enter the rigid fit, m.
 _ALIGN_RADIUS = 0.5e-3
@@ -55,6 +57,8 @@ class MatchingQuality:
         Its angle, degrees.
     translation : ndarray, shape (3,)
         t, m.
+    regions : list of dict
+        The whole sheet's yield by region (:func:`validation.truth.sheet_regions.region_table`).
     """
 
     yield_fraction: float
@@ -67,6 +71,7 @@ class MatchingQuality:
     rotation: np.ndarray
     rotation_deg: float
     translation: np.ndarray
+    regions: list
 
     def as_dict(self) -> dict:
         """JSON-able form."""
@@ -81,6 +86,7 @@ class MatchingQuality:
             "frame_rotation": self.rotation.tolist(),
             "frame_rotation_deg": self.rotation_deg,
             "frame_translation_m": self.translation.tolist(),
+            "sheet_regions": self.regions,
         }
 
 
@@ -318,6 +324,7 @@ def score_matching(
     settings: PipelineSettings,
     *,
     voxel: float,
+    regions: SheetRegions,
 ) -> MatchingQuality:
     """Score the matched points of frame a of the first snapshots against the truth.
 
@@ -334,22 +341,27 @@ def score_matching(
         Analysis volume.
     voxel : float
         Object-side pixel, m.
+    regions : SheetRegions
+        The regions of the sheet the whole sheet's yield is broken down by.
 
     Returns
     -------
     MatchingQuality
     """
-    particles, reference = [], []
+    particles, imaging = [], []
     for m in range(len(points)):
         particles.append(truth.positions[m - truth.first, 0])
         visible = [truth.visible[name][m - truth.first, 0] for name in cameras]
-        reference.append(reference_particles(visible, len(cameras)))
+        imaging.append(np.sum(np.asarray(visible, dtype=np.int64), axis=0))
     rotation, translation = align_to_truth(lambda: zip(points, particles, strict=True))
     counts, total, ghosts = np.zeros(6, dtype=np.int64), 0, 0
-    for p, t, ref in zip(points, particles, reference, strict=True):
+    by_region = np.zeros((len(regions.labels()), 2), dtype=np.int64)
+    for p, t, seen in zip(points, particles, imaging, strict=True):
+        ref = seen == len(cameras)
         frame = match_frame(p, t, ref, voxel=voxel, rotation=rotation, translation=translation)
         counts += frame.counts(settings.statistics.analysis_volume)
         total, ghosts = total + len(frame.points), ghosts + int((frame.partner < 0).sum())
+        by_region += region_counts(regions, t, seen, frame.found)
     fractions = matching_fractions(counts, total, ghosts)
     return MatchingQuality(
         yield_fraction=fractions["yield"],
@@ -362,4 +374,5 @@ def score_matching(
         rotation=rotation,
         rotation_deg=rotation_angle_deg(rotation),
         translation=translation,
+        regions=region_table(regions, by_region),
     )
