@@ -8,11 +8,15 @@ the particles of a block, which LLVM vectorises without reassociating any reduct
 sine and cosine come from :func:`_sincos`, an inline branch-free routine (Cody–Waite
 reduction by π/2 in three 33-bit pieces, then the minimax kernels of fdlibm on
 [−π/4, π/4]), accurate to a few ulp for |θ| < 2^20 rad. Blocks are distributed over
-threads with ``prange``.
+threads: with ``prange`` in :func:`velocity`, and by :func:`simulator._threads.over_threads`
+in the two kernels a run compiles, :func:`velocity_derivatives` and
+:func:`rk4_trajectories`, which compile 2-3 times faster that way (same bits, same speed).
 """
 
 import numpy as np
 from numba import njit, prange
+
+from simulator._threads import over_threads
 
 #: Particles per block: the block's coordinates and accumulators stay in L1.
 BLOCK = 128
@@ -114,7 +118,6 @@ def velocity(x, phase, k, a, b):
     return out
 
 
-@njit(parallel=True, fastmath=_FLAGS, cache=True)
 def velocity_derivatives(x, phase, k, a, b, omega, u, dudt, grad, accel):
     """Velocity, ∂u/∂t, gradient and Lagrangian acceleration at points, from one sincos.
 
@@ -137,8 +140,27 @@ def velocity_derivatives(x, phase, k, a, b, omega, u, dudt, grad, accel):
     accel : ndarray, shape (P, 3)
         Output: a = ∂u/∂t + (u·∇)u, m/s².
     """
+    over_threads(
+        _derivative_blocks,
+        (x.shape[0] + BLOCK - 1) // BLOCK,
+        x,
+        phase,
+        k,
+        a,
+        b,
+        omega,
+        u,
+        dudt,
+        grad,
+        accel,
+    )
+
+
+@njit(fastmath=_FLAGS, cache=True, nogil=True, error_model="numpy")
+def _derivative_blocks(first, stop, x, phase, k, a, b, omega, u, dudt, grad, accel):
+    """Blocks ``first … stop − 1`` of :func:`velocity_derivatives`."""
     p = x.shape[0]
-    for blk in prange((p + BLOCK - 1) // BLOCK):
+    for blk in range(first, stop):
         lo = blk * BLOCK
         m = min(BLOCK, p - lo)
         xs, ys, zs = np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK)
@@ -180,7 +202,6 @@ def velocity_derivatives(x, phase, k, a, b, omega, u, dudt, grad, accel):
                 accel[lo + i, j] = acc[3 + j, i] + advection
 
 
-@njit(parallel=True, fastmath=_FLAGS, cache=True)
 def rk4_trajectories(x0, phases, steps, record, k, a, b):
     """Integrate dX/dt = u(X, t) with classical RK4 and record positions.
 
@@ -203,7 +224,15 @@ def rk4_trajectories(x0, phases, steps, record, k, a, b):
     """
     p = x0.shape[0]
     out = np.empty((record.shape[0], p, 3))
-    for blk in prange((p + BLOCK - 1) // BLOCK):
+    over_threads(_rk4_blocks, (p + BLOCK - 1) // BLOCK, x0, phases, steps, record, k, a, b, out)
+    return out
+
+
+@njit(fastmath=_FLAGS, cache=True, nogil=True, error_model="numpy")
+def _rk4_blocks(first, stop, x0, phases, steps, record, k, a, b, out):
+    """Blocks ``first … stop − 1`` of :func:`rk4_trajectories`, into ``out``."""
+    p = x0.shape[0]
+    for blk in range(first, stop):
         lo = blk * BLOCK
         m = min(BLOCK, p - lo)
         pos = np.empty((3, BLOCK))
@@ -251,4 +280,3 @@ def rk4_trajectories(x0, phases, steps, record, k, a, b):
                     for j in range(3):
                         out[r, lo + i, j] = pos[j, i]
                 r += 1
-    return out

@@ -18,6 +18,7 @@ from validation.commands.run import add_run_parser
 from validation.commands.scene import add_scene_parser
 from validation.commands.score import add_score_parser
 from validation.commands.study import add_study_parser
+from validation.workflow.compile_note import watch as watch_compiling
 from validation.workflow.progress import say_interrupted
 
 
@@ -70,7 +71,8 @@ def main(argv: list[str] | None = None) -> int:
         format="%(levelname)s %(name)s: %(message)s",
     )
     try:
-        return args.run(args)
+        with watch_compiling(quiet=getattr(args, "quiet", False)):
+            return args.run(args)
     except ValueError as err:  # bad input: one line, status 2
         print(f"synptv {args.command}: error: {err}", file=sys.stderr)
         return 2

@@ -26,7 +26,7 @@ estimator names of :func:`ptv.detect.detect_particles`.
 from math import exp, floor, log, sqrt
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 
 OVERLAP = 1
 ELONGATED = 2
@@ -394,7 +394,9 @@ def _gauss_fit(
     return True
 
 
-@njit(cache=True)
+# n_kept typed int64 from the start: inferred from its first value, 0, numba compiled
+# the functions it is passed to once more for that constant.
+@njit(cache=True, locals={"n_kept": types.int64})
 def measure(
     img,
     order,

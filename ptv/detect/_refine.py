@@ -20,18 +20,23 @@ correlation of adjacent residuals.
 from math import erf, exp, sqrt
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
+
+from ptv._threads import over_threads
 
 #: Window half-width around each particle, px (a 5 × 5 window).
 HALF = 2
 #: Gauss–Newton iterations at most, and the convergence of the centres: the last step
 #: below 10⁻³ px. Each step shrinks by about ten on rendered spots (measured), so the
 #: centre is then within ~10⁻⁴ px of the optimum: a hundredth of the best random error
-#: (~0.01 px).
-_ITERATIONS = 12
+#: (~0.01 px). A NumPy integer, as :mod:`ptv.detect._split`'s and the ``clamp`` flags
+#: passed to :func:`fit_group` (np.True_, np.False_): numba compiles a function once per
+#: value of a Python constant passed to it, so a Python int and bool gave two fit_group.
+_ITERATIONS = np.int64(12)
 _TOLERANCE = 1e-3
 #: Groups are refined in this many chunks of consecutive groups (neighbours on the
-#: image, so that a chunk reads the image rows it has just read), in parallel.
+#: image, so that a chunk reads the image rows it has just read), in parallel
+#: (:func:`ptv._threads.over_threads`).
 _CHUNKS = 64
 #: Shortest fraction of a Gauss–Newton step tried before a clamped fit gives up.
 _SMALLEST_STEP = 1.0 / 64.0
@@ -543,10 +548,7 @@ def fixed_light(spots, near, rr, cc, work, out):  # pragma: no cover (compiled)
             out[p] += a * ex[cc[p] - c_lo, 0] * ey[rr[p] - r_lo, 0]
 
 
-@njit(cache=True, parallel=True)
-def refine_groups(
-    img, spots, level, members, offsets, near, near_offsets, snapshot
-):  # pragma: no cover
+def refine_groups(img, spots, level, members, offsets, near, near_offsets, snapshot):
     """Refine groups of particles by a joint integrated-Gaussian fit.
 
     The model of pixel (i, j) is Σ_k A_k·E(i − x_k)·E(j − y_k) + F + B, E the light of a
@@ -590,17 +592,50 @@ def refine_groups(
         Σ (1 − h_p)·σ_p²; the last is near 0 for white noise, and large for a misfit (a
         blend leaves residuals of one sign over several pixels).
     """
-    rows, cols = img.shape
     refined = np.zeros(spots.shape[0], np.bool_)
-    n_groups = offsets.size - 1
-    stats = np.zeros((n_groups, 5))
+    stats = np.zeros((offsets.size - 1, 5))
     stats[:, 3] = np.nan
-    largest = 1
-    for g in range(n_groups):
-        largest = max(largest, offsets[g + 1] - offsets[g])
-    # Each chunk has its own scratch; groups are disjoint, so the chunks write disjoint
-    # entries of spots and refined.
-    for chunk in prange(_CHUNKS):
+    largest = int(np.diff(offsets).max(initial=1))
+    over_threads(
+        _refine_chunks,
+        _CHUNKS,
+        img,
+        spots,
+        level,
+        members,
+        offsets,
+        near,
+        near_offsets,
+        snapshot,
+        largest,
+        refined,
+        stats,
+    )
+    return refined, stats
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _refine_chunks(
+    first,
+    stop,
+    img,
+    spots,
+    level,
+    members,
+    offsets,
+    near,
+    near_offsets,
+    snapshot,
+    largest,
+    refined,
+    stats,
+):  # pragma: no cover (compiled)
+    """Chunks ``first … stop − 1`` of :func:`refine_groups` (of groups of at most
+    ``largest`` particles), into ``spots``, ``refined`` and ``stats``. Each chunk has its
+    own scratch; groups are disjoint, so the chunks write disjoint entries."""
+    rows, cols = img.shape
+    n_groups = offsets.size - 1
+    for chunk in range(first, stop):
         work = workspace(largest)
         span = work[0].shape[1]
         seen = np.zeros((span, span), np.bool_)
@@ -629,7 +664,7 @@ def refine_groups(
                 fixed,
             )
             w, f = root_w[:count], fixed[:count]
-            if fit_group(img, rr[:count], cc[:count], p, work, w, f, _ITERATIONS, False):
+            if fit_group(img, rr[:count], cc[:count], p, work, w, f, _ITERATIONS, np.False_):
                 for k in range(group.size):
                     spots[group[k]] = p[4 * k : 4 * k + 4]
                     refined[group[k]] = True
@@ -644,7 +679,6 @@ def refine_groups(
                     stats[g, 4] = _neighbour_products(rr[:count], cc[:count], resid, seen, grid)
                 stats[g, 2] = count - p.size
                 stats[g, 3] = p[-1]
-    return refined, stats
 
 
 @njit(cache=True)

@@ -37,8 +37,9 @@ is fresh either way).
 from math import sqrt
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from ptv._threads import over_threads
 from ptv.detect._refine import (
     HALF,
     _pixel_mass,
@@ -65,8 +66,9 @@ MIN_SEPARATION = 0.8
 #: (benchmarks/bench_dense.py).
 MAX_ADDED = 4
 #: Gauss–Newton steps at most of the trial fits: a blend's one-spot fit can take many,
-#: its width, amplitude and background being strongly correlated on a few pixels.
-_ITERATIONS = 25
+#: its width, amplitude and background being strongly correlated on a few pixels
+#: (a NumPy integer: see :data:`ptv.detect._refine._ITERATIONS`).
+_ITERATIONS = np.int64(25)
 #: A trial frees the spots closer than this to the one it splits, px; the group's
 #: other spots are held fixed (their light on its pixels is small, and already fitted).
 _LOCAL_DISTANCE = 4.0
@@ -224,7 +226,7 @@ def _trial(img, p, n_loc, k, near, noise2, gamma, snapshot, sc):  # pragma: no c
     model_light(img, r, c, q1, work, fixed, resid, light)
     _weights(light, noise2, gamma, count, root_w)
     w = root_w[:count]
-    if not fit_group(img, r, c, q1, work, w, f, _ITERATIONS, True):
+    if not fit_group(img, r, c, q1, work, w, f, _ITERATIONS, np.True_):
         return False
     chi_one = _chi2(img, r, c, q1, work, fixed, w, resid, light)
     if not _starts(r, c, resid, w, q1, kf, work, starts):
@@ -236,7 +238,7 @@ def _trial(img, p, n_loc, k, near, noise2, gamma, snapshot, sc):  # pragma: no c
         q2[4 * kf : 4 * kf + 4] = starts[start, 0]
         q2[4 * n_free : 4 * n_free + 4] = starts[start, 1]
         q2[-1] = q1[-1]
-        if not fit_group(img, r, c, q2, work, w, f, _ITERATIONS, True):
+        if not fit_group(img, r, c, q2, work, w, f, _ITERATIONS, np.True_):
             continue
         gap_x = q2[4 * kf + 1] - q2[4 * n_free + 1]
         gap = sqrt(gap_x**2 + (q2[4 * kf + 2] - q2[4 * n_free + 2]) ** 2)
@@ -314,16 +316,15 @@ def _rescue(img, p, n_loc, near, noise2, gamma, snapshot, sc):  # pragma: no cov
     _weights(light, noise2, gamma, count, root_w)
     q = sc[12][: 4 * n_loc + 1]
     q[:] = p[: 4 * n_loc + 1]
-    if not fit_group(img, r, c, q, work, root_w[:count], fixed[:count], _ITERATIONS, True):
+    if not fit_group(img, r, c, q, work, root_w[:count], fixed[:count], _ITERATIONS, np.True_):
         return False
     p[: 4 * n_loc + 1] = q
     return True
 
 
-@njit(cache=True, parallel=True)
 def split_groups(
     img, spots, background, level, noise2, gamma, candidate, members, offsets, near, near_offsets
-):  # pragma: no cover
+):
     """Split blended spots of the fitted groups by the test of the module docstring.
 
     Parameters
@@ -358,11 +359,54 @@ def split_groups(
     n_groups = offsets.size - 1
     added = np.zeros((n_groups * MAX_ADDED, 4))
     parent = np.full(n_groups * MAX_ADDED, -1, np.int64)
-    largest = 1
-    for g in range(n_groups):
-        largest = max(largest, offsets[g + 1] - offsets[g])
-    snapshot = spots.copy()
-    for chunk in prange(_CHUNKS):
+    largest = int(np.diff(offsets).max(initial=1))
+    over_threads(
+        _split_chunks,
+        _CHUNKS,
+        img,
+        spots,
+        background,
+        level,
+        noise2,
+        gamma,
+        candidate,
+        members,
+        offsets,
+        near,
+        near_offsets,
+        spots.copy(),
+        largest,
+        added,
+        parent,
+    )
+    return added, parent
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _split_chunks(
+    first,
+    stop,
+    img,
+    spots,
+    background,
+    level,
+    noise2,
+    gamma,
+    candidate,
+    members,
+    offsets,
+    near,
+    near_offsets,
+    snapshot,
+    largest,
+    added,
+    parent,
+):  # pragma: no cover (compiled)
+    """Chunks ``first … stop − 1`` of :func:`split_groups` (of groups of at most
+    ``largest`` detections; ``snapshot``: the spots before any split), into ``spots``,
+    ``added`` and ``parent``."""
+    n_groups = offsets.size - 1
+    for chunk in range(first, stop):
         n_spots = largest + MAX_ADDED
         work = workspace(n_spots + 4)
         span = work[0].shape[1]
@@ -409,4 +453,3 @@ def split_groups(
                 k = group.size + j
                 added[g * MAX_ADDED + j] = p[4 * k : 4 * k + 4]
                 parent[g * MAX_ADDED + j] = origin[k]
-    return added, parent

@@ -17,6 +17,8 @@ from math import log, sqrt
 import numpy as np
 from numba import njit, prange
 
+from ptv._threads import over_threads
+
 
 @dataclass(frozen=True)
 class LogBins:
@@ -110,17 +112,30 @@ class PairSums:
 N_CHUNKS = 64
 
 
-@njit(parallel=True, fastmath={"contract", "nsz", "arcp"}, cache=True)
+_FLAGS = {"contract", "nsz", "arcp"}
+
+
 def _pair_sums(x, d, r_min, r_max, n_bins, n_chunks):
-    p, k = d.shape[0], d.shape[1]
-    r2_min, r2_max = r_min * r_min, r_max * r_max
-    log_r_min = log(r_min)
-    inv_dlog = n_bins / (log(r_max) - log_r_min)
+    """Count, Σ q, Σ q² and Σ r per bin (columns of ``d`` apart), over all pairs of ``x``,
+    in ``n_chunks`` interleaved row chunks summed in order."""
+    k = d.shape[1]
     count = np.zeros((n_chunks, n_bins), dtype=np.int64)
     sum_q = np.zeros((n_chunks, n_bins, k))
     sum_q2 = np.zeros((n_chunks, n_bins, k))
     sum_r = np.zeros((n_chunks, n_bins))
-    for c in prange(n_chunks):
+    over_threads(_start_chunks, n_chunks, x, d, r_min, r_max, count, sum_q, sum_q2, sum_r)
+    return count.sum(axis=0), sum_q.sum(axis=0), sum_q2.sum(axis=0), sum_r.sum(axis=0)
+
+
+@njit(fastmath=_FLAGS, cache=True, nogil=True, error_model="numpy")
+def _start_chunks(first, stop, x, d, r_min, r_max, count, sum_q, sum_q2, sum_r):  # pragma: no cover
+    """Row chunks ``first … stop − 1`` of :func:`_pair_sums`, each into its row of the sums."""
+    p, k = d.shape[0], d.shape[1]
+    n_chunks, n_bins = count.shape
+    r2_min, r2_max = r_min * r_min, r_max * r_max
+    log_r_min = log(r_min)
+    inv_dlog = n_bins / (log(r_max) - log_r_min)
+    for c in range(first, stop):
         for i in range(c, p, n_chunks):  # interleaved rows balance the triangle
             xi, yi, zi = x[i, 0], x[i, 1], x[i, 2]
             for j in range(i + 1, p):
@@ -142,10 +157,11 @@ def _pair_sums(x, d, r_min, r_max, n_bins, n_chunks):
                     q *= q
                     sum_q[c, b, m] += q
                     sum_q2[c, b, m] += q * q
-    return count.sum(axis=0), sum_q.sum(axis=0), sum_q2.sum(axis=0), sum_r.sum(axis=0)
 
 
-@njit(parallel=True, fastmath={"contract", "nsz", "arcp"}, cache=True)
+# A prange loop still: as a chunk kernel on threads (as _start_chunks) it compiled in a
+# fifth of the time but ran 8 % slower, and only the "midpoint" binning compiles it.
+@njit(parallel=True, fastmath=_FLAGS, cache=True)
 def _pair_sums_midpoint(x, d, r_min, r_max, n_bins, n_chunks):
     """As :func:`_pair_sums`, each column binned and projected on its chord midpoint."""
     p, k = d.shape[0], d.shape[1]

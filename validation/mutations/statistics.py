@@ -132,7 +132,7 @@ STATISTICS_MUTATIONS: tuple[Mutation, ...] = (
         "its own)",
         (
             Patch(
-                "ptv.stats.pairs:_pair_sums",
+                "ptv.stats.pairs:_start_chunks",
                 edited(
                     "int((log(r) - log_r_min) * inv_dlog)",
                     "int((log(r) - log_r_min) * inv_dlog) + 1",

@@ -191,6 +191,8 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None) -> 
                     # tries the default 8787, and warns when another cluster holds it.
                     dashboard_address=":0",
                     env=worker_environ,
+                    # Each worker watches for its first compile (one line per command).
+                    preload=["validation.workflow.compile_note"],
                 )
             with cluster, Client(cluster) as client:
                 _set_environment(saved)
