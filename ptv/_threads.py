@@ -3,13 +3,17 @@
 The kernels that loop over independent chunks (groups of detections, rows of the pair
 loop) take a range of chunks, release the GIL (``nogil=True``) and are called here
 from ``numba.get_num_threads()`` threads, each with a contiguous range of chunks as
-numba's static ``prange`` schedule gives them. They were ``parallel=True`` functions:
-numba compiles such a function's whole call tree a second and third time (once into
-its parallel region, once into the function), so they took 45 of the 77 s that the
-detector's kernels took to compile on the 2-core development machine
-(benchmarks/bench_first_run.py); the results are the same bits, each chunk being
-computed alone as before. ``simulator/_threads.py`` is its twin (``simulator`` and
-``ptv`` import nothing of each other).
+numba's static ``prange`` schedule gives them. They were ``parallel=True`` functions,
+which numba compiles much more slowly (the loop's body goes through its parallel
+passes, and the call tree below it is optimised again into the parallel region): on
+the 2-core development machine the detector's kernels took 53 s to compile and now
+take 34 s, the pair sums 6.2 s and now 0.3 s (benchmarks/bench_first_run.py). The
+results are the same bits (each chunk is computed alone, as before), and so is the
+speed on one thread; on two threads with another process busy on one of the two cores,
+numba's threads made detection 3.5× slower than one thread (76–83 against 22 ms per
+2048 × 1088 image), these 1.2× (25.5 ms).
+``simulator/_threads.py`` is its twin (``simulator`` and ``ptv`` import nothing of each
+other).
 """
 
 from collections.abc import Callable

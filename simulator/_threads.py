@@ -1,12 +1,12 @@
 """Chunks of a compiled kernel spread over threads (private).
 
-The kernel of RK4 trajectories takes a range of particle blocks, releases the GIL
-(``nogil=True``) and is called here from ``numba.get_num_threads()`` threads, each with
-a contiguous range of blocks as numba's static ``prange`` schedule gives them. As a
-``parallel=True`` function it took three times as long to compile (numba compiles the
-loop's body a second time into its parallel region), for the same bits and the same
-speed. ``ptv/_threads.py`` is its twin (``simulator`` and ``ptv`` import nothing of each
-other).
+The kernels of RK4 trajectories and of the exact velocity derivatives take a range of
+particle blocks, release the GIL (``nogil=True``) and are called here from
+``numba.get_num_threads()`` threads, each with a contiguous range of blocks as numba's
+static ``prange`` schedule gives them. As ``parallel=True`` functions they took 8.1 s to
+compile on the 2-core development machine, 2.9 s now (benchmarks/bench_first_run.py),
+for the same bits and the same speed. ``ptv/_threads.py`` is its twin (``simulator``
+and ``ptv`` import nothing of each other).
 """
 
 from collections.abc import Callable

@@ -20,14 +20,15 @@ from numba.core import event
 
 #: The environment variable that gives the local workers the marker file.
 MARKER = "SYNPTV_COMPILE_NOTE"
-#: Seconds the kernels of ``synptv run`` took to compile, once, on the 2-core
-#: development machine (benchmarks/bench_first_run.py).
-COMPILE_S = 45
+#: Seconds a fresh install added to the first ``synptv run`` of the default scenario on
+#: the 2-core development machine, its two workers compiling at once (58 s: 191 s
+#: against 134 s for the next run; 42 s in one process, benchmarks/bench_first_run.py).
+COMPILE_S = 60
 
 
 class _FirstCompile(event.Listener):
-    """Says :data:`MARKER`'s line at this process's first compile, if no other process
-    of the command has said it."""
+    """Says the line at this process's first compile, unless another process of the
+    command said it first (the marker file exists)."""
 
     def __init__(self, marker: str) -> None:
         self.marker = marker
@@ -43,7 +44,8 @@ class _FirstCompile(event.Listener):
         except OSError:  # said already, or the command is over
             return
         stream = sys.stderr
-        start = "\n" if stream.isatty() else ""  # after a progress bar's unfinished line
+        isatty = getattr(stream, "isatty", None)
+        start = "\n" if isatty and isatty() else ""  # after a progress bar's unfinished line
         print(
             f"{start}synptv: compiling the numerical kernels once (about {COMPILE_S} s on "
             "2 cores; later runs reuse them)",
