@@ -87,8 +87,9 @@ def test_a_terminal_gets_no_still_working_lines(monkeypatch):
 
 
 def test_the_time_left_follows_the_pace_after_a_slow_start(monkeypatch):
-    # The first of ten units takes 100 s (compiling kernels), the others 1 s each: the
-    # estimate waits for a second report, then gives 8 units × 1 s, not 8 × 50 s.
+    # A fake clock, not a measured speed: the first of ten units takes 100 s (compiling
+    # kernels), the others 1 s each; the estimate waits for a second report, then gives
+    # 8 units × 1 s, not 8 × 50 s.
     clock = iter([0.0, 100.0, 101.0])
     monkeypatch.setattr(progress.time, "monotonic", lambda: next(clock))
     screen = _Terminal()
