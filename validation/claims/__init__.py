@@ -10,7 +10,8 @@ every estimate with a reference it shares no code with
 (:mod:`validation.truth.independent`, :mod:`validation.truth.noise_floor`). Three
 claims check the simulator itself against closed forms written apart from it: Snell's
 law at the windows and the sheet's focus on Scheimpflug mounts (``optics.*``), Pope's
-spectrum (``flow.pope_spectrum``). ``quick`` sizes run in CI (under a minute on an idle
+spectrum (``flow.pope_spectrum``); five check the rendered images against their
+specification (:mod:`validation.claims.formation`). ``quick`` sizes run in CI (under a minute on an idle
 2-core machine); ``full`` sizes take the sample sizes the tolerances were designed for.
 
 Not regressed here: the calibration claims on rendered plate images
@@ -23,6 +24,7 @@ from collections.abc import Callable
 from validation.claims.base import Claim, ClaimResult
 from validation.claims.calibration import CALIBRATION_CLAIMS
 from validation.claims.context import CORRELATION_LENGTH, SIZES, ClaimContext, Sizes
+from validation.claims.formation import FORMATION_CLAIMS
 from validation.claims.images import IMAGE_CLAIMS
 from validation.claims.optics import OPTICS_CLAIMS
 from validation.claims.spectrum import SPECTRUM_CLAIMS
@@ -47,6 +49,7 @@ CLAIMS: tuple[Claim, ...] = (
     + OPTICS_CLAIMS
     + STATISTICS_CLAIMS
     + IMAGE_CLAIMS
+    + FORMATION_CLAIMS
 )
 
 

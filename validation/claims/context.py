@@ -11,6 +11,7 @@ from simulator.presets import flow_preset
 from simulator.rigs import load_rig, rig_from_dict
 from simulator.spectra import KolmogorovBandSpectrum, PopeSpectrum
 from simulator.target import Imperfections, PlateDesign, build_plate, traverse_positions
+from validation.claims.formation_scores import FormationScores, formation_scores
 from validation.claims.rendered_case import SLOW_CASE, RenderedCase, render_case
 from validation.studies.calibration_methods import (
     calibrate_cameras,
@@ -215,6 +216,16 @@ class ClaimContext:
     def slow_case(self) -> RenderedCase:
         """The slow lab flow on four cameras (claims #35, #36), measured by the stack."""
         return render_case(self.sizes.image_snapshots, seed=self.seed + 11, spec=SLOW_CASE)
+
+    @cached_property
+    def formation(self) -> FormationScores:
+        """The rendered case's images against their specification (claims #37–#41)."""
+        return formation_scores(self.rendered_case, seed=self.seed + 12)
+
+    @cached_property
+    def slow_formation(self) -> FormationScores:
+        """The slow case's images against their specification (claims #37–#41)."""
+        return formation_scores(self.slow_case, seed=self.seed + 13)
 
     @cached_property
     def reference(self) -> BruteForceS2:

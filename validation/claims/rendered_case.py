@@ -104,6 +104,8 @@ class RenderedCase:
         Matched points of both frames and the links, per snapshot.
     sensor : Sensor
         The noise model the images were recorded with.
+    lighting : ParticleLighting
+        The tracers' diameter, the laser sheet and the light collected.
     settings : PipelineSettings
         The matching and linking settings used (min_cameras and max_speed resolved).
     spec : CaseSpec
@@ -116,6 +118,7 @@ class RenderedCase:
     exposures: list
     measurements: list[SnapshotMeasurement]
     sensor: Sensor
+    lighting: ParticleLighting
     settings: PipelineSettings
     spec: CaseSpec = PAPER_CASE
 
@@ -181,7 +184,9 @@ def render_case(snapshots: int, *, seed: int, spec: CaseSpec = PAPER_CASE) -> Re
         measure_snapshot(source, 0, m, rig.cameras, settings, keep_matched=True)
         for m in range(snapshots)
     ]
-    return RenderedCase(rig, dt, positions, exposures, measurements, sensor, settings, spec)
+    return RenderedCase(
+        rig, dt, positions, exposures, measurements, sensor, lighting, settings, spec
+    )
 
 
 def _expose(camera, points, lighting, sensor, detector, rng) -> Exposure:

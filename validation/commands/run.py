@@ -4,6 +4,7 @@ import argparse
 import json
 
 from validation.commands.common import SEED, add_parallel_options, say_took_over
+from validation.run.scenario import scenario_presets
 from validation.workflow.files import check_output_folder, hold_output_folder
 from validation.workflow.progress import ProgressBar, say_interrupted
 
@@ -100,8 +101,7 @@ def add_run_parser(sub) -> None:
     run.add_argument(
         "--scenario",
         default="default",
-        help="a preset (default, ci, dns-ci, box-3cam, paper-8hz, paper-10hz, paper-12hz) or a "
-        "scenario .toml file",
+        help=f"a preset ({', '.join(scenario_presets())}) or a scenario .toml file",
     )
     run.add_argument("--out", help="output folder (default ./synptv-<scenario>)")
     run.add_argument("--seed", type=SEED, help="override the scenario's seed")

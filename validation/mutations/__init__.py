@@ -8,6 +8,7 @@ builds a fresh :class:`validation.claims.ClaimContext` and records which claims 
 
 from validation.mutations.base import Mutation
 from validation.mutations.calibration import CALIBRATION_MUTATIONS
+from validation.mutations.formation import FORMATION_MUTATIONS
 from validation.mutations.images import IMAGE_MUTATIONS
 from validation.mutations.optics import OPTICS_MUTATIONS
 from validation.mutations.statistics import STATISTICS_MUTATIONS
@@ -15,7 +16,11 @@ from validation.mutations.statistics import STATISTICS_MUTATIONS
 __all__ = ["MUTATIONS", "Mutation", "mutation"]
 
 MUTATIONS: tuple[Mutation, ...] = (
-    STATISTICS_MUTATIONS + CALIBRATION_MUTATIONS + OPTICS_MUTATIONS + IMAGE_MUTATIONS
+    STATISTICS_MUTATIONS
+    + CALIBRATION_MUTATIONS
+    + OPTICS_MUTATIONS
+    + IMAGE_MUTATIONS
+    + FORMATION_MUTATIONS
 )
 
 
