@@ -11,8 +11,10 @@ every estimate with a reference it shares no code with
 claims check the simulator itself against closed forms written apart from it: Snell's
 law at the windows and the sheet's focus on Scheimpflug mounts (``optics.*``), Pope's
 spectrum (``flow.pope_spectrum``); five check the rendered images against their
-specification (:mod:`validation.claims.formation`). ``quick`` sizes run in CI (under a minute on an idle
-2-core machine); ``full`` sizes take the sample sizes the tolerances were designed for.
+specification (:mod:`validation.claims.formation`), four the stack's choices where
+particles crowd (:mod:`validation.claims.crowding`). ``quick`` sizes run in CI (about a
+minute on an idle 2-core machine); ``full`` sizes take the sample sizes the tolerances
+were designed for.
 
 Not regressed here: the calibration claims on rendered plate images
 (``synptv calibrate`` and ``synptv run`` measure those; here dots are exact
@@ -24,6 +26,7 @@ from collections.abc import Callable
 from validation.claims.base import Claim, ClaimResult
 from validation.claims.calibration import CALIBRATION_CLAIMS
 from validation.claims.context import CORRELATION_LENGTH, SIZES, ClaimContext, Sizes
+from validation.claims.crowding import CROWDING_CLAIMS
 from validation.claims.formation import FORMATION_CLAIMS
 from validation.claims.images import IMAGE_CLAIMS
 from validation.claims.optics import OPTICS_CLAIMS
@@ -50,6 +53,7 @@ CLAIMS: tuple[Claim, ...] = (
     + STATISTICS_CLAIMS
     + IMAGE_CLAIMS
     + FORMATION_CLAIMS
+    + CROWDING_CLAIMS
 )
 
 

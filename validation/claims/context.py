@@ -11,8 +11,9 @@ from simulator.presets import flow_preset
 from simulator.rigs import load_rig, rig_from_dict
 from simulator.spectra import KolmogorovBandSpectrum, PopeSpectrum
 from simulator.target import Imperfections, PlateDesign, build_plate, traverse_positions
+from validation.claims.crowded_scores import CrowdedScores, crowded_scores
 from validation.claims.formation_scores import FormationScores, formation_scores
-from validation.claims.rendered_case import SLOW_CASE, RenderedCase, render_case
+from validation.claims.rendered_case import CROWDED_CASE, SLOW_CASE, RenderedCase, render_case
 from validation.studies.calibration_methods import (
     calibrate_cameras,
     compare_methods,
@@ -216,6 +217,16 @@ class ClaimContext:
     def slow_case(self) -> RenderedCase:
         """The slow lab flow on four cameras (claims #35, #36), measured by the stack."""
         return render_case(self.sizes.image_snapshots, seed=self.seed + 11, spec=SLOW_CASE)
+
+    @cached_property
+    def crowded_case(self) -> RenderedCase:
+        """The default's rig and flow crowded (claims #42–#45), measured by the stack."""
+        return render_case(self.sizes.image_snapshots, seed=self.seed + 14, spec=CROWDED_CASE)
+
+    @cached_property
+    def crowded(self) -> CrowdedScores:
+        """The crowded case's yield, ghosts, links and outlier flags against references."""
+        return crowded_scores(self.crowded_case)
 
     @cached_property
     def formation(self) -> FormationScores:

@@ -8,6 +8,7 @@ builds a fresh :class:`validation.claims.ClaimContext` and records which claims 
 
 from validation.mutations.base import Mutation
 from validation.mutations.calibration import CALIBRATION_MUTATIONS
+from validation.mutations.crowding import CROWDING_MUTATIONS
 from validation.mutations.formation import FORMATION_MUTATIONS
 from validation.mutations.images import IMAGE_MUTATIONS
 from validation.mutations.optics import OPTICS_MUTATIONS
@@ -21,6 +22,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     + OPTICS_MUTATIONS
     + IMAGE_MUTATIONS
     + FORMATION_MUTATIONS
+    + CROWDING_MUTATIONS
 )
 
 
