@@ -9,6 +9,7 @@ builds a fresh :class:`validation.claims.ClaimContext` and records which claims 
 from validation.mutations.base import Mutation
 from validation.mutations.calibration import CALIBRATION_MUTATIONS
 from validation.mutations.crowding import CROWDING_MUTATIONS
+from validation.mutations.flow import FLOW_MUTATIONS
 from validation.mutations.formation import FORMATION_MUTATIONS
 from validation.mutations.images import IMAGE_MUTATIONS
 from validation.mutations.optics import OPTICS_MUTATIONS
@@ -18,6 +19,7 @@ __all__ = ["MUTATIONS", "Mutation", "mutation"]
 
 MUTATIONS: tuple[Mutation, ...] = (
     STATISTICS_MUTATIONS
+    + FLOW_MUTATIONS
     + CALIBRATION_MUTATIONS
     + OPTICS_MUTATIONS
     + IMAGE_MUTATIONS

@@ -37,6 +37,24 @@ def _greedy(original):
     return link_step
 
 
+def _greedy_assignment(original):
+    """The shared assignment solved greedily: cheapest edge first, each item once."""
+
+    def assign(rows, cols, cost, shape, *, unmatched_cost=1.0):
+        taken_rows = np.zeros(shape[0], dtype=bool)
+        taken_cols = np.zeros(shape[1], dtype=bool)
+        chosen = []
+        for edge in np.argsort(cost, kind="stable"):
+            if cost[edge] < 2 * unmatched_cost and not (
+                taken_rows[rows[edge]] or taken_cols[cols[edge]]
+            ):
+                taken_rows[rows[edge]] = taken_cols[cols[edge]] = True
+                chosen.append(edge)
+        return np.array(sorted(chosen), dtype=np.int64)
+
+    return assign
+
+
 def _flags_nothing(original):
     def median_test(positions, displacements, **options):
         return np.zeros(len(positions), dtype=bool)
@@ -47,6 +65,13 @@ def _flags_nothing(original):
 def _threshold_doubled(original):
     def median_test(positions, displacements, *, threshold, **options):
         return original(positions, displacements, threshold=2 * threshold, **options)
+
+    return median_test
+
+
+def _neighbours_halved(original):
+    def median_test(positions, displacements, *, neighbours=8, **options):
+        return original(positions, displacements, neighbours=neighbours // 2, **options)
 
     return median_test
 
@@ -87,6 +112,15 @@ CROWDING_MUTATIONS: tuple[Mutation, ...] = (
         _linked,
     ),
     Mutation(
+        "assignment-greedy",
+        "the one-to-one assignment that matching and linking share solved greedily, "
+        "cheapest edge first",
+        (Patch("ptv._assign:assign", _greedy_assignment),),
+        ("image.matching_reference", "image.crowded_linking"),
+        ("image",),
+        _linked,
+    ),
+    Mutation(
         "match-tolerance-ten-times",
         "the matching tolerance's floor is 15 pixel footprints, ten times the stack's",
         (Patch("ptv.matching.tolerance:PIXEL_FLOOR", lambda _: WIDE_FLOOR),),
@@ -98,6 +132,14 @@ CROWDING_MUTATIONS: tuple[Mutation, ...] = (
         "outlier-test-off",
         "the normalised median test flags no link",
         (Patch(_MEDIAN_TEST, _flags_nothing),),
+        ("image.crowded_outliers",),
+        ("image",),
+        _flagged,
+    ),
+    Mutation(
+        "median-test-four-neighbours",
+        "the normalised median test compares each link with half the neighbours it is given",
+        (Patch(_MEDIAN_TEST, _neighbours_halved),),
         ("image.crowded_outliers",),
         ("image",),
         _flagged,

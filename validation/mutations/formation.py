@@ -24,16 +24,20 @@ WELL_FRACTION = 0.02
 
 
 def _recorded():
-    """σ, photo-electrons and the image total of two particles on a box-4cam camera."""
+    """σ, photo-electrons, the image's total and centroid of two bright particles (their
+    spots overfill the well) on a box-4cam camera."""
     camera = load_rig("box-4cam").cameras[0]
     frame = record_particles(
         camera,
         _POINTS,
-        lighting=ParticleLighting(electrons_at_reference=2000.0),
+        lighting=ParticleLighting(electrons_at_reference=1e5),
         sensor=Sensor(),
         rng=0,
     )
-    return np.concatenate([frame.sigma, frame.electrons, [float(frame.image.sum())]])
+    light = frame.image.astype(float) - Sensor().offset
+    rows, columns = np.indices(light.shape)
+    centroid = [(light * columns).sum() / light.sum(), (light * rows).sum() / light.sum()]
+    return np.concatenate([frame.sigma, frame.electrons, [light.sum()], centroid])
 
 
 def _stray_light(original):
@@ -43,16 +47,22 @@ def _stray_light(original):
     return record
 
 
-def _small_well(original):
-    def record(self, electrons, rng=None, **options):
-        return original(
-            replace(self, full_well=WELL_FRACTION * self.full_well), electrons, rng, **options
-        )
+def _sensor_changed(**changes):
+    """A Sensor.record that records with the sensor's ``changes`` (a function of it)."""
 
-    return record
+    def make(original):
+        def record(self, electrons, rng=None, **options):
+            changed = replace(self, **{k: f(self) for k, f in changes.items()})
+            return original(changed, electrons, rng, **options)
+
+        return record
+
+    return make
 
 
 _RECORD = "simulator.render.camera_frames:record_particles"
+
+_RECORD_SENSOR = "simulator.render.sensor:Sensor.record"
 
 FORMATION_MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
@@ -115,15 +125,72 @@ FORMATION_MUTATIONS: tuple[Mutation, ...] = (
         "stray-light",
         f"the sensor records {STRAY_ELECTRONS:g} e⁻ of stray light per pixel that the "
         "scenario does not state",
-        (Patch("simulator.render.sensor:Sensor.record", _stray_light),),
+        (Patch(_RECORD_SENSOR, _stray_light),),
         ("image.background",),
+        ("image",),
+        _recorded,
+    ),
+    Mutation(
+        "sheet-twenty-percent-wide",
+        "the laser sheet's intensity profile 20 % wider than the scenario states",
+        (
+            Patch(
+                _RECORD,
+                edited(
+                    "sheet=lighting.sheet,",
+                    "sheet=type(lighting.sheet)(lighting.sheet.center, "
+                    "1.2 * lighting.sheet.half_width),",
+                ),
+            ),
+        ),
+        ("image.spot_brightness",),
+        ("image",),
+        _recorded,
+    ),
+    Mutation(
+        "spots-quarter-pixel-right",
+        "particle images drawn a quarter pixel to the right of the particles' images",
+        (
+            Patch(
+                _RECORD,
+                edited(
+                    "np.where(drawn[:, None], xy, np.nan)",
+                    "np.where(drawn[:, None], xy + [0.25, 0.0], np.nan)",
+                ),
+            ),
+        ),
+        ("image.detection_rms", "image.position_bias"),
+        ("image",),
+        _recorded,
+    ),
+    Mutation(
+        "read-noise-doubled",
+        "the sensor's read noise twice the scenario's",
+        (Patch(_RECORD_SENSOR, _sensor_changed(read_noise=lambda s: 2 * s.read_noise)),),
+        ("image.background",),
+        ("image",),
+        _recorded,
+    ),
+    Mutation(
+        "black-level-shifted",
+        "the sensor's black level 5 DN above the scenario's offset",
+        (Patch(_RECORD_SENSOR, _sensor_changed(offset=lambda s: s.offset + 5)),),
+        ("image.background",),
+        ("image",),
+        _recorded,
+    ),
+    Mutation(
+        "well-never-fills",
+        "the sensor's well never saturates (a full well a thousand times the stated one)",
+        (Patch(_RECORD_SENSOR, _sensor_changed(full_well=lambda s: 1000 * s.full_well)),),
+        ("image.saturation",),
         ("image",),
         _recorded,
     ),
     Mutation(
         "well-fifty-times-small",
         "the sensor saturates at a fiftieth of the full well the scenario states",
-        (Patch("simulator.render.sensor:Sensor.record", _small_well),),
+        (Patch(_RECORD_SENSOR, _sensor_changed(full_well=lambda s: WELL_FRACTION * s.full_well)),),
         ("image.saturation",),
         ("image",),
         _recorded,

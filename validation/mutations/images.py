@@ -70,6 +70,21 @@ def _rounded(original):
     return detect_particles
 
 
+def _threshold_doubled(original):
+    def detect_particles(image, *, threshold_sigmas=6.0, **options):
+        return original(image, threshold_sigmas=2 * threshold_sigmas, **options)
+
+    return detect_particles
+
+
+def _shifted(original):
+    def detect_particles(image, **options):
+        found = original(image, **options)
+        return replace(found, xy=found.xy + np.array([0.5, 0.0]))
+
+    return detect_particles
+
+
 def _swapped(original):
     def match(cameras, pixels, volume, **options):
         return original(cameras, list(pixels)[::-1], volume, **options)
@@ -101,6 +116,22 @@ IMAGE_MUTATIONS: tuple[Mutation, ...] = (
         _detected,
     ),
     Mutation(
+        "detection-threshold-doubled",
+        "the detector thresholds at twice the noise multiple it is given (12 σ for 6)",
+        (Patch("ptv.detect.locate:detect_particles", _threshold_doubled),),
+        ("image.detection_found",),
+        ("image",),
+        _detected,
+    ),
+    Mutation(
+        "detections-half-pixel-right",
+        "every detected centre half a pixel to the right of where the detector put it",
+        (Patch("ptv.detect.locate:detect_particles", _shifted),),
+        ("image.detection_rms", "image.position_bias"),
+        ("image",),
+        _detected,
+    ),
+    Mutation(
         "cameras-swapped-in-matching",
         "matching pairs each camera's detections with the other camera's calibration",
         (Patch("ptv.matching.stereo:match", _swapped),),
@@ -120,6 +151,14 @@ IMAGE_MUTATIONS: tuple[Mutation, ...] = (
         LINKING,
         ("image",),
         _linked,
+    ),
+    Mutation(
+        "link-speed-three-sigmas",
+        "the measured link speed is |U| + 3σ of the velocities, not + 5σ",
+        (Patch("ptv.tracking.link_speed:SPEED_SIGMAS", lambda _: 3.0),),
+        ("image.slow_link_speed",),
+        ("image",),
+        _speed_measured,
     ),
     Mutation(
         "link-speed-fixed",
