@@ -48,7 +48,7 @@ def test_json_lists_id_source_value_tolerance_passed(capsys):
     )
     assert [r.passed for r in results] == [True, True]
     record = results[0].as_dict()
-    assert set(record) == {"id", "source", "statement", "value", "tolerance", "passed"}
+    assert set(record) == {"id", "source", "statement", "value", "tolerance", "passed", "limit"}
     json.dumps(record, allow_nan=False)
 
 

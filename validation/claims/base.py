@@ -18,9 +18,10 @@ class ClaimResult:
     value: float
     tolerance: str
     passed: bool
+    limit: float | None = None
 
     def as_dict(self) -> dict:
-        """JSON-able form: id, source, statement, value, tolerance, passed."""
+        """JSON-able form: id, source, statement, value, tolerance, passed, limit."""
         return {
             "id": self.id,
             "source": self.source,
@@ -28,6 +29,7 @@ class ClaimResult:
             "value": float(self.value),
             "tolerance": self.tolerance,
             "passed": bool(self.passed),
+            "limit": None if self.limit is None else float(self.limit),
         }
 
 
@@ -41,6 +43,15 @@ class Claim:
     check: Callable[["Claim", "ClaimContext"], ClaimResult]
 
 
-def result(claim: Claim, value: float, tolerance: str, passed: bool) -> ClaimResult:
-    """The result of ``claim``: its measured value, the tolerance in words, pass or fail."""
-    return ClaimResult(claim.id, claim.source, claim.statement, value, tolerance, bool(passed))
+def result(
+    claim: Claim, value: float, tolerance: str, passed: bool, *, limit: float | None = None
+) -> ClaimResult:
+    """The result of ``claim``: its measured value, the tolerance in words, pass or fail.
+
+    ``limit``, where the claim compares its value with one number, is that number (for a
+    two-sided tolerance, the bound on the value's side): the room a change of the code
+    leaves the claim is then |limit − value| (``synptv claims --audit``).
+    """
+    return ClaimResult(
+        claim.id, claim.source, claim.statement, value, tolerance, bool(passed), limit
+    )

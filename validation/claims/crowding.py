@@ -35,6 +35,7 @@ def _yield(claim: Claim, ctx: ClaimContext) -> ClaimResult:
         f"≥ {YIELD_LIMIT} ({s.found} of {s.particles} particles in the analysis box matched "
         "within 0.1 mm; the mean − 3.09 sd of 12 seeds)",
         value >= YIELD_LIMIT,
+        limit=YIELD_LIMIT,
     )
 
 
@@ -47,6 +48,7 @@ def _ghosts(claim: Claim, ctx: ClaimContext) -> ClaimResult:
         f"≤ {GHOST_LIMIT} ({s.ghosts} of {s.matched} matched points in the analysis box "
         "with no particle within 0.1 mm; the mean + 3.09 sd of 12 seeds)",
         value <= GHOST_LIMIT,
+        limit=GHOST_LIMIT,
     )
 
 
@@ -60,6 +62,7 @@ def _linking(claim: Claim, ctx: ClaimContext) -> ClaimResult:
         f"the dense optimal assignment's ({s.links_differ} differ); {s.wrong} of "
         f"{s.links} links from the analysis box are wrong ({s.wrong / max(s.links, 1):.1%})",
         value <= MATCH_DIFFERENCE,
+        limit=MATCH_DIFFERENCE,
     )
 
 
@@ -74,6 +77,7 @@ def _outliers(claim: Claim, ctx: ClaimContext) -> ClaimResult:
         f"{s.outliers / max(s.links, 1):.1%} of the box's links and keeps "
         f"{s.wrong_kept} of its {s.wrong} wrong ones",
         value <= MATCH_DIFFERENCE,
+        limit=MATCH_DIFFERENCE,
     )
 
 

@@ -64,6 +64,7 @@ def _spot_ratio(claim: Claim, ctx: ClaimContext, names: tuple[str, ...], what: s
         f"medians of {what} of the rendered spots ({spots} isolated spots) and of the same "
         f"spots drawn by the specification within {k:.2f} SE ({'; '.join(parts)})",
         worst <= k,
+        limit=k,
     )
 
 
@@ -109,6 +110,7 @@ def _background(claim: Claim, ctx: ClaimContext) -> ClaimResult:
         f"mean and standard deviation of the pixels no particle's light reaches within "
         f"{k:.2f} SE of the sensor's exact reading distribution ({'; '.join(parts)})",
         worst <= k,
+        limit=k,
     )
 
 
@@ -126,6 +128,7 @@ def _saturation(claim: Claim, ctx: ClaimContext) -> ClaimResult:
         f"a bright exposure of each: {saturated}, expected {expected:.1f} ± {allowed:.1f} from "
         "each pixel's specified light",
         abs(saturated - expected) <= allowed,
+        limit=float(np.copysign(allowed, saturated - expected)),
     )
 
 
@@ -148,6 +151,7 @@ def _defocus(claim: Claim, ctx: ClaimContext) -> ClaimResult:
         f"({tolerance:.2%}); the specified blur ({np.median(scores.blur[edge]):.2f} px) "
         f"widens them by {widening:.1%}, which must exceed that tolerance",
         z <= k and widening > tolerance,
+        limit=k,
     )
 
 

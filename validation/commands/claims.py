@@ -13,21 +13,12 @@ def run_mutations(args: argparse.Namespace) -> int:
     from validation.mutations.report import kill_table
     from validation.mutations.runner import run_mutations
 
-    def progress(done) -> None:
-        if not args.quiet:
-            what = done.name or "control (no mutation)"
-            print(
-                f"mutations: {what} done in {done.seconds:.0f} s, {len(done.failed)} of "
-                f"{len(done.checked)} claims failed",
-                file=sys.stderr,
-            )
-
     control, outcomes = run_mutations(
         "full" if args.full else "quick",
         seed=args.seed,
         names=args.mutation or None,
         workers=args.workers,
-        progress=progress,
+        progress=_progress(args, "mutation"),
     )
     if control.failed:
         print(f"claims failing without any mutation: {', '.join(control.failed)}", file=sys.stderr)
@@ -40,9 +31,53 @@ def run_mutations(args: argparse.Namespace) -> int:
     return 0 if not control.failed and all(o.ok for o in outcomes) else 1
 
 
+def _progress(args: argparse.Namespace, noun: str):
+    def progress(done) -> None:
+        if not args.quiet:
+            what = done.name or f"control (no {noun})"
+            print(
+                f"{noun}s: {what} done in {done.seconds:.0f} s, {len(done.failed)} of "
+                f"{len(done.checked)} claims failed",
+                file=sys.stderr,
+            )
+
+    return progress
+
+
+def run_audit(args: argparse.Namespace) -> int:
+    from validation.audit import audit_table, run_audit
+
+    rows = run_audit(
+        "full" if args.full else "quick",
+        seed=args.seed,
+        workers=args.workers,
+        progress=_progress(args, "perturbation"),
+    )
+    if args.json:
+        records = [
+            {
+                "setting": r.audited.target,
+                "perturbation": r.label,
+                "outcome": r.verdict,
+                "killed_by": list(r.killed_by),
+                "effect": None if r.effect != r.effect else r.effect,
+                "moved": r.moved,
+                "reason": r.audited.reason,
+            }
+            for r in rows
+        ]
+        json.dump(records, sys.stdout, indent=2, allow_nan=False)
+        print()
+    else:
+        print(audit_table(rows))
+    return 0
+
+
 def run_claims(args: argparse.Namespace) -> int:
     from validation.claims import ClaimContext, run_claims
 
+    if args.audit:
+        return run_audit(args)
     if args.mutations or args.mutation:
         return run_mutations(args)
     ctx = ClaimContext("full" if args.full else "quick", seed=args.seed)
@@ -91,6 +126,15 @@ def add_claims_parser(sub) -> None:
         help="run only this mutation (repeatable; implies --mutations)",
     )
     claims.add_argument(
-        "--workers", type=COUNT, default=2, help="mutations run at once (default 2)"
+        "--audit",
+        action="store_true",
+        help="perturb every setting and constant of the chain (docs/claims.md §6) and print "
+        "the table of what each did to the claims",
+    )
+    claims.add_argument(
+        "--workers",
+        type=COUNT,
+        default=2,
+        help="mutations or perturbations run at once (default 2)",
     )
     claims.set_defaults(run=run_claims)

@@ -11,7 +11,7 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import nullcontext
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from multiprocessing import get_context
 
 import numba
@@ -41,6 +41,9 @@ class ClaimFailures:
         Ids of the claims run.
     seconds : float
         Wall time of the run.
+    values : dict
+        Claim id → its measured value, and (``limits``) its limit where it has one.
+    limits : dict
     """
 
     name: str | None
@@ -48,17 +51,27 @@ class ClaimFailures:
     errors: dict[str, str]
     checked: tuple[str, ...]
     seconds: float
+    values: dict[str, float] = field(default_factory=dict)
+    limits: dict[str, float] = field(default_factory=dict)
 
 
-def failing_claims(name: str | None, size: str, seed: int, threads: int) -> ClaimFailures:
+def failing_claims(
+    name: str | None, size: str, seed: int, threads: int, *, lookup: Callable = mutation
+) -> ClaimFailures:
     """Run the claims of the groups ``name`` can affect (all without a mutation) on a
-    fresh :class:`~validation.claims.ClaimContext` with the mutation applied."""
+    fresh :class:`~validation.claims.ClaimContext` with the mutation applied.
+
+    ``lookup`` finds the :class:`Mutation` of a name (the registry's, or the sensitivity
+    audit's perturbations: :func:`validation.audit.perturbation`).
+    """
     numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     start = time.perf_counter()
-    chosen = mutation(name) if name is not None else None
+    chosen = lookup(name) if name is not None else None
     claims = [c for c in CLAIMS if chosen is None or claim_group(c.id) in chosen.groups]
     errors: dict[str, str] = {}
     passed: set[str] = set()
+    values: dict[str, float] = {}
+    limits: dict[str, float] = {}
     with chosen.applied() if chosen is not None else nullcontext():
         try:
             ctx = ClaimContext(size, seed=seed)
@@ -67,13 +80,24 @@ def failing_claims(name: str | None, size: str, seed: int, threads: int) -> Clai
         else:
             for claim in claims:
                 try:
-                    if claim.check(claim, ctx).passed:
-                        passed.add(claim.id)
+                    outcome = claim.check(claim, ctx)
                 except Exception as err:  # a claim the mutation makes crash has caught it
                     errors[claim.id] = f"{type(err).__name__}: {err}"
+                    continue
+                values[claim.id] = float(outcome.value)
+                if outcome.limit is not None:
+                    limits[claim.id] = float(outcome.limit)
+                if outcome.passed:
+                    passed.add(claim.id)
     failed = tuple(c.id for c in claims if c.id not in passed)
     return ClaimFailures(
-        name, failed, errors, tuple(c.id for c in claims), time.perf_counter() - start
+        name,
+        failed,
+        errors,
+        tuple(c.id for c in claims),
+        time.perf_counter() - start,
+        values,
+        limits,
     )
 
 

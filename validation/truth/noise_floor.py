@@ -53,7 +53,7 @@ class NoiseFloor:
     object_pixel: float
 
 
-def _jacobians(camera, points: np.ndarray, step: float) -> np.ndarray:
+def projection_jacobians(camera, points: np.ndarray, step: float) -> np.ndarray:
     """∂(pixel)/∂X of a true camera at points (N, 3), by central differences: (N, 2, 3)."""
     out = np.empty((len(points), 2, 3))
     for axis in range(3):
@@ -63,6 +63,30 @@ def _jacobians(camera, points: np.ndarray, step: float) -> np.ndarray:
             2 * step
         )
     return out
+
+
+def object_pixel(cameras, point: np.ndarray, *, step: float = 1e-5) -> float:
+    """The largest object-side pixel of the cameras at a point, m.
+
+    The sideways shift of a camera's ray that moves its image by one pixel along x or y
+    is |J⁺e| (J the projection's Jacobian, e the pixel step; J⁺e is normal to the ray,
+    along which the image does not move); the largest over the cameras and both axes.
+
+    Parameters
+    ----------
+    cameras : sequence of Camera
+        True cameras.
+    point : ndarray, shape (3,)
+        World point, m.
+    step : float
+        Central-difference step, m.
+    """
+    point = np.asarray(point, dtype=np.float64).reshape(1, 3)
+    sizes = [
+        np.linalg.norm(np.linalg.pinv(projection_jacobians(camera, point, step)[0]), axis=0).max()
+        for camera in cameras
+    ]
+    return float(max(sizes))
 
 
 def noise_floor(
@@ -98,7 +122,7 @@ def noise_floor(
     points = np.asarray(points, dtype=float)
     seen = np.all([np.isfinite(c.project(points)).all(axis=1) for c in cameras], axis=0)
     points = points[seen]
-    jacobians = [_jacobians(c, points, step) for c in cameras]
+    jacobians = [projection_jacobians(c, points, step) for c in cameras]
     normal = np.zeros((len(points), 3, 3))
     for j in jacobians:
         v = np.cross(j[:, 0], j[:, 1])

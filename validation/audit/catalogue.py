@@ -1,0 +1,267 @@
+"""Every named setting and constant of the chain, and how the sensitivity audit perturbs it.
+
+The audited objects (docs/claims.md §6):
+
+- every field of the settings the PTV stack reads: :class:`ptv.pipeline.options.
+  PipelineSettings` (matching, linking, the median test), :class:`ptv.pipeline.frames.
+  DetectorSettings` and :class:`ptv.stats.run_statistics.StatisticsSettings`;
+- the public module constants of the chain's code (``ptv.detect``, ``ptv.matching``,
+  ``ptv.tracking``, ``ptv.stats``, ``ptv.pipeline``) and of the renderer's image
+  formation (``simulator.render``).
+
+Each entry says how it is perturbed: a tolerance or threshold ×0.5 and ×2, a physical
+constant or size ±10 %, a count ×0.5 and ×2, a choice of algorithm swapped for the
+nearest alternative. An entry no claim can reach, or that a perturbation cannot reach
+(a constant compiled into a kernel, a keyword default the chain always sets, a file
+format's name), is listed with the reason and not run. ``tests/validation/test_audit.py``
+fails when a field or public constant of those classes and modules is missing here.
+"""
+
+import dataclasses
+import importlib
+from dataclasses import dataclass
+
+from validation.mutations.base import Mutation
+from validation.mutations.patching import Patch
+
+__all__ = ["AUDITED", "Audited", "perturbation", "perturbations"]
+
+#: Perturbations of each kind: (label, factor) for numbers, the alternative for choices.
+FACTORS = {
+    "tolerance": (("×0.5", 0.5), ("×2", 2.0)),
+    "physical": (("−10 %", 0.9), ("+10 %", 1.1)),
+    "count": (("×0.5", 0.5), ("×2", 2.0)),
+}
+
+
+@dataclass(frozen=True)
+class Audited:
+    """One setting or constant and how the audit treats it.
+
+    Attributes
+    ----------
+    target : str
+        ``"module:Class.field"`` for a settings field, ``"module:NAME"`` for a constant.
+    kind : str
+        ``tolerance``, ``physical``, ``count``, ``choice`` (perturbed), or ``not run``.
+    groups : tuple of str
+        Claim groups that can see it (``image``: the rendered cases run the stack with
+        the default settings).
+    alternative : object
+        For a choice, the value it is swapped for.
+    reason : str
+        Why an entry is not run, or who reads it.
+    """
+
+    target: str
+    kind: str
+    groups: tuple[str, ...] = ("image",)
+    alternative: object = None
+    reason: str = ""
+
+    @property
+    def is_field(self) -> bool:
+        """Whether the target is a field of a settings class."""
+        return "." in self.target.partition(":")[2]
+
+
+_PIPE = "ptv.pipeline.options:PipelineSettings."
+_DET = "ptv.pipeline.frames:DetectorSettings."
+_STAT = "ptv.stats.run_statistics:StatisticsSettings."
+_STATS_UNSEEN = (
+    "read by synptv run and synptv ptv only: the claims' statistics call the estimators "
+    "with their own arguments"
+)
+_CASES_UNSET = "the rendered cases detect with the threshold and saturation only"
+_DERIVED = "left out (None) it is derived; its rule's constants are audited"
+_RECORDING = "read by time-resolved recordings only"
+_WARNING = "sets when a warning is printed; no result depends on it"
+_COMPILED = "compiled into a detection kernel: a perturbation needs the kernel recompiled"
+_FORMAT = "a file format's name or version"
+_FLAGS = "a flag's bit or an index into a table, not a quantity"
+_WORK = "how work is split into chunks; results do not depend on it"
+_ALIAS = "the default of a settings field audited above"
+_UNUSED_DEFAULT = "the default of a keyword the pipeline always sets"
+_CHOICES = "the list of allowed values of a choice audited above"
+
+AUDITED: tuple[Audited, ...] = (
+    Audited(_PIPE + "volume", "not run", (), reason="the cases match in the rig's own volume"),
+    Audited(_PIPE + "tolerance", "not run", (), reason=_DERIVED),
+    Audited(_PIPE + "min_cameras", "not run", (), reason=_DERIVED),
+    Audited(_PIPE + "max_speed", "not run", (), reason=_DERIVED),
+    Audited(_PIPE + "position_noise", "tolerance"),
+    Audited(_PIPE + "max_acceleration", "not run", (), reason=_RECORDING),
+    Audited(_PIPE + "outlier_threshold", "tolerance"),
+    Audited(_PIPE + "outlier_neighbours", "count"),
+    Audited(_PIPE + "snapshots", "not run", (), reason="None: every snapshot"),
+    Audited(_PIPE + "statistics", "not run", (), reason="its fields are audited below"),
+    Audited(_DET + "threshold_sigmas", "tolerance"),
+    Audited(_DET + "saturation", "not run", (), reason="None: the sensor's largest reading"),
+    Audited(_DET + "particles", "not run", (), reason=_CASES_UNSET),
+    Audited(_DET + "background", "not run", (), reason=_CASES_UNSET),
+    Audited(_DET + "tophat_radius", "not run", (), reason=_CASES_UNSET),
+    Audited(_DET + "median_frames", "not run", (), reason=_CASES_UNSET),
+    Audited(_DET + "min_peak", "not run", (), reason=_CASES_UNSET),
+    Audited(_DET + "min_size", "not run", (), reason=_CASES_UNSET),
+    Audited(_DET + "diameter", "not run", (), reason=_CASES_UNSET),
+    *(
+        Audited(_STAT + name, "not run", (), reason=_STATS_UNSEEN)
+        for name in (
+            "analysis_volume",
+            "r_min",
+            "r_max",
+            "n_bins",
+            "binning",
+            "plateau",
+            "plateau_method",
+            "kolmogorov_c2",
+            "n_boot",
+            "eulerian_cells",
+            "min_cell_count",
+            "trajectory_threshold",
+            "seed",
+        )
+    ),
+    Audited("ptv.matching.tolerance:PIXEL_FLOOR", "tolerance"),
+    Audited("ptv.matching.tolerance:SPREAD_PER_MEDIAN", "tolerance"),
+    Audited("ptv.matching.tolerance:CONVERGED", "tolerance"),
+    Audited("ptv.matching.tolerance:MAX_ITERATIONS", "count"),
+    Audited("ptv.matching.stereo:DEFAULT_TOLERANCE", "not run", (), reason=_UNUSED_DEFAULT),
+    Audited("ptv.tracking.link_speed:SPEED_SIGMAS", "tolerance"),
+    Audited("ptv.tracking.link_speed:MAD_TO_SIGMA", "physical"),
+    Audited("ptv.tracking.link_speed:CONVERGED", "tolerance"),
+    Audited("ptv.tracking.link_speed:MAX_ITERATIONS", "count"),
+    Audited("ptv.pipeline.resolve:LINK_SPEED_SNAPSHOTS", "count"),
+    Audited("ptv.pipeline.double_frame:AMBIGUITY_WARNING", "not run", (), reason=_WARNING),
+    Audited("ptv.pipeline.frames:STILL_FRACTION", "not run", (), reason=_WARNING),
+    Audited("ptv.pipeline.frames:MIN_STILL_CHECK", "not run", (), reason=_WARNING),
+    Audited("ptv.pipeline.results:THIN_MATCH_FRACTION", "not run", (), reason=_WARNING),
+    Audited("ptv.pipeline.results:FORMAT_NAME", "not run", (), reason=_FORMAT),
+    Audited("ptv.pipeline.results:FORMAT_VERSION", "not run", (), reason=_FORMAT),
+    Audited("ptv.pipeline.options:MEASUREMENT_VOLUME", "not run", (), reason=_ALIAS),
+    Audited("ptv.pipeline.settings:SECTIONS", "not run", (), reason=_FORMAT),
+    Audited("ptv.detect._groups:GROUP_DISTANCE_PX", "tolerance"),
+    Audited("ptv.detect._groups:MAX_GROUP", "count"),
+    Audited("ptv.detect._groups:PIECE_DISTANCES", "not run", (), reason="a schedule of distances"),
+    Audited("ptv.detect._blocks:NATIVE_DIAMETER", "not run", (), reason=_CASES_UNSET),
+    Audited("ptv.detect.background:MAD_TO_SIGMA", "physical"),
+    Audited("ptv.detect._split:MIN_SEPARATION", "not run", (), reason=_COMPILED),
+    Audited("ptv.detect._split:MAX_ADDED", "not run", (), reason=_COMPILED),
+    Audited("ptv.detect._split:SPLIT_CHI2", "not run", (), reason=_COMPILED),
+    Audited("ptv.detect._split:SCREEN_CHI2", "not run", (), reason=_COMPILED),
+    Audited("ptv.detect._kernels:MAX_SPLIT", "not run", (), reason=_COMPILED),
+    *(
+        Audited(f"ptv.detect._kernels:{name}", "not run", (), reason=_FLAGS)
+        for name in (
+            "OVERLAP",
+            "ELONGATED",
+            "SATURATED",
+            "EDGE",
+            "FALLBACK",
+            "CENTROID",
+            "GAUSS",
+            "GAUSS3",
+        )
+    ),
+    Audited("ptv.detect._refine:HALF", "not run", (), reason=_COMPILED),
+    Audited("ptv.detect._image:KERNEL_DTYPES", "not run", (), reason=_FLAGS),
+    Audited("ptv.detect.preprocess:BACKGROUND_REMOVALS", "not run", (), reason=_CHOICES),
+    *(
+        Audited(f"ptv.detect.store:{name}", "not run", (), reason=_FORMAT)
+        for name in ("FORMAT_NAME", "FORMAT_VERSION", "INDEX")
+    ),
+    Audited("ptv.stats.pairs:N_CHUNKS", "not run", (), reason=_WORK),
+    Audited("ptv.stats.pairs:BINNINGS", "not run", (), reason=_CHOICES),
+    Audited("ptv.stats.run_statistics:ANALYSIS_VOLUME", "not run", (), reason=_ALIAS),
+    Audited("ptv.stats.dissipation:NU_WATER", "not run", (), reason=_UNUSED_DEFAULT),
+    Audited(
+        "ptv.stats.dissipation:DEFAULT_C2",
+        "not run",
+        (),
+        reason="taken as keyword defaults when the modules load; claim #12 pins C₂ = 2",
+    ),
+    Audited("simulator.render.spot:AIRY_BETA2", "not run", (), reason="the Airy convention only"),
+    Audited("simulator.render.spot:DIAMETER_PER_SIGMA", "physical"),
+    Audited("simulator.render.spot:WAVELENGTH_532", "not run", (), reason=_UNUSED_DEFAULT),
+    Audited("simulator.render.plate:MARGIN_SAFETY", "not run", (), reason="plate images only"),
+    Audited("simulator.render.plate:CENTRE_CHUNK", "not run", (), reason=_WORK),
+    Audited("simulator.render.plate:SUBSAMPLE_CHUNK", "not run", (), reason=_WORK),
+    Audited("simulator.render.plate:RIM_POINTS", "not run", (), reason="plate images only"),
+    Audited("simulator.render.plate:ON_SENSOR_MARGIN", "not run", (), reason="plate images only"),
+    Audited("simulator.render.plate:MIN_BLUR_SIGMA", "not run", (), reason="plate images only"),
+)
+
+
+def _target(audited: Audited):
+    """(owner, attribute) of a constant, or (class, field name) of a settings field."""
+    module, _, path = audited.target.partition(":")
+    owner = importlib.import_module(module)
+    *parents, name = path.split(".")
+    for parent in parents:
+        owner = getattr(owner, parent)
+    return owner, name
+
+
+def _with_default(cls, name: str, value):
+    """A subclass of the dataclass ``cls`` whose field ``name`` defaults to ``value``."""
+    namespace = {
+        "__annotations__": {name: cls.__annotations__[name]},
+        name: value,
+        "__module__": cls.__module__,
+        "__qualname__": cls.__qualname__,
+    }
+    params = cls.__dataclass_params__
+    return dataclass(frozen=params.frozen, eq=params.eq)(type(cls.__name__, (cls,), namespace))
+
+
+def _scaled(value, factor: float, kind: str):
+    if isinstance(value, dict):  # a table of numbers: its default entry
+        first = next(iter(value))
+        return {**value, first: value[first] * factor}
+    if kind == "count":
+        return max(1, round(value * factor))
+    return type(value)(value * factor)
+
+
+def perturbations(audited: Audited) -> list[Mutation]:
+    """The audit's perturbations of one entry (none for an entry not run)."""
+    if audited.kind == "not run":
+        return []
+    owner, name = _target(audited)
+    if audited.is_field:
+        original = {f.name: f.default for f in dataclasses.fields(owner)}[name]
+        values = (
+            [(f"→ {audited.alternative!r}", audited.alternative)]
+            if audited.kind == "choice"
+            else [(label, _scaled(original, f, audited.kind)) for label, f in FACTORS[audited.kind]]
+        )
+        class_target = audited.target.rpartition(".")[0]
+        patches = [
+            (label, Patch(class_target, lambda cls, v=value: _with_default(cls, name, v)))
+            for label, value in values
+        ]
+    else:
+        patches = [
+            (label, Patch(audited.target, lambda v, f=f: _scaled(v, f, audited.kind)))
+            for label, f in FACTORS[audited.kind]
+        ]
+    return [
+        Mutation(
+            f"{audited.target} {label}",
+            f"{audited.target.partition(':')[2]} {label}",
+            (patch,),
+            (),
+            audited.groups,
+            lambda: None,
+        )
+        for label, patch in patches
+    ]
+
+
+def perturbation(name: str) -> Mutation:
+    """The perturbation called ``name`` (picklable lookup for the runner's processes)."""
+    for audited in AUDITED:
+        for candidate in perturbations(audited):
+            if candidate.name == name:
+                return candidate
+    raise ValueError(f"unknown perturbation {name!r}")
