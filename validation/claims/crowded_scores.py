@@ -84,28 +84,28 @@ def crowded_scores(case: RenderedCase) -> CrowdedScores:
     )
     inside = lambda p: np.all((p >= lower) & (p <= upper), axis=1)  # noqa: E731
     radius = case.settings.max_speed * case.dt + 5 * POSITION_NOISE
-    totals = np.zeros(12, dtype=np.int64)
+    totals = dict.fromkeys(CrowdedScores.__dataclass_fields__, 0)
     for m, measurement in enumerate(case.measurements):
         for f, points in enumerate(measurement.matched):
             truth = case.positions[m, f]
             partner = assign_one_to_one(points, truth, VOXEL)
-            totals[0] += int(inside(truth).sum())
-            totals[1] += int(np.isin(np.flatnonzero(inside(truth)), partner[partner >= 0]).sum())
-            totals[2] += int(inside(points).sum())
-            totals[3] += int((inside(points) & (partner < 0)).sum())
+            totals["particles"] += int(inside(truth).sum())
+            totals["found"] += int(np.isin(np.flatnonzero(inside(truth)), partner).sum())
+            totals["matched"] += int(inside(points).sum())
+            totals["ghosts"] += int((inside(points) & (partner < 0)).sum())
         start = assign_one_to_one(measurement.positions, case.positions[m, 0], VOXEL)
         end = assign_one_to_one(
             measurement.positions + measurement.displacements, case.positions[m, 1], VOXEL
         )
         counted = inside(measurement.positions) & (start >= 0)
         wrong = counted & (start != end)
-        totals[4:8] += [
-            counted.sum(),
-            wrong.sum(),
-            (wrong & ~measurement.outlier).sum(),
-            (counted & measurement.outlier).sum(),
-        ]
-        totals[8:10] += _link_differences(measurement, radius)
+        totals["links"] += int(counted.sum())
+        totals["wrong"] += int(wrong.sum())
+        totals["wrong_kept"] += int((wrong & ~measurement.outlier).sum())
+        totals["outliers"] += int((counted & measurement.outlier).sum())
+        differ, reference_links = _link_differences(measurement, radius)
+        totals["links_differ"] += differ
+        totals["reference_links"] += reference_links
         reference = median_test(
             measurement.positions,
             measurement.displacements,
@@ -113,9 +113,9 @@ def crowded_scores(case: RenderedCase) -> CrowdedScores:
             noise=POSITION_NOISE,
             neighbours=MEDIAN_NEIGHBOURS,
         )
-        totals[10] += int((reference != measurement.outlier).sum())
-        totals[11] += len(measurement.positions)
-    return CrowdedScores(*(int(t) for t in totals))
+        totals["flags_differ"] += int((reference != measurement.outlier).sum())
+        totals["all_links"] += len(measurement.positions)
+    return CrowdedScores(**totals)
 
 
 def _link_differences(measurement, radius: float) -> tuple[int, int]:

@@ -94,8 +94,8 @@ class FormationScores:
         The isolated spots of the simulator's images.
     reference : SpotSample
         The same spots drawn by the specification, :data:`REFERENCE_DRAWS` times each.
-    specified_sigma, blur, geometric, diffraction : ndarray, shape (K,)
-        Each rendered spot's specified σ and the three diameters it adds, px.
+    blur, geometric, diffraction : ndarray, shape (K,)
+        The three diameters each rendered spot's specified d_τ adds, px.
     background_histogram : ndarray, shape (2^B,)
         Readings of the background pixels, counted per DN.
     background_specified : tuple of float
@@ -107,13 +107,10 @@ class FormationScores:
     saturation_band : (int, int)
         The readings of a full well, DN: its mean reading ± 5 read-noise σ, clipped to
         the ADC's range.
-    pixels : int
-        Pixels recorded.
     """
 
     rendered: SpotSample
     reference: SpotSample
-    specified_sigma: np.ndarray
     blur: np.ndarray
     geometric: np.ndarray
     diffraction: np.ndarray
@@ -123,7 +120,6 @@ class FormationScores:
     saturated_expected: float
     saturated_variance: float
     saturation_band: tuple[int, int]
-    pixels: int
 
 
 def sensor_spec(case: RenderedCase) -> SensorSpec:
@@ -183,7 +179,6 @@ def formation_scores(case: RenderedCase, *, seed: int) -> FormationScores:
     return FormationScores(
         rendered=_sample(fits, spots["sigma"], spots["electrons"], spots["edge"], sensor.gain),
         reference=_sample(drawn, sigma, electrons, repeat(spots["edge"]), sensor.gain),
-        specified_sigma=spots["sigma"],
         blur=spots["blur"],
         geometric=spots["geometric"],
         diffraction=spots["diffraction"],
@@ -193,7 +188,6 @@ def formation_scores(case: RenderedCase, *, seed: int) -> FormationScores:
         saturated_expected=float(saturation[1]),
         saturated_variance=float(saturation[2]),
         saturation_band=band,
-        pixels=sum(image.size for image in images),
     )
 
 
