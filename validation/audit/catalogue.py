@@ -85,7 +85,12 @@ _UNUSED_DEFAULT = "the default of a keyword the pipeline always sets"
 _CHOICES = "the list of allowed values of a choice audited above"
 
 AUDITED: tuple[Audited, ...] = (
-    Audited(_PIPE + "volume", "not run", (), reason="the cases match in the rig's own volume"),
+    Audited(
+        _PIPE + "volume",
+        "not run",
+        (),
+        reason="a region, not one number: the sheet and a 1 mm margin, which the cases fill",
+    ),
     Audited(_PIPE + "tolerance", "not run", (), reason=_DERIVED),
     Audited(_PIPE + "min_cameras", "not run", (), reason=_DERIVED),
     Audited(_PIPE + "max_speed", "not run", (), reason=_DERIVED),
