@@ -1,13 +1,10 @@
 """Run the audit's perturbations, each in a process of its own, against one control."""
 
-import os
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
-from multiprocessing import get_context
 
 from validation.audit.catalogue import AUDITED, Audited, perturbation, perturbations
-from validation.mutations.runner import ClaimFailures, failing_claims
+from validation.mutations.runner import ClaimFailures, run_separately
 
 #: A survivor moving a claim's value by more than this fraction of the room its limit
 #: left it is a gap (docs/claims.md §6).
@@ -72,20 +69,7 @@ def run_audit(
     """Every entry of :data:`AUDITED`: its perturbations run against a control run."""
     runs_of = {a.target: perturbations(a) for a in AUDITED}
     names = [m.name for ms in runs_of.values() for m in ms]
-    threads = max(1, (os.cpu_count() or 1) // workers)
-    runs: dict[str | None, ClaimFailures] = {}
-    with ProcessPoolExecutor(
-        workers, mp_context=get_context("spawn"), max_tasks_per_child=1
-    ) as pool:
-        futures = [
-            pool.submit(failing_claims, name, size, seed, threads, lookup=perturbation)
-            for name in [None, *names]
-        ]
-        for future in as_completed(futures):
-            done = future.result()
-            runs[done.name] = done
-            if progress is not None:
-                progress(done)
+    runs = run_separately(names, size, seed, workers, progress, lookup=perturbation)
     control = runs[None]
     rows = []
     for audited in AUDITED:

@@ -21,20 +21,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from validation.claims.image_scores import VOXEL
+from validation.claims.image_scores import SAME_POINT, VOXEL
 from validation.claims.rendered_case import RenderedCase
+from validation.run.derived_ptv import SHEET_FRACTION
 from validation.truth.matching import assign_one_to_one
 from validation.truth.optimal_links import median_test, optimal_links
 
-#: The analysis box as fractions of the sheet's sides (the run's rule).
-ANALYSIS_FRACTIONS = np.array([0.7, 0.7, 0.8])
 #: The documented defaults of the median test (docs/ptv.md §4) and of the position noise
 #: in the link radius.
 MEDIAN_THRESHOLD = 4.0
 MEDIAN_NEIGHBOURS = 8
 POSITION_NOISE = 30e-6
-#: Two points closer than this are the same point, m.
-SAME_POINT = 1e-9
 
 
 @dataclass(frozen=True)
@@ -77,10 +74,11 @@ class CrowdedScores:
 
 def crowded_scores(case: RenderedCase) -> CrowdedScores:
     """:class:`CrowdedScores` of the case (module docstring)."""
-    centre, size = np.asarray(case.rig.sheet.centre), np.asarray(case.rig.sheet.size)
+    centre = np.asarray(case.rig.sheet.centre)
+    size = np.asarray(SHEET_FRACTION) * np.asarray(case.rig.sheet.size)  # the run's box
     lower, upper = (
-        centre - 0.5 * ANALYSIS_FRACTIONS * size,
-        centre + 0.5 * ANALYSIS_FRACTIONS * size,
+        centre - 0.5 * size,
+        centre + 0.5 * size,
     )
     inside = lambda p: np.all((p >= lower) & (p <= upper), axis=1)  # noqa: E731
     radius = case.settings.max_speed * case.dt + 5 * POSITION_NOISE

@@ -101,6 +101,34 @@ def failing_claims(
     )
 
 
+def run_separately(
+    names: Sequence[str],
+    size: str,
+    seed: int,
+    workers: int,
+    progress: Callable[[ClaimFailures], None] | None = None,
+    *,
+    lookup: Callable = mutation,
+) -> dict[str | None, ClaimFailures]:
+    """:func:`failing_claims` of a control (key None) and of each name, every run in a
+    spawned process of its own, ``workers`` at once, the CPU's threads shared out."""
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    runs: dict[str | None, ClaimFailures] = {}
+    with ProcessPoolExecutor(
+        workers, mp_context=get_context("spawn"), max_tasks_per_child=1
+    ) as pool:
+        futures = [
+            pool.submit(failing_claims, name, size, seed, threads, lookup=lookup)
+            for name in [None, *names]
+        ]
+        for future in as_completed(futures):
+            done = future.result()
+            runs[done.name] = done
+            if progress is not None:
+                progress(done)
+    return runs
+
+
 @dataclass(frozen=True)
 class Outcome:
     """What one mutation did to the claims.
@@ -192,20 +220,7 @@ def run_mutations(
         Called with each run's failures as it completes.
     """
     chosen = [mutation(n) for n in names] if names is not None else list(MUTATIONS)
-    threads = max(1, (os.cpu_count() or 1) // workers)
-    runs: dict[str | None, ClaimFailures] = {}
-    with ProcessPoolExecutor(
-        workers, mp_context=get_context("spawn"), max_tasks_per_child=1
-    ) as pool:
-        futures = [
-            pool.submit(failing_claims, name, size, seed, threads)
-            for name in [None, *(m.name for m in chosen)]
-        ]
-        for future in as_completed(futures):
-            done = future.result()
-            runs[done.name] = done
-            if progress is not None:
-                progress(done)
+    runs = run_separately([m.name for m in chosen], size, seed, workers, progress)
     control = runs[None]
     outcomes = [
         Outcome(
