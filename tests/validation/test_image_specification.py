@@ -12,6 +12,8 @@ from simulator.rigs import load_rig
 from validation.truth.sensor_spec import (
     SensorSpec,
     background_moments,
+    background_pmf,
+    difference_mad_sigma,
     draw_spots,
     saturation_probability,
 )
@@ -83,6 +85,29 @@ def test_background_moments_follow_the_sensor_noise(background):
     mean, sd = background_moments(sensor)
     assert mean == pytest.approx(100.0 + background, abs=1e-6)
     assert sd == pytest.approx(np.sqrt(background + 100.0 + 1 / 12), rel=1e-4)
+
+
+def test_difference_mad_sigma_of_a_constant_reading_is_a_quarter_bin():
+    # d = 0 always, spread over [−½, ½]: median |d| = ¼.
+    sensor = SensorSpec(1.0, 0.0, 100.0, 1e4, 12, 0.0)
+    assert difference_mad_sigma(sensor) == pytest.approx(0.25 / norm.ppf(0.75) / np.sqrt(2))
+
+
+def test_difference_mad_sigma_of_wide_gaussian_readings_is_their_sigma():
+    # 30 DN of read noise: the rounding adds 1/12 per reading and 1/12 to d, 1e-4 of σ.
+    sensor = SensorSpec(1.0, 30.0, 1000.0, 1e6, 12, 0.0)
+    assert difference_mad_sigma(sensor) == pytest.approx(30.0, rel=2e-4)
+
+
+def test_difference_mad_sigma_matches_sampled_differences():
+    sensor = SensorSpec(0.3, 8.0, 10.0, 1e4, 12, 2.0)
+    rng = np.random.default_rng(3)
+    p = background_pmf(sensor)
+    a, b = (rng.choice(p.size, 2_000_000, p=p) for _ in range(2))
+    d = np.abs(a - b + rng.uniform(-0.5, 0.5, a.size))
+    sampled = np.median(d) / norm.ppf(0.75) / np.sqrt(2)
+    # SE of a median: 1.2533 σ_d/√n ≈ 0.1 % of it.
+    assert difference_mad_sigma(sensor) == pytest.approx(sampled, rel=4e-3)
 
 
 def test_saturation_probability_matches_a_monte_carlo_sensor():

@@ -68,9 +68,13 @@ class Audited:
 _PIPE = "ptv.pipeline.options:PipelineSettings."
 _DET = "ptv.pipeline.frames:DetectorSettings."
 _STAT = "ptv.stats.run_statistics:StatisticsSettings."
-_STATS_UNSEEN = (
-    "read by synptv run and synptv ptv only: the claims' statistics call the estimators "
-    "with their own arguments"
+#: The claim of synptv run's default statistics (#49).
+_RUN = ("run",)
+_SHARED = "read with a shared first frame only; the claims' runs are one experiment per Δt"
+_U_PRIME = (
+    "read by the Eulerian u′ and σ_b only, which no claim regresses: their sampling error "
+    "is set by the snapshots, which the estimator's error (particles taken as "
+    "independent) does not see"
 )
 _CASES_UNSET = "the rendered cases detect with the threshold and saturation only"
 _DERIVED = "left out (None) it is derived; its rule's constants are audited"
@@ -109,24 +113,25 @@ AUDITED: tuple[Audited, ...] = (
     Audited(_DET + "min_peak", "not run", (), reason=_CASES_UNSET),
     Audited(_DET + "min_size", "not run", (), reason=_CASES_UNSET),
     Audited(_DET + "diameter", "not run", (), reason=_CASES_UNSET),
-    *(
-        Audited(_STAT + name, "not run", (), reason=_STATS_UNSEEN)
-        for name in (
-            "analysis_volume",
-            "r_min",
-            "r_max",
-            "n_bins",
-            "binning",
-            "plateau",
-            "plateau_method",
-            "kolmogorov_c2",
-            "n_boot",
-            "eulerian_cells",
-            "min_cell_count",
-            "trajectory_threshold",
-            "seed",
-        )
+    Audited(
+        _STAT + "analysis_volume",
+        "not run",
+        (),
+        reason="a region, not a size: it selects the links (a smaller box is a smaller "
+        "sample, not a bias); the claims' links lie in the documented box",
     ),
+    Audited(_STAT + "r_min", "physical", _RUN),
+    Audited(_STAT + "r_max", "physical", _RUN),
+    Audited(_STAT + "n_bins", "count", _RUN),
+    Audited(_STAT + "binning", "not run", (), reason=_SHARED),
+    Audited(_STAT + "plateau", "physical", _RUN),
+    Audited(_STAT + "plateau_method", "choice", _RUN, alternative="max"),
+    Audited(_STAT + "kolmogorov_c2", "physical", _RUN),
+    Audited(_STAT + "n_boot", "count", _RUN),
+    Audited(_STAT + "eulerian_cells", "not run", (), reason=_U_PRIME),
+    Audited(_STAT + "min_cell_count", "not run", (), reason=_U_PRIME),
+    Audited(_STAT + "trajectory_threshold", "not run", (), reason=_SHARED),
+    Audited(_STAT + "seed", "not run", (), reason="the bootstrap's seed: another draw, not a size"),
     Audited("ptv.matching.tolerance:PIXEL_FLOOR", "tolerance"),
     Audited("ptv.matching.tolerance:SPREAD_PER_MEDIAN", "tolerance"),
     Audited("ptv.matching.tolerance:CONVERGED", "tolerance"),
@@ -220,6 +225,8 @@ def _with_default(cls, name: str, value):
 
 
 def _scaled(value, factor: float, kind: str):
+    if isinstance(value, tuple):  # a range, a box or cells: every entry
+        return tuple(_scaled(v, factor, kind) for v in value)
     if isinstance(value, dict):  # a table of numbers: its default entry
         first = next(iter(value))
         return {**value, first: value[first] * factor}

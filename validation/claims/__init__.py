@@ -12,7 +12,8 @@ claims check the simulator itself against closed forms written apart from it: Sn
 law at the windows and the sheet's focus on Scheimpflug mounts (``optics.*``), Pope's
 spectrum (``flow.pope_spectrum``); five check the rendered images against their
 specification (:mod:`validation.claims.formation`), four the stack's choices where
-particles crowd (:mod:`validation.claims.crowding`). ``quick`` sizes run in CI (about a
+particles crowd (:mod:`validation.claims.crowding`), two the conventions of a bin's r and
+of Δt in files (:mod:`validation.claims.conventions`). ``quick`` sizes run in CI (about a
 minute on an idle 2-core machine); ``full`` sizes take the sample sizes the tolerances
 were designed for.
 
@@ -26,10 +27,12 @@ from collections.abc import Callable
 from validation.claims.base import Claim, ClaimResult
 from validation.claims.calibration import CALIBRATION_CLAIMS
 from validation.claims.context import CORRELATION_LENGTH, SIZES, ClaimContext, Sizes
+from validation.claims.conventions import CONVENTION_CLAIMS
 from validation.claims.crowding import CROWDING_CLAIMS
 from validation.claims.formation import FORMATION_CLAIMS
 from validation.claims.images import IMAGE_CLAIMS
 from validation.claims.optics import OPTICS_CLAIMS
+from validation.claims.run_statistics import RUN_STATISTICS_CLAIMS
 from validation.claims.spectrum import SPECTRUM_CLAIMS
 from validation.claims.statistics import FLOW_CLAIMS, STATISTICS_CLAIMS, dt3_gamma
 
@@ -51,9 +54,11 @@ CLAIMS: tuple[Claim, ...] = (
     + CALIBRATION_CLAIMS
     + OPTICS_CLAIMS
     + STATISTICS_CLAIMS
+    + RUN_STATISTICS_CLAIMS
     + IMAGE_CLAIMS
     + FORMATION_CLAIMS
     + CROWDING_CLAIMS
+    + CONVENTION_CLAIMS
 )
 
 

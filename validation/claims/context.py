@@ -185,7 +185,8 @@ class ClaimContext:
     # ------------------------------------------------------------------- statistics
 
     @cached_property
-    def _sample(self) -> DoubleFrameSample:
+    def sample(self) -> DoubleFrameSample:
+        """The exact double-frame runs of the Pope-spectrum statistics claims."""
         return simulate(
             self.preset,
             particles=self.sizes.particles,
@@ -246,7 +247,7 @@ class ClaimContext:
         p = self.preset.parameters
 
         def snapshots():
-            for run in self._sample.runs:
+            for run in self.sample.runs:
                 for x, u in zip(run.positions[:, 0], run.velocity[:, 0], strict=True):
                     inside = ANALYSIS_VOLUME.contains(x)
                     yield x[inside], u[inside]
@@ -272,7 +273,7 @@ class ClaimContext:
     def _analyse(self, measurement: Measurement, *, band: bool = False) -> MultiDtResult:
         c2 = {} if self.kolmogorov_c2 is None else {"kolmogorov_c2": self.kolmogorov_c2}
         return analyse(
-            self._band_sample if band else self._sample,
+            self._band_sample if band else self.sample,
             self.preset,
             measurement,
             bins=BINS,

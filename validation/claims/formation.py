@@ -22,6 +22,10 @@ from validation.claims.images import FALSE_ALARM
 MEDIAN_EFFICIENCY = 1.2533
 #: Gaussian σ per median absolute deviation.
 MAD_TO_SIGMA = 1.4826
+#: n × the variance of a median-absolute-deviation σ over σ², normal samples.
+MAD_VARIANCE = 1.3605
+#: Differences the detector's noise estimate samples per image (its documented lattice).
+ESTIMATOR_SAMPLES = 2**17
 
 
 def _median_and_error(values: np.ndarray) -> tuple[float, float]:
@@ -155,6 +159,43 @@ def _defocus(claim: Claim, ctx: ClaimContext) -> ClaimResult:
     )
 
 
+def _contaminated_range(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The relative range of a median-|d| σ when a fraction p of the differences may lie
+    anywhere: the clean half-normal's quantiles (½ − p)/(1 − p) and ½/(1 − p) over its
+    median."""
+    quartile = norm.ppf(0.75)
+    low = norm.ppf((1 + (0.5 - p) / (1 - p)) / 2) / quartile - 1
+    high = norm.ppf((1 + 0.5 / (1 - p)) / 2) / quartile - 1
+    return low, high
+
+
+def _noise_estimate(claim: Claim, ctx: ClaimContext) -> ClaimResult:
+    cases = _cases(ctx)
+    n = sum(len(s.noise_estimates) for s in cases.values())
+    k = _limit(n)
+    worst, parts = -np.inf, []
+    for case, scores in cases.items():
+        ratio = scores.noise_estimates / scores.background_mad_sigma - 1
+        low, high = _contaminated_range(scores.contamination)
+        error = np.sqrt(MAD_VARIANCE / ESTIMATOR_SAMPLES)
+        worst = max(worst, float(np.max(np.maximum(low - ratio, ratio - high) / error)))
+        parts.append(
+            f"{case}: {np.min(ratio):+.2%} to {np.max(ratio):+.2%}, allowed from "
+            f"{np.min(low):+.2%} to {np.max(high):+.2%} ({np.max(scores.contamination):.1%} "
+            "of the differences touched)"
+        )
+    return result(
+        claim,
+        worst,
+        f"the detector's background noise of each of {n} images against the same median "
+        f"estimate on the exact reading distribution ({cases['paper'].background_mad_sigma:.3f}"
+        f" DN): inside the range the touched differences allow, give or take {k:.2f} SE "
+        f"(√({MAD_VARIANCE}/n), n = {ESTIMATOR_SAMPLES} samples); {'; '.join(parts)}",
+        worst <= k,
+        limit=k,
+    )
+
+
 FORMATION_CLAIMS: tuple[Claim, ...] = (
     Claim(
         "image.spot_diameter",
@@ -185,5 +226,11 @@ FORMATION_CLAIMS: tuple[Claim, ...] = (
         "§2 (Scheimpflug mounts; docs/imaging.md §1)",
         "particle images at the sheet's edges carry the optics' defocus blur",
         _defocus,
+    ),
+    Claim(
+        "image.noise_estimate",
+        "docs/ptv.md (detection: background and noise)",
+        "the detector's background noise estimate is the sensor's noise",
+        _noise_estimate,
     ),
 )

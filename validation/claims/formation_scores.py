@@ -25,11 +25,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ptv.detect.background import estimate_background
 from simulator.render.camera_frames import record_particles
 from validation.claims.rendered_case import RenderedCase
 from validation.truth.sensor_spec import (
     SensorSpec,
     background_moments,
+    difference_mad_sigma,
     draw_spots,
     saturation_probability,
 )
@@ -60,6 +62,9 @@ SATURATION_READ_SIGMAS = 5.0
 #: Photo-electrons of a tracer on the sheet's centre plane in the saturated exposure
 #: (the brightest pixels of its spots then expect two to three full wells).
 BRIGHT_ELECTRONS = 1e5
+#: Adjacent-pixel differences touched by a particle: either pixel expects at least this
+#: many background σ of specified light (claim #50).
+CONTAMINATION_SIGMAS = 0.5
 
 
 @dataclass(frozen=True)
@@ -107,6 +112,15 @@ class FormationScores:
     saturation_band : (int, int)
         The readings of a full well, DN: its mean reading ± 5 read-noise σ, clipped to
         the ADC's range.
+    noise_estimates : ndarray, shape (N,)
+        The detector's background noise estimate of each image, DN
+        (:func:`ptv.detect.background.estimate_background`, one tile).
+    contamination : ndarray, shape (N,)
+        Fraction of each image's horizontally adjacent pixel pairs that a particle's
+        specified light touches (:data:`CONTAMINATION_SIGMAS`).
+    background_mad_sigma : float
+        What that estimate gives on the exact background distribution, DN
+        (:func:`validation.truth.sensor_spec.difference_mad_sigma`).
     """
 
     rendered: SpotSample
@@ -120,6 +134,9 @@ class FormationScores:
     saturated_expected: float
     saturated_variance: float
     saturation_band: tuple[int, int]
+    noise_estimates: np.ndarray
+    contamination: np.ndarray
+    background_mad_sigma: float
 
 
 def sensor_spec(case: RenderedCase) -> SensorSpec:
@@ -147,7 +164,8 @@ def formation_scores(case: RenderedCase, *, seed: int) -> FormationScores:
     spread = SATURATION_READ_SIGMAS * sensor.gain * sensor.read_noise
     band = (int(min(np.ceil(full - spread), sensor.max_dn)), int(min(full + spread, sensor.max_dn)))
     half_thickness = case.rig.sheet.size[2] / 2
-    images, candidates = [], []
+    images, candidates, noise, contamination = [], [], [], []
+    lit_dn = CONTAMINATION_SIGMAS * background_moments(sensor)[1]
     histogram = np.zeros(sensor.max_dn + 1, dtype=np.int64)
     saturation = np.zeros(3)
     for m, pair in enumerate(case.exposures):
@@ -164,6 +182,9 @@ def formation_scores(case: RenderedCase, *, seed: int) -> FormationScores:
                     image[light < BACKGROUND_ELECTRONS].ravel(), minlength=sensor.max_dn + 1
                 )[: sensor.max_dn + 1]
                 saturation += _saturation(image, light, sensor, band)
+                noise.append(float(estimate_background(image).noise[0, 0]))
+                lit = sensor.gain * light >= lit_dn
+                contamination.append(float(np.mean(lit[:, 1:] | lit[:, :-1])))
                 chosen = _isolated(spec, image.shape)
                 candidates.append(_spot_table(spec, chosen, edge, len(images)))
                 images.append(image)
@@ -188,6 +209,9 @@ def formation_scores(case: RenderedCase, *, seed: int) -> FormationScores:
         saturated_expected=float(saturation[1]),
         saturated_variance=float(saturation[2]),
         saturation_band=band,
+        noise_estimates=np.array(noise),
+        contamination=np.array(contamination),
+        background_mad_sigma=difference_mad_sigma(sensor),
     )
 
 

@@ -107,7 +107,7 @@ def add_claims_parser(sub) -> None:
     size.add_argument(
         "--quick",
         action="store_true",
-        help="CI size (default; under a minute on an idle 2-core machine, minutes when loaded)",
+        help="CI size (default; about a minute on an idle 2-core machine, minutes when loaded)",
     )
     size.add_argument("--full", action="store_true", help="the sizes the tolerances assume")
     claims.add_argument("--json", action="store_true", help="print a JSON list of claims")

@@ -8,6 +8,7 @@ builds a fresh :class:`validation.claims.ClaimContext` and records which claims 
 
 from validation.mutations.base import Mutation
 from validation.mutations.calibration import CALIBRATION_MUTATIONS
+from validation.mutations.conventions import CONVENTION_MUTATIONS
 from validation.mutations.crowding import CROWDING_MUTATIONS
 from validation.mutations.flow import FLOW_MUTATIONS
 from validation.mutations.formation import FORMATION_MUTATIONS
@@ -25,6 +26,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     + IMAGE_MUTATIONS
     + FORMATION_MUTATIONS
     + CROWDING_MUTATIONS
+    + CONVENTION_MUTATIONS
 )
 
 

@@ -92,6 +92,12 @@ def _swapped(original):
     return match
 
 
+def _noise() -> float:
+    """The background noise estimated on 200 × 200 px of 3 DN white noise."""
+    image = np.random.default_rng(0).normal(100.0, 3.0, (200, 200))
+    return float(detect.estimate_background(image).noise[0, 0])
+
+
 IMAGE_MUTATIONS: tuple[Mutation, ...] = (
     Mutation(
         "detections-rounded",
@@ -130,6 +136,20 @@ IMAGE_MUTATIONS: tuple[Mutation, ...] = (
         ("image.detection_rms", "image.position_bias"),
         ("image",),
         _detected,
+    ),
+    Mutation(
+        "noise-without-root-two",
+        "the background noise is the σ of adjacent-pixel differences, not divided by √2 "
+        "(every threshold √2 too high)",
+        (
+            Patch(
+                "ptv.detect.background:_robust",
+                edited("MAD_TO_SIGMA * mad / np.sqrt(2.0)", "MAD_TO_SIGMA * mad"),
+            ),
+        ),
+        ("image.noise_estimate",),
+        ("image",),
+        _noise,
     ),
     Mutation(
         "cameras-swapped-in-matching",

@@ -1,8 +1,11 @@
-"""Small inputs for the mutations' probes: two straight-ray cameras and a few points."""
+"""Small inputs for the mutations' probes: two straight-ray cameras, a few points, and
+the run statistics of a few random links."""
 
 import numpy as np
 
 from ptv.rays import Rays
+from ptv.stats import run_statistics
+from validation.studies.multi_dt_experiment import run_particles
 
 #: Three points in front of both probe cameras, m.
 POINTS = np.array([[0.01, 0.02, 0.30], [-0.02, 0.01, 0.32], [0.00, -0.01, 0.28]])
@@ -39,3 +42,17 @@ class PinholeProbe:
 def stereo_pair() -> tuple[PinholeProbe, PinholeProbe]:
     """Two probe cameras 0.2 m apart along X."""
     return PinholeProbe([-0.1, 0.0, 0.0]), PinholeProbe([0.1, 0.0, 0.0])
+
+
+def run_statistics_probe() -> run_statistics.PtvStatistics:
+    """The run statistics of three snapshots of 40 random links at three Δt."""
+    rng = np.random.default_rng(0)
+    runs = []
+    for k, dt in enumerate((1e-3, 2e-3, 3e-3)):
+        snapshots = [
+            (rng.uniform(-0.03, 0.03, (40, 3)) * [1, 1, 0.03], rng.normal(0, 1e-4, (40, 3)))
+            for _ in range(3)
+        ]
+        runs.append(run_particles(k, dt, snapshots))
+    settings = run_statistics.StatisticsSettings(n_bins=6, n_boot=5, plateau=(5e-3, 10e-3))
+    return run_statistics.compute_statistics(runs, settings)

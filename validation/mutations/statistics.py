@@ -13,6 +13,7 @@ from simulator import spectra
 from simulator.presets import flow_preset
 from validation.mutations.base import Mutation
 from validation.mutations.patching import Patch, edited
+from validation.mutations.probes import run_statistics_probe
 from validation.studies.multi_dt_experiment import run_particles
 
 #: The Δt of the probes, s, and their separation bins.
@@ -250,6 +251,22 @@ STATISTICS_MUTATIONS: tuple[Mutation, ...] = (
         ("stats.epsilon_recovered",),
         ("stats",),
         _plateau,
+    ),
+    Mutation(
+        "run-plateau-over-every-bin",
+        "synptv run's plateau ε averages ε(r) over every bin, not over the plateau range",
+        (
+            Patch(
+                "ptv.stats.run_statistics:_plateau",
+                edited(
+                    "r_min=settings.plateau[0],\n            r_max=settings.plateau[1],",
+                    "r_min=settings.r_min,\n            r_max=settings.r_max,",
+                ),
+            ),
+        ),
+        ("run.epsilon",),
+        ("run",),
+        lambda: run_statistics_probe().plateau.epsilon,
     ),
     Mutation(
         "kolmogorov-constant-1.3",

@@ -10,11 +10,19 @@ reference that a measurement of the simulator's images is compared with.
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import brentq
 from scipy.stats import norm, poisson
 
 from validation.truth.spot_fit import pixel_integrated
 
-__all__ = ["SensorSpec", "background_moments", "draw_spots", "saturation_probability"]
+__all__ = [
+    "SensorSpec",
+    "background_moments",
+    "background_pmf",
+    "difference_mad_sigma",
+    "draw_spots",
+    "saturation_probability",
+]
 
 
 @dataclass(frozen=True)
@@ -50,8 +58,8 @@ class SensorSpec:
         return 2**self.bit_depth - 1
 
 
-def background_moments(sensor: SensorSpec) -> tuple[float, float]:
-    """Exact mean and standard deviation of a background pixel's reading, DN.
+def background_pmf(sensor: SensorSpec) -> np.ndarray:
+    """Probability of each reading 0 … 2^B − 1 of a background pixel, shape (2^B,).
 
     Sums the reading's distribution: Poisson electrons (capped at the well) plus normal
     read noise, scaled, offset, rounded to the nearest DN and clipped to the ADC's range.
@@ -72,9 +80,38 @@ def background_moments(sensor: SensorSpec) -> tuple[float, float]:
         lower = norm.cdf((levels - 0.5 - mean) / spread)
         upper[-1], lower[0] = 1.0, 0.0
         probability += weight * (upper - lower)
-    probability /= probability.sum()
+    return probability / probability.sum()
+
+
+def background_moments(sensor: SensorSpec) -> tuple[float, float]:
+    """Exact mean and standard deviation of a background pixel's reading, DN."""
+    probability = background_pmf(sensor)
+    levels = np.arange(probability.size, dtype=np.float64)
     mean = float(probability @ levels)
     return mean, float(np.sqrt(probability @ (levels - mean) ** 2))
+
+
+def difference_mad_sigma(sensor: SensorSpec) -> float:
+    """The σ a median-absolute-deviation estimate of adjacent-pixel differences gives on
+    the exact background distribution, DN: Φ⁻¹(¾)⁻¹ · median|d| / √2.
+
+    d = a − b of two independent readings is an integer; as an estimator that
+    interpolates quantiles within unit bins sees it, each value v is spread evenly over
+    [v − ½, v + ½]. The result differs from the readings' standard deviation by the
+    shape of their distribution (Poisson electrons, rounding), not by chance.
+    """
+    probability = background_pmf(sensor)
+    support = np.flatnonzero(probability > 1e-15)
+    p = probability[support[0] : support[-1] + 1]
+    d_pmf = np.convolve(p, p[::-1])
+    values = np.arange(d_pmf.size) - (p.size - 1)
+
+    def below(x: float) -> float:  # P(|d| ≤ x), d spread over unit bins
+        overlap = np.clip(np.minimum(values + 0.5, x) - np.maximum(values - 0.5, -x), 0, 1)
+        return float(d_pmf @ overlap)
+
+    median = brentq(lambda x: below(x) - 0.5, 0.0, float(np.abs(values).max()) + 1.0)
+    return median / norm.ppf(0.75) / np.sqrt(2.0)
 
 
 def draw_spots(
