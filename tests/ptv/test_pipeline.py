@@ -25,7 +25,7 @@ from ptv.pipeline.double_frame import measure_snapshot, measure_snapshots, run_p
 from ptv.pipeline.frames import ImageDetector
 from ptv.pipeline.options import PipelineSettings
 from ptv.pipeline.resolve import match_frame, resolve_matching
-from ptv.pipeline.results import save_results
+from ptv.pipeline.results import load_runs, save_results
 from ptv.stats.links import RunParticles, shared_snapshots
 from ptv.stats.mean_displacement import shared_mean_displacement
 from ptv.stats.pairs import pair_sums
@@ -393,6 +393,9 @@ def test_results_are_written_with_units(result, tmp_path):
     )
     assert len(summary["counts"]) == 5 and summary["counts"][0]["links"] > 1000
     assert set(summary["subsets"]) == {"3 largest dt", "smallest and largest dt"}
+    # Δt written and read back bit for bit (docs/claims.md #48 covers the dataset's files).
+    assert summary["dt"] == [float(v) for v in result.source.dt]
+    assert [r.dt for r in load_runs(h5_path)] == [float(v) for v in result.source.dt]
 
 
 def _run_from_snapshots(k, dt, rows, processed):
