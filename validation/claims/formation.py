@@ -173,11 +173,11 @@ def _noise_estimate(claim: Claim, ctx: ClaimContext) -> ClaimResult:
     cases = _cases(ctx)
     n = sum(len(s.noise_estimates) for s in cases.values())
     k = _limit(n)
+    error = np.sqrt(MAD_VARIANCE / ESTIMATOR_SAMPLES)
     worst, parts = -np.inf, []
     for case, scores in cases.items():
         ratio = scores.noise_estimates / scores.background_mad_sigma - 1
         low, high = _contaminated_range(scores.contamination)
-        error = np.sqrt(MAD_VARIANCE / ESTIMATOR_SAMPLES)
         worst = max(worst, float(np.max(np.maximum(low - ratio, ratio - high) / error)))
         parts.append(
             f"{case}: {np.min(ratio):+.2%} to {np.max(ratio):+.2%}, allowed from "
