@@ -7,5 +7,7 @@ particles one-to-one (:mod:`validation.truth.matching`, as ``synptv run`` scores
 matching); :mod:`~validation.score.scores` gives yield, ghosts, position errors and the
 links of tracks; :mod:`~validation.score.statistics` S2 and ε through synptv's
 multi-Δt statistics against the truth; :mod:`~validation.score.report` the report;
-:mod:`~validation.commands.score` the command line.
+:mod:`~validation.commands.score` the command line. For time-resolved recordings,
+:mod:`~validation.score.track_file` reads a tracks CSV file and
+:mod:`~validation.score.trajectories` scores the tracks against the true trajectories.
 """

@@ -104,14 +104,16 @@ def read_positions(path: str | Path, *, tracks: bool = False) -> Positions:
     return positions
 
 
-def _integer(text: str, where: str) -> int:
+def parse_integer(text: str, where: str) -> int:
+    """``text`` as an integer; a ValueError naming ``where`` if it is not one."""
     try:
         return int(text)
     except ValueError:
         raise ValueError(f"{where}: {text!r} is not an integer") from None
 
 
-def _coordinate(text: str, where: str) -> float:
+def parse_coordinate(text: str, where: str) -> float:
+    """``text`` as a finite number; a ValueError naming ``where`` if it is not one."""
     try:
         value = float(text)
     except ValueError:
@@ -139,7 +141,12 @@ def _read_csv(path: Path, columns: tuple[str, ...]) -> Positions:
                     f"{', '.join(header) or 'nothing'}; needs {', '.join(columns)})"
                 )
         index = [header.index(name) for name in columns]
-        parse = {"dt": _integer, "snapshot": _integer, "frame": _frame, "track": _integer}
+        parse = {
+            "dt": parse_integer,
+            "snapshot": parse_integer,
+            "frame": _frame,
+            "track": parse_integer,
+        }
         rows, lines = [], []
         for row in reader:
             if not row or all(not cell.strip() for cell in row):
@@ -152,7 +159,7 @@ def _read_csv(path: Path, columns: tuple[str, ...]) -> Positions:
                 )
             rows.append(
                 [
-                    parse.get(name, _coordinate)(row[i], f"{path} line {line}, column {name}")
+                    parse.get(name, parse_coordinate)(row[i], f"{path} line {line}, column {name}")
                     for name, i in zip(columns, index, strict=True)
                 ]
             )

@@ -1,0 +1,119 @@
+"""Another code's time-resolved tracks, read and checked row by row.
+
+A CSV file has the header ``track,frame,x,y,z`` (any order; other columns are ignored,
+except ``vx,vy,vz`` and ``ax,ay,az``, the velocity and acceleration of a track fit,
+which are read when all three are there), one point per line::
+
+    track     an integer track id
+    frame     the recording's frame number
+    x, y, z   the position, m, in the dataset's world frame
+    vx …      m/s;  ax … m/s²
+
+Each track's rows come in increasing frame order, one row per (track, frame), every
+value finite. Every error names the file and the line (the header is line 1), in one
+line.
+"""
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from validation.score.positions import parse_coordinate, parse_integer
+from validation.score.trajectories import Tracks
+
+#: The columns every tracks file needs.
+COLUMNS = ("track", "frame", "x", "y", "z")
+#: Optional column triples: a fitted velocity and acceleration.
+OPTIONAL = (("vx", "vy", "vz"), ("ax", "ay", "az"))
+
+
+def read_tracks(path: str | Path) -> Tracks:
+    """Read a tracks CSV file (module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    Tracks
+
+    Raises
+    ------
+    ValueError
+        No such file, a missing column, a value that is not an integer or a finite
+        number, a (track, frame) given twice, a track whose frames do not increase, or no
+        row: one line naming the file and the line.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"--tracks {path}: no such file")
+    try:
+        with open(path, newline="", encoding="utf-8-sig", errors="replace") as stream:
+            header, rows, lines = _rows(csv.reader(stream), path)
+    except csv.Error as err:
+        raise ValueError(f"{path}: unreadable ({err})") from None
+    if not rows:
+        raise ValueError(f"{path}: no tracks (a header and no row)")
+    table = np.array(rows, dtype=np.float64)
+    track, frame = table[:, 0].astype(np.int64), table[:, 1].astype(np.int64)
+    _check_order(track, frame, np.asarray(lines), path)
+    extra = [group for group in OPTIONAL if all(name in header for name in group)]
+    columns = {group: table[:, 5 + 3 * i : 8 + 3 * i] for i, group in enumerate(extra)}
+    return Tracks(
+        track=track,
+        frame=frame,
+        position=table[:, 2:5],
+        velocity=columns.get(OPTIONAL[0]),
+        acceleration=columns.get(OPTIONAL[1]),
+    )
+
+
+def _rows(reader, path: Path) -> tuple[list[str], list[list[float]], list[int]]:
+    """The header, the parsed rows (the required columns, then the optional triples
+    present) and their line numbers."""
+    header = [name.strip() for name in next(reader, [])]
+    for name in COLUMNS:
+        if name not in header:
+            raise ValueError(
+                f"{path} line 1: no column {name!r} (the header has "
+                f"{', '.join(header) or 'nothing'}; needs {', '.join(COLUMNS)})"
+            )
+    names = [*COLUMNS, *(n for group in OPTIONAL if all(m in header for m in group) for n in group)]
+    index = [header.index(name) for name in names]
+    rows, lines = [], []
+    for row in reader:
+        if not row or all(not cell.strip() for cell in row):
+            continue
+        line = reader.line_num
+        if len(row) != len(header):
+            raise ValueError(
+                f"{path} line {line}: {len(row)} values for the {len(header)} columns of the header"
+            )
+        rows.append(
+            [
+                (parse_integer if name in ("track", "frame") else parse_coordinate)(
+                    row[i], f"{path} line {line}, column {name}"
+                )
+                for name, i in zip(names, index, strict=True)
+            ]
+        )
+        lines.append(line)
+    return header, rows, lines
+
+
+def _check_order(track: np.ndarray, frame: np.ndarray, lines: np.ndarray, path: Path) -> None:
+    """Each track's frames increase in file order (which also makes them unique)."""
+    order = np.argsort(track, kind="stable")
+    same = track[order][1:] == track[order][:-1]
+    step = frame[order][1:] - frame[order][:-1]
+    bad = np.flatnonzero(same & (step <= 0))
+    if bad.size:
+        i = order[bad[0] + 1]
+        what = "given twice" if step[bad[0]] == 0 else f"after frame {frame[order][bad[0]]}"
+        raise ValueError(
+            f"{path} line {lines[i]}: track {track[i]} frame {frame[i]} {what} (each "
+            "track's frames must increase, one row per track and frame)"
+        )

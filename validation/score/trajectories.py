@@ -1,0 +1,206 @@
+"""Time-resolved tracks scored against the true trajectories.
+
+Any code's tracks (:class:`Tracks`: track id, frame and position of every point, and the
+velocity and acceleration of a track fit where the code gives them) are put beside the
+truth of the recording (:class:`TrueTrajectories`: every particle's position, velocity
+and acceleration at every frame, and whether enough cameras image it to be found).
+
+In every frame the track points are paired one-to-one with the observed particles
+within ``radius`` (:func:`validation.truth.matching.assign_one_to_one`, closest pairs
+first); a point left without a particle is a ghost point. Then, with a *true
+trajectory* a particle's run of consecutive observed frames (a particle that leaves the
+sheet and comes back starts a new one) and a *link* two consecutive points of a track:
+
+- ``tracked``: the fraction of the observed particle-frames paired with a point of a
+  track of at least two points;
+- ``ghost_tracks``: the fraction of the tracks of which more than half the points are
+  ghost points;
+- ``lengths``: the points per track and the observed frames per true trajectory, as
+  histograms on the same bins, and their means;
+- ``fragmentation``: per true trajectory that is tracked at all, the number of
+  segments, runs of its tracked frames that one track follows (a change of track starts
+  a new one; frames no track pairs with it do not, so that a track that closes a gap
+  stays one segment); 1 is a whole trajectory in one track;
+- ``mislinks``: the fraction of the links whose two ends are paired with different
+  particles (a track that jumps to another particle); links with a ghost end are counted
+  apart (``ghost_links``);
+- ``errors``: rms per component of position, and of velocity and acceleration where the
+  tracks give them, over the points paired with a particle, in µm, mm/s and m/s².
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from validation.truth.matching import assign_one_to_one
+
+#: Fewest points of a track whose points count as tracked.
+MIN_TRACK_POINTS = 2
+#: Bins of the length histograms: points per track or frames per trajectory.
+LENGTH_EDGES = np.array([1, 2, 3, 5, 10, 20, 50, 100, 200, 500, 1000, 10**9])
+
+
+@dataclass(frozen=True, eq=False)
+class TrueTrajectories:
+    """The truth of a recording, one row per particle and frame.
+
+    Attributes
+    ----------
+    particle, frame : ndarray of int, shape (N,)
+        Particle id and frame number.
+    position, velocity, acceleration : ndarray, shape (N, 3)
+        m, m/s, m/s².
+    observed : ndarray of bool, shape (N,)
+        Imaged by enough cameras to be found (only these count).
+    """
+
+    particle: np.ndarray
+    frame: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    observed: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Tracks:
+    """A code's tracks, one row per point.
+
+    Attributes
+    ----------
+    track, frame : ndarray of int, shape (M,)
+        Track id and frame number; (track, frame) unique.
+    position : ndarray, shape (M, 3)
+        m.
+    velocity, acceleration : ndarray, shape (M, 3), or None
+        Of a track fit, m/s and m/s², where the code gives them.
+    """
+
+    track: np.ndarray
+    frame: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray | None = None
+    acceleration: np.ndarray | None = None
+
+
+def pair_points(truth: TrueTrajectories, tracks: Tracks, radius: float) -> np.ndarray:
+    """The truth row each track point is paired with in its frame, −1 for a ghost point.
+
+    Parameters
+    ----------
+    truth : TrueTrajectories
+    tracks : Tracks
+    radius : float
+        Largest distance of a pair, m.
+
+    Returns
+    -------
+    ndarray of int, shape (M,)
+    """
+    row = np.full(len(tracks.frame), -1, dtype=np.int64)
+    observed = np.flatnonzero(truth.observed)
+    for f in np.unique(tracks.frame):
+        points = np.flatnonzero(tracks.frame == f)
+        here = observed[truth.frame[observed] == f]
+        partner = assign_one_to_one(tracks.position[points], truth.position[here], radius)
+        row[points[partner >= 0]] = here[partner[partner >= 0]]
+    return row
+
+
+def _runs(ids: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """Run index of each row, rows sorted by (id, frame): a new run starts at a new id
+    or a frame gap."""
+    new = np.ones(len(ids), dtype=bool)
+    new[1:] = (ids[1:] != ids[:-1]) | (frames[1:] != frames[:-1] + 1)
+    return np.cumsum(new) - 1
+
+
+def _histogram(lengths: np.ndarray) -> dict:
+    counts, _ = np.histogram(lengths, bins=LENGTH_EDGES)
+    return {
+        "edges": [int(e) for e in LENGTH_EDGES[:-1]],
+        "counts": [int(c) for c in counts],
+        "mean": float(np.mean(lengths)) if len(lengths) else None,
+    }
+
+
+def _rms(error: np.ndarray, scale: float) -> dict | None:
+    if not len(error):
+        return None
+    rms = np.sqrt(np.mean(error**2, axis=0)) * scale
+    return {axis: float(v) for axis, v in zip("xyz", rms, strict=True)}
+
+
+def trajectory_scores(truth: TrueTrajectories, tracks: Tracks, radius: float) -> dict:
+    """The scores of the module docstring.
+
+    Parameters
+    ----------
+    truth : TrueTrajectories
+    tracks : Tracks
+    radius : float
+        Largest distance between a point and the particle it is paired with, m.
+
+    Returns
+    -------
+    dict
+        JSON-able: ``tracked``, ``ghost_tracks``, ``lengths`` (``tracks``,
+        ``trajectories``), ``fragmentation``, ``mislinks``, ``ghost_links``, ``errors``
+        and the counts they come from.
+    """
+    row = pair_points(truth, tracks, radius)
+    points = np.bincount(np.unique(tracks.track, return_inverse=True)[1])
+    long_track = (points >= MIN_TRACK_POINTS)[np.unique(tracks.track, return_inverse=True)[1]]
+    observed = np.flatnonzero(truth.observed)
+    tracked_rows = np.unique(row[(row >= 0) & long_track])
+
+    order = np.lexsort((truth.frame[observed], truth.particle[observed]))
+    obs = observed[order]
+    trajectory = np.full(len(truth.frame), -1, dtype=np.int64)
+    trajectory[obs] = _runs(truth.particle[obs], truth.frame[obs])
+    n_trajectories = int(trajectory.max()) + 1 if len(obs) else 0
+    true_lengths = np.bincount(trajectory[obs], minlength=n_trajectories)
+
+    # Segments: the rows of each trajectory that a long track pairs, by frame; a new
+    # segment where the trajectory or the track changes.
+    track_of_row = np.full(len(truth.frame), -1, dtype=np.int64)
+    paired = (row >= 0) & long_track
+    track_of_row[row[paired]] = tracks.track[paired]
+    covered = obs[track_of_row[obs] >= 0]
+    starts = np.ones(len(covered), dtype=bool)
+    starts[1:] = (trajectory[covered[1:]] != trajectory[covered[:-1]]) | (
+        track_of_row[covered[1:]] != track_of_row[covered[:-1]]
+    )
+    segments = np.bincount(trajectory[covered][starts], minlength=n_trajectories)
+    touched = segments > 0
+
+    order = np.lexsort((tracks.frame, tracks.track))
+    same = tracks.track[order][1:] == tracks.track[order][:-1]
+    a, b = row[order][:-1][same], row[order][1:][same]
+    both = (a >= 0) & (b >= 0)
+    jumps = both & (truth.particle[np.maximum(a, 0)] != truth.particle[np.maximum(b, 0)])
+    ghost_points = np.bincount(np.unique(tracks.track, return_inverse=True)[1], weights=row < 0)
+
+    good = row >= 0
+    errors = {"position_um": _rms(tracks.position[good] - truth.position[row[good]], 1e6)}
+    if tracks.velocity is not None:
+        errors["velocity_mm_s"] = _rms(tracks.velocity[good] - truth.velocity[row[good]], 1e3)
+    if tracks.acceleration is not None:
+        errors["acceleration_m_s2"] = _rms(
+            tracks.acceleration[good] - truth.acceleration[row[good]], 1.0
+        )
+    links = int(same.sum())
+    return {
+        "radius_m": float(radius),
+        "observed_particle_frames": len(observed),
+        "tracked": len(tracked_rows) / len(observed) if len(observed) else None,
+        "tracks": len(points),
+        "ghost_tracks": float(np.mean(ghost_points > points / 2)) if len(points) else None,
+        "trajectories": n_trajectories,
+        "lengths": {"tracks": _histogram(points), "trajectories": _histogram(true_lengths)},
+        "fragmentation": float(np.mean(segments[touched])) if touched.any() else None,
+        "links": links,
+        "mislinks": float(jumps.sum() / both.sum()) if both.any() else None,
+        "ghost_links": float(np.mean(~both)) if links else None,
+        "errors": errors,
+    }
