@@ -1,9 +1,9 @@
-"""Tracks perturbed from the truth in known ways score as perturbed, by exactly as much."""
+"""TrackPoints perturbed from the truth in known ways score as perturbed, by exactly as much."""
 
 import numpy as np
 import pytest
 
-from validation.score.trajectories import Tracks, TrueTrajectories, trajectory_scores
+from validation.score.trajectories import TrackPoints, TrueTrajectories, trajectory_scores
 
 P, F = 40, 30
 RADIUS = 1e-3
@@ -30,11 +30,11 @@ def truth() -> TrueTrajectories:
     )
 
 
-def _as_tracks(truth: TrueTrajectories, track=None, position=None, keep=None) -> Tracks:
+def _as_tracks(truth: TrueTrajectories, track=None, position=None, keep=None) -> TrackPoints:
     keep = np.ones(len(truth.frame), dtype=bool) if keep is None else keep
     track = truth.particle if track is None else track
     position = truth.position if position is None else position
-    return Tracks(
+    return TrackPoints(
         track[keep],
         truth.frame[keep],
         position[keep],
@@ -84,7 +84,7 @@ def test_ghost_tracks_are_counted_and_pair_with_nothing(truth):
     ghosts = 10
     far = np.tile(np.arange(F), ghosts), np.repeat(np.arange(ghosts) + 1000, F)
     position = np.c_[np.full((ghosts * F, 2), 1.0), np.zeros(ghosts * F)]
-    with_ghosts = Tracks(
+    with_ghosts = TrackPoints(
         np.r_[tracks.track, far[1]],
         np.r_[tracks.frame, far[0]],
         np.r_[tracks.position, position],

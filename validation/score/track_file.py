@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from validation.score.positions import parse_coordinate, parse_integer
-from validation.score.trajectories import Tracks
+from validation.score.trajectories import TrackPoints
 
 #: The columns every tracks file needs.
 COLUMNS = ("track", "frame", "x", "y", "z")
@@ -28,7 +28,7 @@ COLUMNS = ("track", "frame", "x", "y", "z")
 OPTIONAL = (("vx", "vy", "vz"), ("ax", "ay", "az"))
 
 
-def read_tracks(path: str | Path) -> Tracks:
+def read_tracks(path: str | Path) -> TrackPoints:
     """Read a tracks CSV file (module docstring).
 
     Parameters
@@ -38,7 +38,7 @@ def read_tracks(path: str | Path) -> Tracks:
 
     Returns
     -------
-    Tracks
+    TrackPoints
 
     Raises
     ------
@@ -62,7 +62,7 @@ def read_tracks(path: str | Path) -> Tracks:
     _check_order(track, frame, np.asarray(lines), path)
     extra = [group for group in OPTIONAL if all(name in header for name in group)]
     columns = {group: table[:, 5 + 3 * i : 8 + 3 * i] for i, group in enumerate(extra)}
-    return Tracks(
+    return TrackPoints(
         track=track,
         frame=frame,
         position=table[:, 2:5],

@@ -1,6 +1,6 @@
 """Time-resolved tracks scored against the true trajectories.
 
-Any code's tracks (:class:`Tracks`: track id, frame and position of every point, and the
+Any code's tracks (:class:`TrackPoints`: track id, frame and position of every point, and the
 velocity and acceleration of a track fit where the code gives them) are put beside the
 truth of the recording (:class:`TrueTrajectories`: every particle's position, velocity
 and acceleration at every frame, and whether enough cameras image it to be found).
@@ -63,7 +63,7 @@ class TrueTrajectories:
 
 
 @dataclass(frozen=True, eq=False)
-class Tracks:
+class TrackPoints:
     """A code's tracks, one row per point.
 
     Attributes
@@ -83,13 +83,13 @@ class Tracks:
     acceleration: np.ndarray | None = None
 
 
-def pair_points(truth: TrueTrajectories, tracks: Tracks, radius: float) -> np.ndarray:
+def pair_points(truth: TrueTrajectories, tracks: TrackPoints, radius: float) -> np.ndarray:
     """The truth row each track point is paired with in its frame, −1 for a ghost point.
 
     Parameters
     ----------
     truth : TrueTrajectories
-    tracks : Tracks
+    tracks : TrackPoints
     radius : float
         Largest distance of a pair, m.
 
@@ -131,13 +131,13 @@ def _rms(error: np.ndarray, scale: float) -> dict | None:
     return {axis: float(v) for axis, v in zip("xyz", rms, strict=True)}
 
 
-def trajectory_scores(truth: TrueTrajectories, tracks: Tracks, radius: float) -> dict:
+def trajectory_scores(truth: TrueTrajectories, tracks: TrackPoints, radius: float) -> dict:
     """The scores of the module docstring.
 
     Parameters
     ----------
     truth : TrueTrajectories
-    tracks : Tracks
+    tracks : TrackPoints
     radius : float
         Largest distance between a point and the particle it is paired with, m.
 
