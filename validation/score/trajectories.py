@@ -131,6 +131,57 @@ def _rms(error: np.ndarray, scale: float) -> dict | None:
     return {axis: float(v) for axis, v in zip("xyz", rms, strict=True)}
 
 
+def _trajectories(truth: TrueTrajectories) -> tuple[np.ndarray, np.ndarray]:
+    """The true trajectory of every truth row (−1 where not observed), and the observed
+    rows sorted by particle, then frame."""
+    observed = np.flatnonzero(truth.observed)
+    obs = observed[np.lexsort((truth.frame[observed], truth.particle[observed]))]
+    trajectory = np.full(len(truth.frame), -1, dtype=np.int64)
+    trajectory[obs] = _runs(truth.particle[obs], truth.frame[obs])
+    return trajectory, obs
+
+
+def _segments(trajectory, obs, row, track, counted) -> np.ndarray:
+    """Segments per trajectory: its observed rows paired with a counted track point, by
+    frame; a new segment where the trajectory or the track changes."""
+    track_of_row = np.full(len(trajectory), -1, dtype=np.int64)
+    track_of_row[row[counted]] = track[counted]
+    covered = obs[track_of_row[obs] >= 0]
+    starts = np.ones(len(covered), dtype=bool)
+    starts[1:] = (trajectory[covered[1:]] != trajectory[covered[:-1]]) | (
+        track_of_row[covered[1:]] != track_of_row[covered[:-1]]
+    )
+    return np.bincount(trajectory[covered][starts], minlength=int(trajectory.max()) + 1)
+
+
+def _links(truth: TrueTrajectories, tracks: TrackPoints, row: np.ndarray) -> dict:
+    """Links, the fraction that jump to another particle and the fraction with a ghost
+    end."""
+    order = np.lexsort((tracks.frame, tracks.track))
+    same = tracks.track[order][1:] == tracks.track[order][:-1]
+    a, b = row[order][:-1][same], row[order][1:][same]
+    both = (a >= 0) & (b >= 0)
+    jumps = both & (truth.particle[np.maximum(a, 0)] != truth.particle[np.maximum(b, 0)])
+    return {
+        "links": int(same.sum()),
+        "mislinks": float(jumps.sum() / both.sum()) if both.any() else None,
+        "ghost_links": float(np.mean(~both)) if same.any() else None,
+    }
+
+
+def _errors(truth: TrueTrajectories, tracks: TrackPoints, row: np.ndarray) -> dict:
+    """rms per component over the paired points: µm, mm/s, m/s²."""
+    good = row >= 0
+    errors = {"position_um": _rms(tracks.position[good] - truth.position[row[good]], 1e6)}
+    if tracks.velocity is not None:
+        errors["velocity_mm_s"] = _rms(tracks.velocity[good] - truth.velocity[row[good]], 1e3)
+    if tracks.acceleration is not None:
+        errors["acceleration_m_s2"] = _rms(
+            tracks.acceleration[good] - truth.acceleration[row[good]], 1.0
+        )
+    return errors
+
+
 def trajectory_scores(truth: TrueTrajectories, tracks: TrackPoints, radius: float) -> dict:
     """The scores of the module docstring.
 
@@ -149,58 +200,25 @@ def trajectory_scores(truth: TrueTrajectories, tracks: TrackPoints, radius: floa
         and the counts they come from.
     """
     row = pair_points(truth, tracks, radius)
-    points = np.bincount(np.unique(tracks.track, return_inverse=True)[1])
-    long_track = (points >= MIN_TRACK_POINTS)[np.unique(tracks.track, return_inverse=True)[1]]
-    observed = np.flatnonzero(truth.observed)
-    tracked_rows = np.unique(row[(row >= 0) & long_track])
-
-    order = np.lexsort((truth.frame[observed], truth.particle[observed]))
-    obs = observed[order]
-    trajectory = np.full(len(truth.frame), -1, dtype=np.int64)
-    trajectory[obs] = _runs(truth.particle[obs], truth.frame[obs])
-    n_trajectories = int(trajectory.max()) + 1 if len(obs) else 0
-    true_lengths = np.bincount(trajectory[obs], minlength=n_trajectories)
-
-    # Segments: the rows of each trajectory that a long track pairs, by frame; a new
-    # segment where the trajectory or the track changes.
-    track_of_row = np.full(len(truth.frame), -1, dtype=np.int64)
-    paired = (row >= 0) & long_track
-    track_of_row[row[paired]] = tracks.track[paired]
-    covered = obs[track_of_row[obs] >= 0]
-    starts = np.ones(len(covered), dtype=bool)
-    starts[1:] = (trajectory[covered[1:]] != trajectory[covered[:-1]]) | (
-        track_of_row[covered[1:]] != track_of_row[covered[:-1]]
-    )
-    segments = np.bincount(trajectory[covered][starts], minlength=n_trajectories)
+    _, track_index = np.unique(tracks.track, return_inverse=True)
+    points = np.bincount(track_index)
+    ghost_points = np.bincount(track_index, weights=row < 0)
+    counted = (row >= 0) & (points >= MIN_TRACK_POINTS)[track_index]
+    trajectory, obs = _trajectories(truth)
+    segments = _segments(trajectory, obs, row, tracks.track, counted)
     touched = segments > 0
-
-    order = np.lexsort((tracks.frame, tracks.track))
-    same = tracks.track[order][1:] == tracks.track[order][:-1]
-    a, b = row[order][:-1][same], row[order][1:][same]
-    both = (a >= 0) & (b >= 0)
-    jumps = both & (truth.particle[np.maximum(a, 0)] != truth.particle[np.maximum(b, 0)])
-    ghost_points = np.bincount(np.unique(tracks.track, return_inverse=True)[1], weights=row < 0)
-
-    good = row >= 0
-    errors = {"position_um": _rms(tracks.position[good] - truth.position[row[good]], 1e6)}
-    if tracks.velocity is not None:
-        errors["velocity_mm_s"] = _rms(tracks.velocity[good] - truth.velocity[row[good]], 1e3)
-    if tracks.acceleration is not None:
-        errors["acceleration_m_s2"] = _rms(
-            tracks.acceleration[good] - truth.acceleration[row[good]], 1.0
-        )
-    links = int(same.sum())
     return {
         "radius_m": float(radius),
-        "observed_particle_frames": len(observed),
-        "tracked": len(tracked_rows) / len(observed) if len(observed) else None,
+        "observed_particle_frames": len(obs),
+        "tracked": len(np.unique(row[counted])) / len(obs) if len(obs) else None,
         "tracks": len(points),
         "ghost_tracks": float(np.mean(ghost_points > points / 2)) if len(points) else None,
-        "trajectories": n_trajectories,
-        "lengths": {"tracks": _histogram(points), "trajectories": _histogram(true_lengths)},
+        "trajectories": len(segments),
+        "lengths": {
+            "tracks": _histogram(points),
+            "trajectories": _histogram(np.bincount(trajectory[obs], minlength=len(segments))),
+        },
         "fragmentation": float(np.mean(segments[touched])) if touched.any() else None,
-        "links": links,
-        "mislinks": float(jumps.sum() / both.sum()) if both.any() else None,
-        "ghost_links": float(np.mean(~both)) if links else None,
-        "errors": errors,
+        **_links(truth, tracks, row),
+        "errors": _errors(truth, tracks, row),
     }
