@@ -127,7 +127,9 @@ def follow_recording(
         parts.append((start + which, frame, x, velocity, acceleration))
         if progress is not None:
             progress(b + 1, len(starts))
-    particle, frame, x, velocity, acceleration = (np.concatenate(p) for p in zip(*parts))
+    particle, frame, x, velocity, acceleration = (
+        np.concatenate(p) for p in zip(*parts, strict=True)
+    )
     order = np.lexsort((frame, particle))
     return RecordedParticles(
         times=times,

@@ -77,7 +77,7 @@ _COMMENTS = {
     "(left out: measured on the links of the smallest Δt)",
     "position_noise": "expected position noise, one component, m",
     "max_acceleration": "largest particle acceleration, m/s², for --tracks: radius "
-    "max_acceleration·τ² + 5√3·position_noise",
+    "max_acceleration·τ² + 5√6·position_noise",
     "outlier_threshold": "normalised median test on the displacements (false: off)",
     "outlier_neighbours": "neighbours of the median test",
     "analysis_volume": "statistics box by X(t): lower and upper corners, m",

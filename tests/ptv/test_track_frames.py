@@ -82,9 +82,9 @@ def scores(tracks: Tracks, ids):
 
 def radii(tau, acceleration, u_rms=U_RMS):
     """The first link's radius (5 u' τ + 5σ) and the constant-velocity one (the largest
-    acceleration times τ², plus 5√3 σ: five times the noise of the prediction's miss)."""
+    acceleration times τ², plus 5√6 σ: five times the noise of the prediction's miss)."""
     largest = np.abs(acceleration).max()
-    return search_radius(tau, u_rms=u_rms, sigma_b=SIGMA), largest * tau**2 + 5 * 3**0.5 * SIGMA
+    return search_radius(tau, u_rms=u_rms, sigma_b=SIGMA), largest * tau**2 + 5 * 6**0.5 * SIGMA
 
 
 @pytest.fixture(scope="module")

@@ -372,7 +372,7 @@ def test_tracks_link_every_frame_of_a_recording(dataset, recording, tmp_path, ca
     assert t["tracks"] == len(np.unique(track)) == sum(t["length_histogram"]["count"])
     assert t["points"] == len(rows) and t["frames"] == [0, FRAMES - 1]
     assert summary["settings"]["max_acceleration"] == 400.0
-    assert t["predicted_radius"] == pytest.approx(400.0 / FRAME_RATE**2 + 5 * 3**0.5 * 30e-6)
+    assert t["predicted_radius"] == pytest.approx(400.0 / FRAME_RATE**2 + 5 * 6**0.5 * 30e-6)
     # Against the truth: each point's nearest true particle (after the small offset of
     # the calibration's frame); links between two real particles. The particles move
     # u'τ ≈ 0.1 mm per component a frame and are 3.6 mm apart: a wrong link is rare.
