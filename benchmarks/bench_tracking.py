@@ -6,10 +6,11 @@ tracers in the sheet, 200 frames at τ = τ_η/10 (quick: 500 tracers, 50 frames
 points each code links are the particles in the sheet at every frame with 15 µm of
 Gaussian noise per component, 2 % of them dropped at random (a detection missed, so that
 a track must bridge a gap to stay whole). synptv: :func:`ptv.tracking.linking.
-track_frames` with the radii ``synptv ptv --tracks`` uses
-(:func:`ptv.tracking.recording.track_radii`, max speed 5u′, the noise given). trackpy:
-``link_df`` in 3-D with its nearest-velocity predictor, the same first radius, and no
-memory (neither closes gaps). Both are scored against the true trajectories
+track_frames` with the radii and the gap closing ``synptv ptv --tracks`` uses
+(:func:`ptv.tracking.recording.track_radii`, max speed 5u′, the noise given; up to
+``track_gap`` missed frames). trackpy: ``link_df`` in 3-D with its nearest-velocity
+predictor, the same first radius, and as many frames of memory. Both are scored against
+the true trajectories
 (:mod:`validation.score.trajectories`, pairs within 5√3 σ), side by side in one run,
 with the time each takes to link.
 """
@@ -43,14 +44,13 @@ def _points(recording, rng):
     return [noisy[r] for r in rows], rows
 
 
-def _synptv(frames, frame_rate, u_rms):
-    settings = PipelineSettings(max_speed=5 * u_rms, position_noise=NOISE)
+def _synptv(frames, frame_rate, settings):
     radius, predicted = track_radii(frame_rate, settings)
-    tracks = track_frames(frames, radius=radius, predicted_radius=predicted)
+    tracks = track_frames(frames, radius=radius, predicted_radius=predicted, gap=settings.track_gap)
     return TrackPoints(tracks.track, tracks.frame, tracks.positions), radius
 
 
-def _trackpy(frames, radius):
+def _trackpy(frames, radius, memory):
     import pandas as pd
     import trackpy
 
@@ -65,7 +65,7 @@ def _trackpy(frames, radius):
         }
     )
     linked = trackpy.predict.NearestVelocityPredict().link_df(
-        table, search_range=radius * 1e3, memory=0, pos_columns=list("xyz")
+        table, search_range=radius * 1e3, memory=memory, pos_columns=list("xyz")
     )
     return TrackPoints(
         linked["particle"].to_numpy(),
@@ -121,14 +121,16 @@ def run(quick: bool) -> dict:
         "seeds": recording.seeds,
         "simulate_seconds": simulated,
     }
+    settings = PipelineSettings(max_speed=5 * p.u_rms, position_noise=NOISE)
+    out["gap_frames"] = settings.track_gap
     start = time.perf_counter()
-    ours, radius = _synptv(frames, frame_rate, p.u_rms)
+    ours, radius = _synptv(frames, frame_rate, settings)
     out["synptv"] = _summary(
         trajectory_scores(truth, ours, pair_radius), time.perf_counter() - start
     )
     out["link_radius_um"] = radius * 1e6
     start = time.perf_counter()
-    theirs = _trackpy(frames, radius)
+    theirs = _trackpy(frames, radius, settings.track_gap)
     out["trackpy"] = _summary(
         trajectory_scores(truth, theirs, pair_radius), time.perf_counter() - start
     )

@@ -40,6 +40,9 @@ class PipelineSettings:
         constant-velocity prediction in a time-resolved recording
         (:func:`ptv.tracking.recording.track_radii`; default 100, about 5 times the rms of one
         component in the paper's flows).
+    track_gap : int
+        Frames a track of a time-resolved recording may miss and still be continued
+        (:func:`ptv.tracking.linking.track_frames`; default 2).
     outlier_threshold : float or None
         Threshold of the normalised median test on the displacements (default 4; None
         keeps every link).
@@ -57,6 +60,7 @@ class PipelineSettings:
     max_speed: float | None = None
     position_noise: float = 30e-6
     max_acceleration: float = 100.0
+    track_gap: int = 2
     outlier_threshold: float | None = 4.0
     outlier_neighbours: int = 8
     snapshots: int | None = None
@@ -77,6 +81,12 @@ class PipelineSettings:
             or self.min_cameras < 2
         ):
             raise ValueError(f"min_cameras must be an integer >= 2, got {self.min_cameras!r}")
+        if (
+            isinstance(self.track_gap, bool)
+            or not isinstance(self.track_gap, int)
+            or (self.track_gap < 0)
+        ):
+            raise ValueError(f"track_gap must be an integer >= 0, got {self.track_gap!r}")
         if not isinstance(self.outlier_neighbours, int) or self.outlier_neighbours < 2:
             raise ValueError(
                 f"outlier_neighbours must be an integer >= 2, got {self.outlier_neighbours!r}"

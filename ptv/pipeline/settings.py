@@ -5,7 +5,7 @@ Sections and the dataclass fields they fill (SI units: m, s, m/s, m/s²)::
     [detection]    DetectorSettings: threshold_sigmas, saturation, particles, background,
                    tophat_radius, median_frames, min_peak, min_size, diameter
     [matching]     PipelineSettings: volume, tolerance, min_cameras
-    [linking]      PipelineSettings: max_speed, position_noise, max_acceleration,
+    [linking]      PipelineSettings: max_speed, position_noise, max_acceleration, track_gap,
                    outlier_threshold, outlier_neighbours
     [statistics]   StatisticsSettings: analysis_volume, r_min, r_max, n_bins, binning, plateau,
                    plateau_method, kolmogorov_c2, n_boot, eulerian_cells,
@@ -43,6 +43,7 @@ SECTIONS = {
             "max_speed",
             "position_noise",
             "max_acceleration",
+            "track_gap",
             "outlier_threshold",
             "outlier_neighbours",
         ),
@@ -78,6 +79,7 @@ _COMMENTS = {
     "position_noise": "expected position noise, one component, m",
     "max_acceleration": "largest particle acceleration, m/s², for --tracks: radius "
     "max_acceleration·τ² + 5√6·position_noise",
+    "track_gap": "frames a track may miss and still be continued, for --tracks",
     "outlier_threshold": "normalised median test on the displacements (false: off)",
     "outlier_neighbours": "neighbours of the median test",
     "analysis_volume": "statistics box by X(t): lower and upper corners, m",

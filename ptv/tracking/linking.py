@@ -207,7 +207,7 @@ class Tracks:
 
     Every point of every frame belongs to exactly one track (a particle never linked is
     a track of one point). Rows are sorted by track, then frame; the frames of a track
-    are consecutive.
+    increase, consecutive unless the tracking closed gaps.
 
     Attributes
     ----------
@@ -239,8 +239,8 @@ class Tracks:
         same = np.diff(self.track) == 0
         if k and (self.track[0] != 0 or np.any(np.diff(self.track) > 1)):
             raise ValueError("track ids must run 0 … T − 1 without gaps")
-        if np.any(np.diff(self.track) < 0) or np.any(np.diff(self.frame)[same] != 1):
-            raise ValueError("rows must be sorted by track, then by consecutive frames")
+        if np.any(np.diff(self.track) < 0) or np.any(np.diff(self.frame)[same] < 1):
+            raise ValueError("rows must be sorted by track, then by increasing frames")
 
     def __len__(self) -> int:
         return len(self.track)
@@ -261,23 +261,12 @@ class Tracks:
         return len(self.track) - self.n_tracks
 
 
-def _predictions(
-    current: np.ndarray,
-    previous: np.ndarray,
-    predictor: Predictor,
-    radii: tuple[float, float],
-) -> tuple[np.ndarray, np.ndarray]:
-    """Where the particles of a frame are expected one frame later, and how far from it
-    their partner is searched, shapes (N, 3) and (N,), m.
-
-    ``previous`` holds, per particle, its track's point one frame earlier (NaN for a
-    track of one point): constant velocity within ``radii[1]`` where it is known, the
-    mean displacement within ``radii[0]`` otherwise.
-    """
-    first = np.isnan(previous[:, 0])
-    predicted = 2 * current - previous
-    predicted[first] = current[first] + _mean_displacement(predictor, current[first])
-    return predicted, np.where(first, *radii)
+def _track_radii(steps: np.ndarray, has_velocity: np.ndarray, radii) -> np.ndarray:
+    """Search radius of each candidate track, m: ``radii[0]`` without a velocity, else
+    ``radii[1]`` scaled by s(s + 1)/2 for a prediction s frames ahead (the miss of a
+    constant-velocity prediction from the last two points under a constant acceleration
+    a is ½aτ²s(s + 1), and its noise grows as √((s² + s + 1)/3), never faster)."""
+    return np.where(has_velocity, radii[1] * steps * (steps + 1) / 2, radii[0])
 
 
 def track_frames(
@@ -286,8 +275,16 @@ def track_frames(
     radius: float,
     predicted_radius: float | None = None,
     predictor: Predictor = None,
+    gap: int = 0,
 ) -> Tracks:
     """Time-resolved tracking: link the particles of frames τ apart into tracks.
+
+    In each frame every track that has a point in the previous frame, and every track of
+    two points or more whose last point is at most ``gap`` frames older (a particle
+    missed in between), predicts where its particle is: at constant velocity from its
+    last two points where it has them, else at its point plus the mean displacement. The
+    predictions are linked one-to-one to the frame's points, each within its radius, at
+    the least total of (distance / radius)²; a point left over starts a track.
 
     Parameters
     ----------
@@ -298,10 +295,13 @@ def track_frames(
         displacement (e.g. :func:`search_radius` with Δt = τ).
     predicted_radius : float, optional
         Search radius, m, around the constant-velocity prediction of a track of two
-        points or more; ``radius`` by default. About k (a τ² + √6 σ_b) suffices, a the
-        largest acceleration and σ_b the position noise.
+        points or more, one frame ahead; ``radius`` by default. About k (a τ² + √6 σ_b)
+        suffices, a the largest acceleration and σ_b the position noise. s frames ahead
+        (across a gap) it is scaled by s(s + 1)/2.
     predictor : callable, array of shape (3,) or None
         Mean displacement over one frame interval τ, as in :func:`link` (None: none).
+    gap : int
+        Frames a track may miss and still be continued (0: none).
 
     Returns
     -------
@@ -310,29 +310,46 @@ def track_frames(
     xs = [_frame(f"frame {f}", x) for f, x in enumerate(frames)]
     r_first = _radius("radius", radius)
     r_next = r_first if predicted_radius is None else _radius("predicted_radius", predicted_radius)
-    radii = (r_first, r_next)
+    if not isinstance(gap, int | np.integer) or gap < 0:
+        raise ValueError(f"gap must be an integer >= 0 frames, got {gap!r}")
     if not xs:
         return _sorted_tracks([], xs)
-    labels = [np.arange(len(xs[0]))]  # track id of every particle of every frame so far
-    previous = np.full((len(xs[0]), 3), np.nan)  # its track's point one frame earlier
+    total = sum(len(x) for x in xs)
+    last = np.full((total, 3), np.nan)  # per track: its last point,
+    velocity = np.full((total, 3), np.nan)  # its displacement per frame (NaN: one point)
+    last_frame = np.full(total, -1, dtype=np.int64)  # and the frame of its last point
+    labels = [np.arange(len(xs[0]))]
+    last[: len(xs[0])], last_frame[: len(xs[0])] = xs[0], 0
     started = len(xs[0])
     for f in range(1, len(xs)):
-        current, following = xs[f - 1], xs[f]
-        i, j, _, ambiguous, _ = _link_step(
-            *_predictions(current, previous, predictor, radii), following
+        alive = np.flatnonzero(
+            (last_frame == f - 1)
+            | ((last_frame >= f - 1 - gap) & ~np.isnan(velocity[:, 0]) & (last_frame >= 0))
         )
-        label = np.full(len(following), -1)
-        label[j] = labels[-1][i]
+        steps = f - last_frame[alive]
+        has_velocity = ~np.isnan(velocity[alive, 0])
+        predicted = last[alive] + steps[:, None] * np.where(
+            has_velocity[:, None], velocity[alive], 0.0
+        )
+        fresh = ~has_velocity
+        predicted[fresh] += _mean_displacement(predictor, last[alive][fresh])
+        i, j, _, ambiguous, _ = _link_step(
+            predicted, _track_radii(steps, has_velocity, (r_first, r_next)), xs[f]
+        )
+        label = np.full(len(xs[f]), -1)
+        label[j] = alive[i]
         new = label < 0
         label[new] = started + np.arange(np.count_nonzero(new))
         started += np.count_nonzero(new)
+        linked = alive[i]
+        velocity[linked] = (xs[f][j] - last[linked]) / (f - last_frame[linked])[:, None]
+        last[label], last_frame[label] = xs[f], f
         labels.append(label)
-        previous = np.full((len(following), 3), np.nan)
-        previous[j] = current[i]
         log.debug(
-            "frame %d: %d links, %d tracks started, %d ambiguous",
+            "frame %d: %d links (%d across a gap), %d tracks started, %d ambiguous",
             f,
             len(i),
+            int(np.count_nonzero(steps[i] > 1)),
             np.count_nonzero(new),
             ambiguous,
         )

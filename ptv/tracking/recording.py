@@ -9,7 +9,9 @@ frames n = first … last, τ = 1 / frame rate apart. :func:`run_recording`
 2. links them frame to frame into tracks (:func:`ptv.tracking.linking.track_frames`): the first
    link of a track within r = max_speed·τ + 5σ_b (the double-frame link radius at
    Δt = τ), a longer track within r_p = max_acceleration·τ² + 5√6·σ_b of its
-   constant-velocity prediction (:func:`track_radii`);
+   constant-velocity prediction (:func:`track_radii`), a track missing from up to
+   ``track_gap`` frames (a particle not detected or not matched there) continued across
+   the gap;
 3. processes the frame pairs of the multi-Δt method (:func:`ptv.pipeline.double_frame.run_pipeline`)
    from the same detections, so that no image is read or detected twice.
 
@@ -207,7 +209,12 @@ def run_recording(
         pairs, calibrations, settings, progress=pairs_progress, statistics=statistics
     )
     radius, predicted_radius = track_radii(sequence.frame_rate, result.settings)
-    tracks = track_frames(recorded.points, radius=radius, predicted_radius=predicted_radius)
+    tracks = track_frames(
+        recorded.points,
+        radius=radius,
+        predicted_radius=predicted_radius,
+        gap=result.settings.track_gap,
+    )
     log.info(
         "frames %d … %d: %d points in %d tracks (%d links)",
         numbers[0],

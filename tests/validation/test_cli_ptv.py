@@ -357,7 +357,8 @@ def test_tracks_link_every_frame_of_a_recording(dataset, recording, tmp_path, ca
     assert set(frame.tolist()) == set(range(FRAMES))
     np.testing.assert_allclose(rows[:, 2], frame / FRAME_RATE, rtol=1e-8)
     same = track[1:] == track[:-1]
-    assert np.all(np.diff(track) >= 0) and np.all(np.diff(frame)[same] == 1)
+    # Frames increase along a track, by at most the default 2 missed frames plus one.
+    assert np.all(np.diff(track) >= 0) and np.all(np.isin(np.diff(frame)[same], (1, 2, 3)))
     # The points of each frame of a pair are those --positions-only writes for it.
     pair_points = np.column_stack([pairs[axis] for axis in "xyz"])
     is_b = pairs["frame"] == b"b"

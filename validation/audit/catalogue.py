@@ -100,6 +100,7 @@ AUDITED: tuple[Audited, ...] = (
     Audited(_PIPE + "max_speed", "not run", (), reason=_DERIVED),
     Audited(_PIPE + "position_noise", "tolerance"),
     Audited(_PIPE + "max_acceleration", "not run", (), reason=_RECORDING),
+    Audited(_PIPE + "track_gap", "not run", (), reason=_RECORDING),
     Audited(_PIPE + "outlier_threshold", "tolerance"),
     Audited(_PIPE + "outlier_neighbours", "count"),
     Audited(_PIPE + "snapshots", "not run", (), reason="None: every snapshot"),
