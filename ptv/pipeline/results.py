@@ -28,7 +28,8 @@ dataset has a ``units`` attribute)::
     /tracks                   the tracks through every frame of a time-resolved recording
                               (``synptv ptv --tracks``; absent otherwise), one row per
                               matched point, sorted by track then frame; attrs frame_rate
-                              (Hz), radius and predicted_radius (m, the search radii)
+                              (Hz), radius and predicted_radius (m, the search radii),
+                              gap (missed frames a track may close)
         track (K,)                    track id, 0 … T − 1 (every point is in one track)
         frame (K,), time (K,) s       frame number n and n / frame_rate
         x, y, z (K,) m                the point, in the calibration's frame
@@ -279,7 +280,8 @@ def tracks_summary(recording: RecordingTracks) -> dict:
     """The tracks of a recording in numbers (JSON-ready).
 
     Keys: ``frames`` (first and last frame number tracked), ``frame_rate`` (Hz),
-    ``radius`` and ``predicted_radius`` (m), ``points`` (matched points, all frames),
+    ``radius`` and ``predicted_radius`` (m), ``gap`` (missed frames a track may close),
+    ``points`` (matched points, all frames),
     ``points_per_frame`` (their mean), ``tracks``, ``links``, ``mean_length`` (points
     per track; None without tracks), ``length_histogram``: ``edges`` 1, 2, 4, … and the
     ``count`` of tracks whose length L has edges[i] <= L < edges[i + 1].
@@ -294,6 +296,7 @@ def tracks_summary(recording: RecordingTracks) -> dict:
         "frame_rate": recording.frame_rate,
         "radius": recording.radius,
         "predicted_radius": recording.predicted_radius,
+        "gap": recording.gap,
         "points": len(tracks),
         "points_per_frame": len(tracks) / len(recording.numbers),
         "tracks": tracks.n_tracks,
@@ -453,6 +456,7 @@ def _put_tracks(group: h5py.Group, recording: RecordingTracks) -> None:
     group.attrs["frame_rate"] = recording.frame_rate
     group.attrs["radius"] = recording.radius
     group.attrs["predicted_radius"] = recording.predicted_radius
+    group.attrs["gap"] = recording.gap
     group.attrs["units"] = "frame_rate: Hz; radius, predicted_radius: m"
     _put(group, "track", recording.tracks.track, "track id")
     _put(group, "frame", recording.frame_number, "frame number")

@@ -419,6 +419,8 @@ class RecordingTracks:
         Every matched point of every frame, with its track.
     radius, predicted_radius : float
         The search radii used (:func:`ptv.tracking.recording.track_radii`), m.
+    gap : int
+        Missed frames a track could close (:func:`track_frames`).
     """
 
     numbers: np.ndarray
@@ -427,6 +429,7 @@ class RecordingTracks:
     tracks: Tracks
     radius: float
     predicted_radius: float
+    gap: int = 0
 
     @property
     def frame_number(self) -> np.ndarray:

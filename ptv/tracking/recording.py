@@ -230,6 +230,7 @@ def run_recording(
         tracks=tracks,
         radius=radius,
         predicted_radius=predicted_radius,
+        gap=result.settings.track_gap,
     )
     measured = replace(result.measured, tolerance=tolerance)
     return replace(result, recording=recording, measured=measured)
