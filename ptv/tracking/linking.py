@@ -323,8 +323,7 @@ def track_frames(
     started = len(xs[0])
     for f in range(1, len(xs)):
         alive = np.flatnonzero(
-            (last_frame == f - 1)
-            | ((last_frame >= f - 1 - gap) & ~np.isnan(velocity[:, 0]) & (last_frame >= 0))
+            (last_frame == f - 1) | ((last_frame >= f - 1 - gap) & ~np.isnan(velocity[:, 0]))
         )
         steps = f - last_frame[alive]
         has_velocity = ~np.isnan(velocity[alive, 0])

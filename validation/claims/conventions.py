@@ -51,7 +51,8 @@ def _exact_snapshots(ctx: ClaimContext) -> list[tuple[np.ndarray, np.ndarray]]:
     """X(t) inside the analysis volume and the exact velocity there, per snapshot."""
     run = ctx.sample.runs[0]
     out = []
-    for x, u in zip(run.positions[:CONVENTION_SNAPSHOTS, 0], run.velocity[:, 0], strict=False):
+    chosen = slice(CONVENTION_SNAPSHOTS)
+    for x, u in zip(run.positions[chosen, 0], run.velocity[chosen, 0], strict=True):
         inside = ANALYSIS_VOLUME.contains(x)
         out.append((x[inside], u[inside]))
     return out

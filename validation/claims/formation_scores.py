@@ -165,7 +165,8 @@ def formation_scores(case: RenderedCase, *, seed: int) -> FormationScores:
     band = (int(min(np.ceil(full - spread), sensor.max_dn)), int(min(full + spread, sensor.max_dn)))
     half_thickness = case.rig.sheet.size[2] / 2
     images, candidates, noise, contamination = [], [], [], []
-    lit_dn = CONTAMINATION_SIGMAS * background_moments(sensor)[1]
+    specified = background_moments(sensor)
+    lit_dn = CONTAMINATION_SIGMAS * specified[1]
     histogram = np.zeros(sensor.max_dn + 1, dtype=np.int64)
     saturation = np.zeros(3)
     for m, pair in enumerate(case.exposures):
@@ -204,7 +205,7 @@ def formation_scores(case: RenderedCase, *, seed: int) -> FormationScores:
         geometric=spots["geometric"],
         diffraction=spots["diffraction"],
         background_histogram=histogram,
-        background_specified=background_moments(sensor),
+        background_specified=specified,
         saturated=int(saturation[0]),
         saturated_expected=float(saturation[1]),
         saturated_variance=float(saturation[2]),

@@ -129,8 +129,35 @@ def _frame(text: str, where: str) -> int:
     return "ab".index(text.strip())
 
 
-def _read_csv(path: Path, columns: tuple[str, ...]) -> Positions:
-    """The rows of a CSV positions file (module docstring)."""
+def read_csv_rows(
+    path: Path,
+    columns: tuple[str, ...],
+    parse: dict,
+    optional: tuple[tuple[str, ...], ...] = (),
+) -> tuple[list[str], list[list], list[int]]:
+    """The parsed rows of a CSV file whose header names its columns (any order).
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    columns : tuple of str
+        Columns every row needs; a missing one is an error naming line 1.
+    parse : dict of str to callable(text, where)
+        Parser of a column (default :func:`parse_coordinate`), raising a one-line
+        ValueError that names ``where``.
+    optional : tuple of tuples of str
+        Groups of columns read when the header has every column of the group.
+
+    Returns
+    -------
+    names : list of str
+        The columns read, in the order of each row's values.
+    rows : list of lists
+        The parsed values of every non-blank line.
+    lines : list of int
+        The line of each row (the header is line 1).
+    """
     with open(path, newline="", encoding="utf-8-sig", errors="replace") as stream:
         reader = csv.reader(stream)
         header = [name.strip() for name in next(reader, [])]
@@ -140,13 +167,8 @@ def _read_csv(path: Path, columns: tuple[str, ...]) -> Positions:
                     f"{path} line 1: no column {name!r} (the header has "
                     f"{', '.join(header) or 'nothing'}; needs {', '.join(columns)})"
                 )
-        index = [header.index(name) for name in columns]
-        parse = {
-            "dt": parse_integer,
-            "snapshot": parse_integer,
-            "frame": _frame,
-            "track": parse_integer,
-        }
+        names = [*columns, *(n for group in optional if set(group) <= set(header) for n in group)]
+        index = [header.index(name) for name in names]
         rows, lines = [], []
         for row in reader:
             if not row or all(not cell.strip() for cell in row):
@@ -160,10 +182,22 @@ def _read_csv(path: Path, columns: tuple[str, ...]) -> Positions:
             rows.append(
                 [
                     parse.get(name, parse_coordinate)(row[i], f"{path} line {line}, column {name}")
-                    for name, i in zip(columns, index, strict=True)
+                    for name, i in zip(names, index, strict=True)
                 ]
             )
             lines.append(line)
+    return names, rows, lines
+
+
+def _read_csv(path: Path, columns: tuple[str, ...]) -> Positions:
+    """The rows of a CSV positions file (module docstring)."""
+    parse = {
+        "dt": parse_integer,
+        "snapshot": parse_integer,
+        "frame": _frame,
+        "track": parse_integer,
+    }
+    _, rows, lines = read_csv_rows(path, columns, parse)
     table = np.array(rows, dtype=object).reshape(-1, len(columns))
     return Positions(
         path=path,

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from validation.score.positions import parse_coordinate, parse_integer
+from validation.score.positions import parse_integer, read_csv_rows
 from validation.score.trajectories import TrackPoints
 
 #: The columns every tracks file needs.
@@ -51,8 +51,9 @@ def read_tracks(path: str | Path) -> TrackPoints:
     if not path.is_file():
         raise ValueError(f"--tracks {path}: no such file")
     try:
-        with open(path, newline="", encoding="utf-8-sig", errors="replace") as stream:
-            header, rows, lines = _rows(csv.reader(stream), path)
+        names, rows, lines = read_csv_rows(
+            path, COLUMNS, {"track": parse_integer, "frame": parse_integer}, OPTIONAL
+        )
     except csv.Error as err:
         raise ValueError(f"{path}: unreadable ({err})") from None
     if not rows:
@@ -60,7 +61,7 @@ def read_tracks(path: str | Path) -> TrackPoints:
     table = np.array(rows, dtype=np.float64)
     track, frame = table[:, 0].astype(np.int64), table[:, 1].astype(np.int64)
     _check_order(track, frame, np.asarray(lines), path)
-    extra = [group for group in OPTIONAL if all(name in header for name in group)]
+    extra = [group for group in OPTIONAL if group[0] in names]
     columns = {group: table[:, 5 + 3 * i : 8 + 3 * i] for i, group in enumerate(extra)}
     return TrackPoints(
         track=track,
@@ -69,39 +70,6 @@ def read_tracks(path: str | Path) -> TrackPoints:
         velocity=columns.get(OPTIONAL[0]),
         acceleration=columns.get(OPTIONAL[1]),
     )
-
-
-def _rows(reader, path: Path) -> tuple[list[str], list[list[float]], list[int]]:
-    """The header, the parsed rows (the required columns, then the optional triples
-    present) and their line numbers."""
-    header = [name.strip() for name in next(reader, [])]
-    for name in COLUMNS:
-        if name not in header:
-            raise ValueError(
-                f"{path} line 1: no column {name!r} (the header has "
-                f"{', '.join(header) or 'nothing'}; needs {', '.join(COLUMNS)})"
-            )
-    names = [*COLUMNS, *(n for group in OPTIONAL if all(m in header for m in group) for n in group)]
-    index = [header.index(name) for name in names]
-    rows, lines = [], []
-    for row in reader:
-        if not row or all(not cell.strip() for cell in row):
-            continue
-        line = reader.line_num
-        if len(row) != len(header):
-            raise ValueError(
-                f"{path} line {line}: {len(row)} values for the {len(header)} columns of the header"
-            )
-        rows.append(
-            [
-                (parse_integer if name in ("track", "frame") else parse_coordinate)(
-                    row[i], f"{path} line {line}, column {name}"
-                )
-                for name, i in zip(names, index, strict=True)
-            ]
-        )
-        lines.append(line)
-    return header, rows, lines
 
 
 def _check_order(track: np.ndarray, frame: np.ndarray, lines: np.ndarray, path: Path) -> None:
