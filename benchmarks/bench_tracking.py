@@ -22,6 +22,7 @@ import numpy as np
 from ptv.pipeline.options import PipelineSettings
 from ptv.tracking.linking import track_frames
 from ptv.tracking.recording import track_radii
+from ptv.tracking.stitching import stitch_tracks
 from simulator.particles import KSFlow
 from simulator.presets import flow_preset
 from simulator.recording import follow_recording
@@ -45,8 +46,16 @@ def _points(recording, rng):
 
 
 def _synptv(frames, frame_rate, settings):
-    radius, predicted = track_radii(frame_rate, settings)
-    tracks = track_frames(frames, radius=radius, predicted_radius=predicted, gap=settings.track_gap)
+    radius, predicted, noise = track_radii(frame_rate, settings)
+    gap = settings.track_gap
+    tracks, _ = stitch_tracks(
+        track_frames(
+            frames, radius=radius, predicted_radius=predicted, predicted_noise=noise, gap=gap
+        ),
+        predicted_radius=predicted,
+        predicted_noise=noise,
+        gap=gap,
+    )
     return TrackPoints(tracks.track, tracks.frame, tracks.positions), radius
 
 

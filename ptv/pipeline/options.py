@@ -42,7 +42,8 @@ class PipelineSettings:
         component in the paper's flows).
     track_gap : int
         Frames a track of a time-resolved recording may miss and still be continued
-        (:func:`ptv.tracking.linking.track_frames`; default 2).
+        (:func:`ptv.tracking.linking.track_frames`; default 3, chosen on the rendered
+        tr recording: docs/ptv.md §4).
     outlier_threshold : float or None
         Threshold of the normalised median test on the displacements (default 4; None
         keeps every link).
@@ -60,7 +61,7 @@ class PipelineSettings:
     max_speed: float | None = None
     position_noise: float = 30e-6
     max_acceleration: float = 100.0
-    track_gap: int = 2
+    track_gap: int = 3
     outlier_threshold: float | None = 4.0
     outlier_neighbours: int = 8
     snapshots: int | None = None

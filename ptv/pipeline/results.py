@@ -63,8 +63,8 @@ dataset has a ``units`` attribute)::
 
 ``summary.json``: :func:`summary` (SI units; NaN written as null). :func:`load_runs`
 reads the links back, so the statistics can be computed again (other bins, other Δt).
-``tracks.csv`` (:func:`save_tracks_csv`): the rows of ``/tracks`` as text, with the
-header ``track,frame,time_s,x,y,z`` (x, y, z in m).
+``tracks.csv`` (:func:`ptv.pipeline.track_csv.save_tracks_csv`): the rows of ``/tracks``
+as text, with the header ``track,frame,time_s,x,y,z`` (x, y, z in m).
 
 Files are written under a temporary name in the target folder and renamed.
 """
@@ -72,7 +72,6 @@ Files are written under a temporary name in the target folder and renamed.
 import json
 import logging
 import os
-import uuid
 from pathlib import Path
 
 import h5py
@@ -80,6 +79,7 @@ import numpy as np
 
 from ptv.pipeline.double_frame import MatchedPoints, PtvResult, ambiguity_message
 from ptv.pipeline.options import link_radius
+from ptv.pipeline.track_csv import temporary_path
 from ptv.stats.dissipation import Plateau
 from ptv.stats.links import RunParticles
 from ptv.stats.mean_displacement import MeanDisplacement
@@ -91,7 +91,6 @@ __all__ = [
     "FORMAT_VERSION",
     "load_runs",
     "save_results",
-    "save_tracks_csv",
     "statistics_summary",
     "summary",
     "tracks_summary",
@@ -281,6 +280,8 @@ def tracks_summary(recording: RecordingTracks) -> dict:
 
     Keys: ``frames`` (first and last frame number tracked), ``frame_rate`` (Hz),
     ``radius`` and ``predicted_radius`` (m), ``gap`` (missed frames a track may close),
+    ``joins`` (tracks joined by :func:`ptv.tracking.stitching.stitch_tracks`),
+    ``miss_noise`` (m, the noise of the first pass's predictions, or None),
     ``points`` (matched points, all frames),
     ``points_per_frame`` (their mean), ``tracks``, ``links``, ``mean_length`` (points
     per track; None without tracks), ``length_histogram``: ``edges`` 1, 2, 4, … and the
@@ -297,6 +298,8 @@ def tracks_summary(recording: RecordingTracks) -> dict:
         "radius": recording.radius,
         "predicted_radius": recording.predicted_radius,
         "gap": recording.gap,
+        "joins": recording.joins,
+        "miss_noise": recording.miss_noise,
         "points": len(tracks),
         "points_per_frame": len(tracks) / len(recording.numbers),
         "tracks": tracks.n_tracks,
@@ -422,11 +425,6 @@ def _mean_displacement_dict(md: MeanDisplacement) -> dict:
     }
 
 
-def _tmp(folder: Path, name: str) -> Path:
-    """A fresh temporary name beside the target (created with the usual permissions)."""
-    return folder / f".{name}.{os.getpid()}.{uuid.uuid4().hex[:12]}.partial"
-
-
 def _put(group: h5py.Group, name: str, data, units: str | None = None) -> None:
     ds = group.create_dataset(name, data=np.asarray(data))
     if units is not None:
@@ -457,6 +455,9 @@ def _put_tracks(group: h5py.Group, recording: RecordingTracks) -> None:
     group.attrs["radius"] = recording.radius
     group.attrs["predicted_radius"] = recording.predicted_radius
     group.attrs["gap"] = recording.gap
+    group.attrs["joins"] = recording.joins
+    if recording.miss_noise is not None:
+        group.attrs["miss_noise"] = recording.miss_noise
     group.attrs["units"] = "frame_rate: Hz; radius, predicted_radius: m"
     _put(group, "track", recording.tracks.track, "track id")
     _put(group, "frame", recording.frame_number, "frame number")
@@ -601,7 +602,7 @@ def save_results(
     folder.mkdir(parents=True, exist_ok=True)
     h5_path, json_path = folder / "results.h5", folder / "summary.json"
     text = json.dumps(summary(result, calibration=calibration), indent=2, allow_nan=False)
-    tmp_h5, tmp_json = _tmp(folder, h5_path.name), _tmp(folder, json_path.name)
+    tmp_h5, tmp_json = temporary_path(folder, h5_path.name), temporary_path(folder, json_path.name)
     try:
         _write_h5(tmp_h5, result, calibration, links)
         tmp_json.write_text(text + "\n")
@@ -612,41 +613,6 @@ def save_results(
         tmp_json.unlink(missing_ok=True)
     log.info("results written to %s and %s", h5_path, json_path)
     return h5_path, json_path
-
-
-def save_tracks_csv(result: PtvResult, folder: str | os.PathLike) -> Path:
-    """Write ``tracks.csv`` into ``folder``: the tracks of the result's recording.
-
-    One row per matched point of every frame tracked, sorted by track then frame, under
-    the header ``track,frame,time_s,x,y,z`` (frame number, n / frame_rate in s, the
-    point in m in the calibration's frame).
-
-    Raises
-    ------
-    ValueError
-        The result has no recording.
-    """
-    recording = result.recording
-    if recording is None:
-        raise ValueError("the result holds no tracks (not a time-resolved recording)")
-    path = Path(folder) / "tracks.csv"
-    tracks = recording.tracks
-    columns = [tracks.track, recording.frame_number, recording.time, *tracks.positions.T]
-    tmp = _tmp(path.parent, path.name)
-    try:
-        np.savetxt(
-            tmp,
-            np.column_stack(columns),
-            fmt=["%d", "%d", "%.9g", "%.9g", "%.9g", "%.9g"],
-            delimiter=",",
-            header="track,frame,time_s,x,y,z",
-            comments="",
-        )
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    log.info("tracks written to %s", path)
-    return path
 
 
 def load_runs(path: str | os.PathLike) -> list[RunParticles]:

@@ -19,7 +19,8 @@ the same assignment. A track of one point is predicted by the mean displacement 
 velocity, X̂_{f+1} = 2 X_f − X_{f−1}, within ``predicted_radius``, which can be much
 smaller: the prediction misses by the acceleration a τ² and the noise of three
 positions, not by the whole displacement. A particle left unlinked starts a track; a
-track that finds no partner ends (no gap closing).
+track that finds no partner is kept alive for up to ``gap`` frames and predicted across
+them (gap closing), then ends.
 
 Trajectory test (:func:`trajectory_residuals`). A particle followed from the same X(t)
 to every Δt (a shared first frame) has displacements on a smooth curve in Δt; a large
@@ -261,12 +262,33 @@ class Tracks:
         return len(self.track) - self.n_tracks
 
 
-def _track_radii(steps: np.ndarray, has_velocity: np.ndarray, radii) -> np.ndarray:
-    """Search radius of each candidate track, m: ``radii[0]`` without a velocity, else
-    ``radii[1]`` scaled by s(s + 1)/2 for a prediction s frames ahead (the miss of a
-    constant-velocity prediction from the last two points under a constant acceleration
-    a is ½aτ²s(s + 1), and its noise grows as √((s² + s + 1)/3), never faster)."""
-    return np.where(has_velocity, radii[1] * steps * (steps + 1) / 2, radii[0])
+def predicted_radii(steps, predicted_radius: float, predicted_noise: float = 0.0) -> np.ndarray:
+    """Search radius around a constant-velocity prediction ``steps`` frames ahead, m.
+
+    The prediction from a track's last two points, s frames ahead, misses its particle by
+    ½aτ²s(s + 1) under a constant acceleration a, and by the noise of three positions,
+    σ_b√(2(s² + s + 1)) per component: √6σ_b one frame ahead, growing as
+    √((s² + s + 1)/3). So the part ``predicted_noise`` of the one-frame radius is scaled
+    by the latter and the rest by s(s + 1)/2 (with no noise part given, the whole
+    radius, as the acceleration: never less).
+
+    Parameters
+    ----------
+    steps : array_like of int
+        Frames ahead, s >= 1.
+    predicted_radius : float
+        The radius one frame ahead, m.
+    predicted_noise : float
+        Its part from the position noise, m, 0 … ``predicted_radius``.
+
+    Returns
+    -------
+    ndarray
+        Shaped as ``steps``.
+    """
+    s = np.asarray(steps, dtype=float)
+    acceleration = predicted_radius - predicted_noise
+    return acceleration * s * (s + 1) / 2 + predicted_noise * np.sqrt((s * s + s + 1) / 3)
 
 
 def track_frames(
@@ -274,6 +296,7 @@ def track_frames(
     *,
     radius: float,
     predicted_radius: float | None = None,
+    predicted_noise: float = 0.0,
     predictor: Predictor = None,
     gap: int = 0,
 ) -> Tracks:
@@ -297,7 +320,9 @@ def track_frames(
         Search radius, m, around the constant-velocity prediction of a track of two
         points or more, one frame ahead; ``radius`` by default. About k (a τ² + √6 σ_b)
         suffices, a the largest acceleration and σ_b the position noise. s frames ahead
-        (across a gap) it is scaled by s(s + 1)/2.
+        (across a gap) it is scaled as :func:`predicted_radii` scales it.
+    predicted_noise : float
+        The part of ``predicted_radius`` from the position noise (k√6σ_b), m.
     predictor : callable, array of shape (3,) or None
         Mean displacement over one frame interval τ, as in :func:`link` (None: none).
     gap : int
@@ -310,6 +335,10 @@ def track_frames(
     xs = [_frame(f"frame {f}", x) for f, x in enumerate(frames)]
     r_first = _radius("radius", radius)
     r_next = r_first if predicted_radius is None else _radius("predicted_radius", predicted_radius)
+    if not (np.isfinite(predicted_noise) and 0 <= predicted_noise <= r_next):
+        raise ValueError(
+            f"predicted_noise must be from 0 to the predicted radius (m), got {predicted_noise!r}"
+        )
     if not isinstance(gap, int | np.integer) or gap < 0:
         raise ValueError(f"gap must be an integer >= 0 frames, got {gap!r}")
     if not xs:
@@ -332,9 +361,8 @@ def track_frames(
         )
         fresh = ~has_velocity
         predicted[fresh] += _mean_displacement(predictor, last[alive][fresh])
-        i, j, _, ambiguous, _ = _link_step(
-            predicted, _track_radii(steps, has_velocity, (r_first, r_next)), xs[f]
-        )
+        radii = np.where(has_velocity, predicted_radii(steps, r_next, predicted_noise), r_first)
+        i, j, _, ambiguous, _ = _link_step(predicted, radii, xs[f])
         label = np.full(len(xs[f]), -1)
         label[j] = alive[i]
         new = label < 0
@@ -420,6 +448,12 @@ class RecordingTracks:
         The search radii used (:func:`ptv.tracking.recording.track_radii`), m.
     gap : int
         Missed frames a track could close (:func:`track_frames`).
+    joins : int
+        Tracks joined after the frame-by-frame tracking
+        (:func:`ptv.tracking.stitching.stitch_tracks`).
+    miss_noise : float or None
+        The noise of the first pass's predictions, m, when it set the radius
+        (:func:`ptv.tracking.recording.track_points`).
     """
 
     numbers: np.ndarray
@@ -429,6 +463,8 @@ class RecordingTracks:
     radius: float
     predicted_radius: float
     gap: int = 0
+    joins: int = 0
+    miss_noise: float | None = None
 
     @property
     def frame_number(self) -> np.ndarray:

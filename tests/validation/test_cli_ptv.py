@@ -13,7 +13,9 @@ import pytest
 from scipy.spatial import cKDTree
 
 from ptv.calibration.io import load_calibrations, read_calibrated_volume, save_calibrations
+from ptv.pipeline.options import PipelineSettings
 from ptv.pipeline.settings import PtvSettings
+from ptv.tracking.recording import MISS_NOISE_FACTOR
 from simulator.particles import Box
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
@@ -357,8 +359,10 @@ def test_tracks_link_every_frame_of_a_recording(dataset, recording, tmp_path, ca
     assert set(frame.tolist()) == set(range(FRAMES))
     np.testing.assert_allclose(rows[:, 2], frame / FRAME_RATE, rtol=1e-8)
     same = track[1:] == track[:-1]
-    # Frames increase along a track, by at most the default 2 missed frames plus one.
-    assert np.all(np.diff(track) >= 0) and np.all(np.isin(np.diff(frame)[same], (1, 2, 3)))
+    # Frames increase along a track, by at most the default missed frames plus one, and
+    # one more where a join left out a track's last point (ptv.tracking.stitching).
+    steps = range(1, PipelineSettings().track_gap + 3)
+    assert np.all(np.diff(track) >= 0) and np.all(np.isin(np.diff(frame)[same], steps))
     # The points of each frame of a pair are those --positions-only writes for it.
     pair_points = np.column_stack([pairs[axis] for axis in "xyz"])
     is_b = pairs["frame"] == b"b"
@@ -373,7 +377,10 @@ def test_tracks_link_every_frame_of_a_recording(dataset, recording, tmp_path, ca
     assert t["tracks"] == len(np.unique(track)) == sum(t["length_histogram"]["count"])
     assert t["points"] == len(rows) and t["frames"] == [0, FRAMES - 1]
     assert summary["settings"]["max_acceleration"] == 400.0
-    assert t["predicted_radius"] == pytest.approx(400.0 / FRAME_RATE**2 + 5 * 6**0.5 * 30e-6)
+    # The prediction's radius follows the noise the first pass's tracks show, where that
+    # is below the settings' 30 µm (ptv.tracking.recording.track_points).
+    noise = min(30e-6, MISS_NOISE_FACTOR * t["miss_noise"])
+    assert t["predicted_radius"] == pytest.approx(400.0 / FRAME_RATE**2 + 5 * 6**0.5 * noise)
     # Against the truth: each point's nearest true particle (after the small offset of
     # the calibration's frame); links between two real particles. The particles move
     # u'τ ≈ 0.1 mm per component a frame and are 3.6 mm apart: a wrong link is rare.

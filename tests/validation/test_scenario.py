@@ -146,6 +146,26 @@ def test_an_integer_is_accepted_for_a_float_field(tmp_path):
         ("[ptv]\nplateau = [1e-5, 20e-3]\n", "ptv.plateau starts at 0.01 mm, below"),
         ("[ptv]\ntolerance = 0.0\n", "tolerance must be a finite number > 0"),
         ("[ptv]\nmax_speed = -1.5\n", "max_speed must be a finite number > 0"),
+        ("[recording]\nframes = 100\n", "recording.frame_rate: give the frame rate"),
+        ("[recording]\nframe_rate = 4e3\ntau_tau_eta = 0.1\n", "recording.frame_rate"),
+        ("[recording]\nframe_rate = 0.5\n", "recording.frame_rate must be from 1"),
+        ("[recording]\ntau_tau_eta = 5.0\n", "recording.tau_tau_eta: a frame every 5"),
+        ("[recording]\nframe_rate = 20.0\n", "recording.frame_rate: a frame every"),
+        ("[recording]\ntau_tau_eta = 0.1\nframes = 5\n", "recording.frames must be from 10"),
+        ("[recording]\ntau_tau_eta = 0.1\nframes = 16\n", "recording.frames (16) must exceed"),
+        ("[recording]\ntau_tau_eta = 0.1\nsteps = [1, 1]\n", "recording.steps"),
+        ("[recording]\ntau_tau_eta = 0.1\nsteps = [3]\n", "recording.steps"),
+        ("[recording]\ntau_tau_eta = 0.1\nsequences = 0\n", "recording.sequences"),
+        ("[recording]\ntau_tau_eta = 0.1\nfit_window = 6\n", "recording.fit_window"),
+        ("[recording]\ntau_tau_eta = 0.1\nfit_window = 3\n", "recording.fit_window"),
+        ("[recording]\ntau_tau_eta = 0.1\nframes = 100_000\n", "recording.frames: 2000 tracers"),
+        ("[recording]\ntau_tau_eta = 0.1\nrate = 4\n", "unknown field(s) 'rate'"),
+        (
+            '[flow]\nkind = "dns"\nepsilon = 1e-5\ngrid = 64\ndt_tau_eta = [0.1, 0.2]\n'
+            "[ptv]\nr_range = [1e-3, 25e-3]\nplateau = [2e-3, 20e-3]\n"
+            "[recording]\ntau_tau_eta = 0.1\n",
+            "[recording] follows a kinematic-simulation flow",
+        ),
     ],
 )
 def test_bad_fields_are_errors_that_name_the_file_and_the_field(tmp_path, body, field):
@@ -220,3 +240,19 @@ def test_scenario_names_that_would_leave_the_working_folder_are_refused(tmp_path
     with pytest.raises(ScenarioError, match="name must be 1 to 64 letters") as error:
         load_scenario(path)
     assert str(path) in str(error.value)
+
+
+def test_a_recording_is_refused_before_any_work_when_it_would_not_fit_in_memory():
+    from validation.run.recording_section import check_recording, recording_memory
+
+    scenario = load_scenario("tr")
+    need = recording_memory(scenario.particles.count, scenario.recording.frames)
+    check_recording(scenario, "tr", memory=2.01 * need)  # fits in half
+    with pytest.raises(ScenarioError, match=r"recording\.frames: 2000 tracers over 200 frames"):
+        check_recording(scenario, "tr", memory=1.99 * need)
+
+
+def test_a_recording_round_trips_and_frame_pair_scenarios_have_none():
+    scenario = load_scenario("tr")
+    assert scenario.recording is not None and json_round_trip(scenario) == scenario
+    assert "recording" not in load_scenario("ci").as_dict()

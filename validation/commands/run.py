@@ -9,6 +9,29 @@ from validation.workflow.files import check_output_folder, hold_output_folder
 from validation.workflow.progress import ProgressBar, say_interrupted
 
 
+def _held_run(args: argparse.Namespace, out, run, report):
+    """``run(progress, executor)`` into ``out`` while holding its lock, then
+    ``report(stages)``; what the report returns, or None when interrupted (the finished
+    stages kept)."""
+    from validation.workflow.parallel import executor
+
+    def bar(stage: str) -> ProgressBar:
+        return ProgressBar(stage, enabled=not args.quiet)
+
+    with hold_output_folder(out, "synptv run") as took_over:
+        say_took_over("run", took_over)
+        try:
+            with executor(workers=args.workers, scheduler=args.scheduler) as ex:
+                stages = run(bar, ex)
+        except KeyboardInterrupt:
+            say_interrupted(
+                f"synptv run: interrupted; finished stages and chunks are kept in {out}: "
+                "run the same command to resume"
+            )
+            return None
+        return report(stages)
+
+
 def run_experiment(args: argparse.Namespace) -> int:
     """Run the scenario's stages, write the report, print the verdict; exit status 1
     when a check that must hold fails."""
@@ -16,7 +39,7 @@ def run_experiment(args: argparse.Namespace) -> int:
     from validation.run.experiment import run_stages
     from validation.run.scenario import load_scenario
     from validation.run.verdict import summary_lines
-    from validation.workflow.parallel import check_parallel_options, executor
+    from validation.workflow.parallel import check_parallel_options
 
     check_parallel_options(args.workers, args.scheduler)
     scenario = load_scenario(args.scenario)
@@ -24,6 +47,8 @@ def run_experiment(args: argparse.Namespace) -> int:
         scenario = scenario.with_seed(args.seed)
     out = check_output_folder(args.out if args.out is not None else f"synptv-{scenario.name}")
     print(scenario.flow.describe())
+    if scenario.recording is not None:
+        return run_recorded(args, scenario, out)
     p = scenario.ptv
     print(
         f"analysis: volume {' x '.join(f'{v * 1e3:.4g}' for v in p.analysis_volume)} mm, "
@@ -34,23 +59,17 @@ def run_experiment(args: argparse.Namespace) -> int:
         + ("measured on the data" if p.max_speed is None else f"{p.max_speed:g} m/s (given)")
     )
 
-    def bar(stage: str) -> ProgressBar:
-        return ProgressBar(stage, enabled=not args.quiet)
-
-    with hold_output_folder(out, "synptv run") as took_over:
-        say_took_over("run", took_over)
-        try:
-            with executor(workers=args.workers, scheduler=args.scheduler) as ex:
-                stages = run_stages(
-                    scenario, out, progress=bar, executor=ex, keep_images=args.keep_images
-                )
-        except KeyboardInterrupt:
-            say_interrupted(
-                f"synptv run: interrupted; finished stages and chunks are kept in {out}: "
-                "run the same command to resume"
-            )
-            return 130
-        html_path, json_path = write_report(scenario, stages, out)
+    written = _held_run(
+        args,
+        out,
+        lambda bar, ex: run_stages(
+            scenario, out, progress=bar, executor=ex, keep_images=args.keep_images
+        ),
+        lambda stages: write_report(scenario, stages, out),
+    )
+    if written is None:
+        return 130
+    html_path, json_path = written
     results = json.loads(json_path.read_text())
     if scenario.flow.kind == "grid":
         f = results["flow"]
@@ -79,6 +98,40 @@ def run_experiment(args: argparse.Namespace) -> int:
     for variant, rung in results["ptv"].items():
         for warning in [] if variant in baselines else rung["summary"]["warnings"]:
             print(f"warning ({variant}): {warning}")
+    for line in summary_lines(results):
+        print(line)
+    print(f"report written to {html_path}")
+    print(f"every figure in {json_path}")
+    return 0 if all(check["passed"] for check in results["must_hold"]) else 1
+
+
+def run_recorded(args: argparse.Namespace, scenario, out) -> int:
+    """``synptv run`` on a scenario with ``[recording]``: render, calibrate, track, fit
+    and score the recordings; exit status 1 when a check that must hold fails."""
+    from validation.report.recording_report import summary_lines, write_recording_report
+    from validation.run.recording_run import run_recording_stages
+
+    r = scenario.recording
+    timing = (
+        f"{r.frame_rate:g} Hz"
+        if r.frame_rate is not None
+        else f"a frame every {r.tau_tau_eta:g} τ_η"
+    )
+    print(
+        f"recording: {r.sequences} sequence(s) of {r.frames} frames at {timing}, "
+        f"{scenario.particles.count} tracers in the sheet, Δt steps {list(r.steps)} frames"
+    )
+
+    written = _held_run(
+        args,
+        out,
+        lambda bar, ex: run_recording_stages(scenario, out, progress=bar, executor=ex),
+        lambda stages: write_recording_report(scenario, stages, out),
+    )
+    if written is None:
+        return 130
+    html_path, json_path = written
+    results = json.loads(json_path.read_text())
     for line in summary_lines(results):
         print(line)
     print(f"report written to {html_path}")

@@ -54,10 +54,22 @@ def add_score_parser(sub) -> None:
         "links of tracks, and S2/epsilon through synptv's multi-dt statistics against the "
         "truth. Writes score.json, report.html and score.png.",
     )
-    score.add_argument("--dataset", required=True, help="a dataset rendered by synptv")
-    score.add_argument("--positions", required=True, help="the positions file (CSV or HDF5)")
     score.add_argument(
-        "--tracks", action="store_true", help="score the links of the track column too"
+        "--dataset",
+        required=True,
+        help="a dataset rendered by synptv (for --tracks CSV: one recording, DIR/sequence<s>)",
+    )
+    score.add_argument("--positions", help="the positions file (CSV or HDF5)")
+    score.add_argument(
+        "--tracks",
+        nargs="?",
+        const=True,
+        default=False,
+        metavar="CSV",
+        help="with --positions: score the links of its track column too; given a file "
+        "(CSV with header track,frame,x,y,z and optional vx,vy,vz, ax,ay,az; m, m/s, m/s² in "
+        "the world frame) and a rendered recording: score time-resolved tracks against the "
+        "true trajectories (docs/score.md §11)",
     )
     score.add_argument("--json", action="store_true", help="print one JSON object")
     score.add_argument("--out", default="synptv-score", help="report folder (default synptv-score)")
@@ -117,9 +129,7 @@ def score(args: argparse.Namespace) -> tuple[dict, np.ndarray]:
             f"--min-cameras {args.min_cameras}: must be 1 to the dataset's {cameras} cameras"
         )
     positions = read_positions(args.positions, tracks=args.tracks)
-    check_positions(
-        positions, n_dt=len(truth.dt), snapshots=truth.frames, sheet=truth.rig.sheet
-    )
+    check_positions(positions, n_dt=len(truth.dt), snapshots=truth.frames, sheet=truth.rig.sheet)
     settings = _settings(args.analysis_volume)
     box = settings.statistics.analysis_volume
     voxel = object_pixel(truth.rig) if args.voxel is None else args.voxel
@@ -213,6 +223,12 @@ def run_score(args: argparse.Namespace) -> int:
     """``synptv score`` (module docstring)."""
     from validation.score.report import write_report
 
+    if isinstance(args.tracks, str):
+        if args.positions is not None:
+            raise ValueError("--tracks CSV scores a recording's tracks: leave out --positions")
+        return run_track_score(args)
+    if args.positions is None:
+        raise ValueError("--positions is required (or --tracks CSV, for a recording's tracks)")
     out = check_output_folder(args.out)
     result, errors = score(args)
     with hold_output_folder(out, "synptv score") as took_over:
@@ -225,4 +241,103 @@ def run_score(args: argparse.Namespace) -> int:
         print()
     else:
         _print(result, out)
+    return 0
+
+
+def score_recorded_tracks(args: argparse.Namespace) -> dict:
+    """The scores of a tracks CSV against a rendered recording's true trajectories
+    (:mod:`validation.score.trajectories`); raises ValueError on bad input."""
+    from validation.dataset.recording_truth import read_recording_truth
+    from validation.run.experiment import object_pixel
+    from validation.score.recorded_tracks import align_tracks, alignment_dict, true_trajectories
+    from validation.score.track_file import read_tracks
+    from validation.score.trajectories import trajectory_scores
+
+    folder = Path(args.dataset)
+    if not folder.is_dir():
+        raise ValueError(f"--dataset {folder}: no such folder")
+    if (folder / "sequence0").is_dir():  # the recordings of validation.dataset.recording
+        raise ValueError(
+            f"--dataset {folder}: a recorded dataset; name one of its recordings, e.g. "
+            f"{folder / 'sequence0'}"
+        )
+    truth = read_recording_truth(folder)
+    cameras = len(truth.visible)
+    if not 1 <= args.min_cameras <= cameras:
+        raise ValueError(
+            f"--min-cameras {args.min_cameras}: must be 1 to the recording's {cameras} cameras"
+        )
+    tracks = read_tracks(args.tracks)
+    frames = len(truth.times)
+    outside = (tracks.frame < 0) | (tracks.frame >= frames)
+    if outside.any():
+        raise ValueError(
+            f"{args.tracks}: frame {int(tracks.frame[outside][0])} is outside the recording's "
+            f"frames 0 … {frames - 1}"
+        )
+    radius = object_pixel(truth.rig) if args.voxel is None else args.voxel
+    moved, rotation, translation = align_tracks(tracks, truth)
+    return as_json(
+        {
+            **trajectory_scores(true_trajectories(truth, args.min_cameras), moved, radius),
+            "alignment": alignment_dict(rotation, translation),
+            "settings": {
+                "dataset": str(folder),
+                "tracks": str(args.tracks),
+                "radius_m": radius,
+                "min_cameras": args.min_cameras,
+                "rows": len(tracks.frame),
+            },
+        }
+    )
+
+
+def _print_track_scores(result: dict, out: Path) -> None:
+    """The scores of a recording's tracks in a few lines."""
+
+    def shown(value, scale=1.0, unit=""):
+        return "–" if value is None else f"{value * scale:.4g}{unit}"
+
+    lengths = result["lengths"]
+    print(
+        f"tracks {result['tracks']}, true trajectories {result['trajectories']}, "
+        f"observed particle-frames {result['observed_particle_frames']}"
+    )
+    print(
+        f"tracked {shown(result['tracked'], 100, ' %')}, fragmentation "
+        f"{shown(result['fragmentation'])} segments per trajectory, mislinks "
+        f"{shown(result['mislinks'], 100, ' %')}, ghost tracks "
+        f"{shown(result['ghost_tracks'], 100, ' %')}, ghost links "
+        f"{shown(result['ghost_links'], 100, ' %')}"
+    )
+    print(
+        f"mean length: tracks {shown(lengths['tracks']['mean'])} points, trajectories "
+        f"{shown(lengths['trajectories']['mean'])} frames"
+    )
+    for key, value in result["errors"].items():
+        if value is not None:
+            print(f"rms error {key}: " + ", ".join(f"{a} {v:.3g}" for a, v in value.items()))
+    print(f"report written to {out / 'score.json'} and {out / 'track_lengths.png'}")
+
+
+def run_track_score(args: argparse.Namespace) -> int:
+    """``synptv score --tracks CSV`` on a rendered recording: score.json and the
+    track-length figure; everything is read and checked before the folder is made."""
+    from validation.report.png import save_figure
+    from validation.report.track_score_figures import track_lengths_figure
+
+    out = check_output_folder(args.out)
+    result = score_recorded_tracks(args)
+    with hold_output_folder(out, "synptv score") as took_over:
+        if took_over:
+            print(f"synptv score: {took_over}", file=sys.stderr)
+        with staged_output(out) as staging:
+            (staging / "score.json").write_text(json.dumps(result, indent=2, allow_nan=False))
+            title = f"tracks {Path(args.tracks).name} against recording {Path(args.dataset).name}"
+            save_figure(track_lengths_figure(result, title), staging / "track_lengths.png")
+    if args.json:
+        json.dump(result, sys.stdout, indent=2, allow_nan=False)
+        print()
+    else:
+        _print_track_scores(result, out)
     return 0

@@ -144,10 +144,9 @@ def _camera_attributes(camera) -> dict:
     return attrs
 
 
-def _experiment_description(
-    rig: Rig, plate, dt: np.ndarray, settings: RenderSettings, *, images: bool
-) -> dict:
-    """What a real experiment provides: the nominal target, the traverse, Δt, file layout."""
+def calibration_description(rig: Rig, plate, settings: RenderSettings) -> dict:
+    """What a real experiment provides to calibrate: camera names and image size, the
+    nominal target, the traverse, the plate images' layout, the bit depth."""
     return {
         "format_version": FORMAT_VERSION,
         "units": "SI (m, s); pixel coordinates: x = column, y = row, (0, 0) = centre of the "
@@ -163,6 +162,18 @@ def _experiment_description(
         "target": settings.plate.as_dict(),
         "traverse_z": [float(z) for z in plate.z_nominal],
         "calibration_images": "calibration/{camera}/plane_{j:02d}.tif",
+        "bit_depth": settings.sensor.bit_depth,
+    }
+
+
+def _experiment_description(
+    rig: Rig, plate, dt: np.ndarray, settings: RenderSettings, *, images: bool
+) -> dict:
+    """What a real experiment provides: the nominal target, the traverse, Δt, file layout."""
+    description = calibration_description(rig, plate, settings)
+    bit_depth = description.pop("bit_depth")
+    return {
+        **description,
         "dt": [float(d) for d in dt],
         "frames_per_dt": settings.frames,
         "acquisition": "double frame: frame a shared by every dt"
@@ -170,7 +181,7 @@ def _experiment_description(
         else "double frame: one independent run per dt",
         "shared_first_frame": settings.shared_first_frame,
         "particle_images": "particles/dt{k}/{camera}/{m:06d}_{a|b}.tif" if images else None,
-        "bit_depth": settings.sensor.bit_depth,
+        "bit_depth": bit_depth,
     }
 
 
@@ -210,7 +221,7 @@ def ks_flow(preset: FlowPreset, settings: RenderSettings) -> DatasetFlow:
     return DatasetFlow(tracers, attrs)
 
 
-def _header(rig: Rig, preset: FlowPreset, flow: DatasetFlow):
+def truth_header(rig: Rig, preset: FlowPreset, flow: DatasetFlow):
     """Writes the flow, the cameras and the rig into a new truth.h5."""
 
     def write(truth: h5py.File) -> None:
@@ -305,7 +316,7 @@ class DetectionOutput:
     detector: DetectorSettings
 
 
-def _write_plates(
+def write_plates(
     target: Path,
     rig: Rig,
     plate: PhysicalPlate,
@@ -394,7 +405,7 @@ def build_dataset(
     names = rig.camera_names
     truth = TruthWriter(
         target / "truth.h5",
-        header=_header(rig, preset, flow),
+        header=truth_header(rig, preset, flow),
         cameras=names,
         planes=settings.planes,
         chunks=chunks,
@@ -416,7 +427,7 @@ def build_dataset(
         if progress is not None:
             progress(done[0], total)
 
-    _write_plates(target, rig, plate, settings, todo_plates, truth, executor, tick)
+    write_plates(target, rig, plate, settings, todo_plates, truth, executor, tick)
     frames = (settings.frames,) * len(job.dt)
     for i, rendered in executor.map(
         render_chunk, [chunks[i] for i in todo_chunks], shared={"job": job}

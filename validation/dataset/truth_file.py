@@ -137,9 +137,10 @@ class TruthWriter:
             progress = f.create_group(_PROGRESS)
             progress.create_dataset("plates", data=np.zeros((len(cameras), planes), bool))
             progress.create_dataset("chunks", data=np.zeros(len(self.chunks), bool))
-            group = f.create_group("particles")
-            group.attrs["shared_first_frame"] = shared_first_frame
-            group.attrs["frames"] = frames
+            if self.chunks:  # a recording's plates only: its particles are in sequence<s>/
+                group = f.create_group("particles")
+                group.attrs["shared_first_frame"] = shared_first_frame
+                group.attrs["frames"] = frames
 
     def done(self) -> tuple[np.ndarray, np.ndarray]:
         """Which plate images (C, N_Z) and particle chunks (n_chunks,) are written."""

@@ -54,6 +54,7 @@ from validation.run.flow_section import (
     dns_eta,
     flow_section,
 )
+from validation.run.recording_section import RecordingSection, check_recording
 from validation.run.scenario_fields import ScenarioError, section
 
 
@@ -158,12 +159,15 @@ class Scenario:
     ptv: PtvSection = field(default_factory=PtvSection)
     checks: ChecksSection = field(default_factory=ChecksSection)
     output: OutputSection = field(default_factory=OutputSection)
+    recording: RecordingSection | None = None
 
     def as_dict(self) -> dict:
         """JSON-able form, the inverse of :func:`scenario_from_dict` (the fields its flow
-        does not use left out)."""
+        does not use left out, and ``recording`` where there is none)."""
         spec = asdict(self)
         spec["flow"] = self.flow.as_dict()
+        if self.recording is None:
+            del spec["recording"]
         return spec
 
     def with_seed(self, seed: int) -> "Scenario":
@@ -282,7 +286,7 @@ def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
         raise ScenarioError(f"{source}: a scenario needs a 'name' string")
     if not is_file_name(spec["name"]):
         raise ScenarioError(f"{source}: name must be {FILE_NAME_RULE}, got {spec['name']!r}")
-    unknown = sorted(set(spec) - {"name", "description", "seed", *_SECTIONS})
+    unknown = sorted(set(spec) - {"name", "description", "seed", "recording", *_SECTIONS})
     if unknown:
         raise ScenarioError(
             f"{source}: unknown table(s) or field(s) {', '.join(map(repr, unknown))}"
@@ -299,8 +303,12 @@ def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
     description = spec.get("description", "")
     if not isinstance(description, str):
         raise ScenarioError(f"{source}: description must be a string, got {description!r}")
+    if "recording" in spec:
+        sections["recording"] = section(RecordingSection, spec["recording"], source, "recording")
     scenario = Scenario(name=spec["name"], description=description, seed=seed, **sections)
     _check(scenario, source, set(spec.get("ptv", {})))
+    if scenario.recording is not None:
+        check_recording(scenario, source)
     return scenario
 
 

@@ -25,7 +25,8 @@ sheet and comes back starts a new one) and a *link* two consecutive points of a 
   particles (a track that jumps to another particle); links with a ghost end are counted
   apart (``ghost_links``);
 - ``errors``: rms per component of position, and of velocity and acceleration where the
-  tracks give them, over the points paired with a particle, in µm, mm/s and m/s².
+  tracks give them, over the points paired with a particle, in µm, mm/s and m/s² (a
+  point a fit left out, NaN, counts for its position only).
 """
 
 from dataclasses import dataclass
@@ -173,12 +174,13 @@ def _errors(truth: TrueTrajectories, tracks: TrackPoints, row: np.ndarray) -> di
     """rms per component over the paired points: µm, mm/s, m/s²."""
     good = row >= 0
     errors = {"position_um": _rms(tracks.position[good] - truth.position[row[good]], 1e6)}
-    if tracks.velocity is not None:
-        errors["velocity_mm_s"] = _rms(tracks.velocity[good] - truth.velocity[row[good]], 1e3)
-    if tracks.acceleration is not None:
-        errors["acceleration_m_s2"] = _rms(
-            tracks.acceleration[good] - truth.acceleration[row[good]], 1.0
-        )
+    for key, given, true, scale in (
+        ("velocity_mm_s", tracks.velocity, truth.velocity, 1e3),
+        ("acceleration_m_s2", tracks.acceleration, truth.acceleration, 1.0),
+    ):
+        if given is not None:  # points a fit left out (NaN) are not counted
+            fitted = good & np.isfinite(given).all(axis=1)
+            errors[key] = _rms(given[fitted] - true[row[fitted]], scale)
     return errors
 
 
