@@ -147,9 +147,11 @@ def add_run_parser(sub) -> None:
         description="Run a scenario end to end: simulate the flow and render the plate and "
         "particle images, calibrate with every method, run 3D-PTV with the model-free and "
         "Tsai calibrations (and the true cameras, for the error budget), compare S2, epsilon "
-        "and u' with the truth and write report.html and results.json. Finished stages are "
-        "reused when their inputs are unchanged. Exit status 1 when a check against the "
-        "truth fails.",
+        "and u' with the truth and write report.html and results.json. A scenario with "
+        "[recording] (tr, tr-ci) records the flow time-resolved instead, and tracks, fits and "
+        "scores the recording against the true trajectories (docs/run.md §11). Finished "
+        "stages are reused when their inputs are unchanged. Exit status 1 when a check "
+        "against the truth fails.",
     )
     run.add_argument(
         "--scenario",

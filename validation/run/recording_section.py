@@ -15,6 +15,7 @@ import os
 from dataclasses import dataclass
 
 from simulator.recording import BATCH
+from validation.run.scenario_fields import ScenarioError
 
 #: (lowest, highest) frame interval in Kolmogorov times: below, thousands of frames per
 #: τ_η; above, a particle's acceleration changes between frames and no track holds.
@@ -26,9 +27,10 @@ FRAME_LIMITS = (10, 100_000)
 SEQUENCE_LIMITS = (1, 1_000)
 #: Fewest points of a track fit (a cubic and one degree of freedom).
 MIN_FIT_WINDOW = 5
-#: Bytes a particle-frame takes at the peak of a recording's run (truth with the image
-#: positions of up to eight cameras, points, tracks, fits and the statistics' pairs).
-BYTES_PER_PARTICLE_FRAME = 700
+#: Bytes a particle-frame takes in a recording's run: its truth, points, tracks, fits and
+#: the statistics' samples, with the images and buffers of the work besides (the tr run
+#: held about 1 GB in its tracking stage for its 0.4 M particle-frames).
+BYTES_PER_PARTICLE_FRAME = 2500
 #: Share of the machine's memory a recording may plan to take.
 MEMORY_SHARE = 0.5
 
@@ -82,8 +84,6 @@ def check_recording(scenario, source: str, *, memory: float | None = None) -> No
     ------
     ScenarioError
     """
-    from validation.run.scenario_fields import ScenarioError
-
     r = scenario.recording
 
     def fail(message: str):

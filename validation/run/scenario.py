@@ -17,6 +17,9 @@ Every length is in m, every time in s. A scenario file has ``name``, ``descripti
                    max_speed, tolerance, min_cameras, n_boot
     [checks]       c1_r_min_eta, c1_r_max_l_int
     [output]       images, links
+    [recording]    frames, sequences, frame_rate or tau_tau_eta, steps, fit_window: a
+                   time-resolved recording instead of frame pairs
+                   (:mod:`validation.run.recording_section`, docs/run.md §11)
 
 Missing tables take their defaults; unknown tables or fields are errors that name the
 file and the field. A custom flow (:class:`FlowSection`), for example::
