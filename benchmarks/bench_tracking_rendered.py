@@ -25,12 +25,13 @@ from ptv.io.dataset import open_dataset
 from ptv.pipeline.frames import DetectorSettings, ImageDetector
 from ptv.pipeline.options import link_radius
 from ptv.pipeline.resolve import resolve_matching
+from ptv.tracking.fitting import MIN_FIT_POINTS
 from ptv.tracking.recording import measure_recording, track_points
 from validation.dataset.recording import sequence_folder
 from validation.dataset.recording_truth import read_recording_truth
 from validation.run.experiment import object_pixel
 from validation.run.recording_run import RecordingRun
-from validation.run.recording_scores import MIN_TRACK_POINTS, long_tracks
+from validation.run.recording_scores import long_tracks
 from validation.run.scenario import load_scenario
 from validation.score.recorded_tracks import align_tracks, true_trajectories
 from validation.score.trajectories import TrackPoints, trajectory_scores
@@ -41,7 +42,7 @@ def _scores(tracks: TrackPoints, truth, radius: float, seconds: float) -> dict:
     moved, _, _ = align_tracks(tracks, truth)
     observed = true_trajectories(truth, 2)
     out = {"link_seconds": seconds}
-    for key, view in (("all", moved), ("fitted", long_tracks(moved, MIN_TRACK_POINTS))):
+    for key, view in (("all", moved), ("fitted", long_tracks(moved, MIN_FIT_POINTS))):
         s = trajectory_scores(observed, view, radius)
         out[key] = {
             **{k: s[k] for k in ("tracked", "ghost_tracks", "fragmentation", "tracks")},

@@ -11,15 +11,16 @@ Sections and the dataclass fields they fill (SI units: m, s, m/s, m/s²)::
                    plateau_method, kolmogorov_c2, n_boot, eulerian_cells,
                    min_cell_count, trajectory_threshold, seed
     [run]          PipelineSettings: snapshots
+    [tracks]       TrackFitSettings: fit_window, min_points (``--tracks`` only)
 
 A missing section or field keeps its default. Boxes are ``[[x0, y0, z0], [x1, y1, z1]]``
 (lower and upper corners). TOML has no null: a field whose default is "none"
 (``saturation``: the image type's maximum; ``diameter``: spots of about 3 px;
 ``snapshots``: all; ``max_speed``: measured on the data; ``min_cameras``: from the
-camera count) is left out for that default, and ``outlier_threshold`` or
-``trajectory_threshold`` = false turns that test off. Unknown sections or fields,
-wrong types and values the settings refuse are :class:`SettingsError` naming the file,
-the section and the field.
+camera count; ``fit_window``: chosen from the data) is left out for that default, and
+``outlier_threshold`` or ``trajectory_threshold`` = false turns that test off. Unknown
+sections or fields, wrong types and values the settings refuse are
+:class:`SettingsError` naming the file, the section and the field.
 """
 
 import dataclasses
@@ -30,6 +31,7 @@ from pathlib import Path
 from ptv.pipeline.frames import DetectorSettings
 from ptv.pipeline.options import PipelineSettings
 from ptv.stats.run_statistics import StatisticsSettings
+from ptv.tracking.track_fit import TrackFitSettings
 
 __all__ = ["PtvSettings", "SettingsError", "load_settings", "settings_from_dict", "settings_toml"]
 
@@ -53,11 +55,20 @@ SECTIONS = {
         tuple(f.name for f in dataclasses.fields(StatisticsSettings)),
     ),
     "run": (PipelineSettings, ("snapshots",)),
+    "tracks": (TrackFitSettings, ("fit_window", "min_points")),
 }
 #: Fields whose "none" is written as false (a test turned off).
 _OFF_WITH_FALSE = ("outlier_threshold", "trajectory_threshold")
 #: Fields whose "none" is their absence.
-_NONE_WHEN_ABSENT = ("saturation", "diameter", "snapshots", "tolerance", "max_speed", "min_cameras")
+_NONE_WHEN_ABSENT = (
+    "saturation",
+    "diameter",
+    "snapshots",
+    "tolerance",
+    "max_speed",
+    "min_cameras",
+    "fit_window",
+)
 #: Units and meaning written beside each field by :func:`settings_toml`.
 _COMMENTS = {
     "threshold_sigmas": "detection threshold, noise σ above the background",
@@ -96,6 +107,9 @@ _COMMENTS = {
     "trajectory_threshold": "trajectory test, times the median residual (false: off)",
     "seed": "seed of the bootstrap",
     "snapshots": "process only the first N snapshots per Δt (left out: all)",
+    "fit_window": "points per track fit, odd, >= 5, for --tracks (left out: chosen from the "
+    "noise and the tracks)",
+    "min_points": "fewest points of a track that is fitted, >= 5",
 }
 
 
@@ -113,10 +127,13 @@ class PtvSettings:
         Particle detection on the images.
     pipeline : PipelineSettings
         Matching, linking, the snapshots processed and the statistics.
+    tracks : TrackFitSettings
+        How ``--tracks`` fits the tracks.
     """
 
     detection: DetectorSettings = dataclasses.field(default_factory=DetectorSettings)
     pipeline: PipelineSettings = dataclasses.field(default_factory=PipelineSettings)
+    tracks: TrackFitSettings = dataclasses.field(default_factory=TrackFitSettings)
 
 
 def _value(name: str, value: object):
@@ -164,7 +181,7 @@ def settings_from_dict(spec: dict, *, source: str = "<settings>") -> PtvSettings
     pipeline = PipelineSettings(
         **values["matching"], **values["linking"], **values["run"], statistics=built["statistics"]
     )
-    return PtvSettings(detection=built["detection"], pipeline=pipeline)
+    return PtvSettings(detection=built["detection"], pipeline=pipeline, tracks=built["tracks"])
 
 
 def load_settings(path: str | Path) -> PtvSettings:
@@ -209,6 +226,7 @@ def settings_toml(
         DetectorSettings: settings.detection,
         PipelineSettings: settings.pipeline,
         StatisticsSettings: settings.pipeline.statistics,
+        TrackFitSettings: settings.tracks,
     }
     lines = ["# synptv ptv settings (SI units). Missing fields keep their defaults."]
     for section, (cls, names) in SECTIONS.items():

@@ -1,7 +1,9 @@
 """``tracks.csv``: the tracks of a time-resolved recording as text (:mod:`ptv.pipeline.results`
-writes the same rows to ``/tracks`` of results.h5), and the temporary names every result
-file is written under before it is renamed into place."""
+writes the same rows to ``/tracks`` of results.h5); ``tracks_fitted.csv`` and
+``tracks_fit.json``: their fit; and the temporary names every result file is written
+under before it is renamed into place."""
 
+import json
 import logging
 import os
 import uuid
@@ -9,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["save_tracks_csv", "temporary_path"]
+__all__ = ["save_fitted_tracks_csv", "save_tracks_csv", "temporary_path"]
 
 log = logging.getLogger(__name__)
 
@@ -52,4 +54,53 @@ def save_tracks_csv(result, folder: str | os.PathLike) -> Path:
     finally:
         tmp.unlink(missing_ok=True)
     log.info("tracks written to %s", path)
+    return path
+
+
+def save_fitted_tracks_csv(result, track_fit, folder: str | os.PathLike) -> Path:
+    """Write ``tracks_fitted.csv`` and ``tracks_fit.json`` into ``folder``: the fit of the
+    tracks of the recording of ``result``
+    (:func:`ptv.tracking.track_fit.fit_recording`, ``track_fit``).
+
+    One row per fitted point (the points of tracks too short to fit and the outliers are
+    left out), sorted by track then frame, under the header
+    ``track,frame,time_s,x,y,z,vx,vy,vz,ax,ay,az,sigma_x,sigma_v,sigma_a``: the fitted
+    position (m, calibration's frame), velocity (m/s), acceleration (m/s²) and their
+    standard errors per component from the noise. The JSON holds
+    :meth:`ptv.tracking.track_fit.FittedRecording.as_dict`.
+
+    Returns
+    -------
+    Path
+        The CSV file.
+    """
+    fit = track_fit.fitted
+    order = np.lexsort((fit.frame, fit.track))
+    columns = [
+        fit.track[order],
+        fit.frame[order],
+        fit.frame[order] / result.recording.frame_rate,
+        *fit.position[order].T,
+        *fit.velocity[order].T,
+        *fit.acceleration[order].T,
+        fit.position_error[order],
+        fit.velocity_error[order],
+        fit.acceleration_error[order],
+    ]
+    path = Path(folder) / "tracks_fitted.csv"
+    tmp = temporary_path(path.parent, path.name)
+    try:
+        np.savetxt(
+            tmp,
+            np.column_stack(columns),
+            fmt=["%d", "%d"] + ["%.9g"] * 13,
+            delimiter=",",
+            header="track,frame,time_s,x,y,z,vx,vy,vz,ax,ay,az,sigma_x,sigma_v,sigma_a",
+            comments="",
+        )
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    (Path(folder) / "tracks_fit.json").write_text(json.dumps(track_fit.as_dict(), indent=2))
+    log.info("fitted tracks written to %s", path)
     return path

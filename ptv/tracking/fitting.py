@@ -55,6 +55,7 @@ from math import factorial
 import numpy as np
 
 __all__ = [
+    "MIN_FIT_POINTS",
     "OUTLIER_CHI2",
     "SIGNIFICANCE",
     "FittedTracks",
@@ -69,6 +70,8 @@ __all__ = [
 SIGNIFICANCE = 3.0
 #: Degree of the fit whose fourth derivative estimates x⁽⁴⁾.
 FOURTH_DERIVATIVE_DEGREE = 5
+#: Fewest points of a cubic fit that smooths (four parameters and one degree of freedom).
+MIN_FIT_POINTS = 5
 #: χ² (three degrees of freedom) of a point's residual beyond which it is an outlier:
 #: exceeded by Gaussian noise with probability 10⁻⁶.
 OUTLIER_CHI2 = 30.66

@@ -25,6 +25,7 @@ from validation.dataset.calibrate import calibrate_dataset
 from validation.dataset.render import RenderSettings, particle_job, write_dataset
 from validation.report.ptv_figures import FIGURE_FILES
 from validation.run.particle_chunks import particle_path, render_chunk
+from validation.score.track_file import read_tracks
 
 SETTINGS = RenderSettings(frames=2, planes=3, particles=600, n_modes=80, seed=5)
 #: The recording: 8 frames at 2 kHz, cut into frame pairs 1 and 3 frames apart.
@@ -341,7 +342,20 @@ def test_tracks_link_every_frame_of_a_recording(dataset, recording, tmp_path, ca
     printed = capsys.readouterr().out
     assert "tracks written to" in printed and "mean length" in printed
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["results.h5", "summary.json", "tracks.csv", "tracks.png"]
+    assert names == [
+        "results.h5",
+        "summary.json",
+        "tracks.csv",
+        "tracks.png",
+        "tracks_fit.json",
+        "tracks_fitted.csv",
+    ]
+    # The fit, as synptv score reads a code's tracks: the points of the tracks of five
+    # points or more (less the outliers), with a velocity and an acceleration each.
+    fitted = read_tracks(out / "tracks_fitted.csv")
+    fit = json.loads((out / "tracks_fit.json").read_text())
+    assert len(fitted.frame) == fit["points"] > 0 and fitted.acceleration is not None
+    assert np.isfinite(fitted.velocity).all() and "tracks fitted" in printed
     assert matplotlib.image.imread(out / "tracks.png").ndim == 3
     header, rows = read_tracks_csv(out / "tracks.csv")
     assert header == "track,frame,time_s,x,y,z"

@@ -151,7 +151,7 @@ def run_ptv(args: argparse.Namespace) -> int:
     from ptv.pipeline.frames import ImageDetector
     from ptv.pipeline.results import save_results, summary
     from ptv.pipeline.settings import settings_toml
-    from ptv.pipeline.track_csv import save_tracks_csv
+    from ptv.pipeline.track_csv import save_fitted_tracks_csv, save_tracks_csv
     from ptv.tracking.recording import run_recording
     from validation.report.overlay import save_overlays
     from validation.report.ptv_figures import save_ptv_figures
@@ -217,6 +217,7 @@ def run_ptv(args: argparse.Namespace) -> int:
             )
         except FileNotFoundError as err:
             raise UsageError(str(err)) from None
+        track_fit = _fit_tracks(result, settings.tracks) if args.tracks else None
         with staged_output(out) as staging:  # results and figures replace the old together
             written = list(save_results(result, staging, calibration=str(args.calibration)))
             if not args.positions_only:
@@ -229,6 +230,8 @@ def run_ptv(args: argparse.Namespace) -> int:
                     save_tracks_csv(result, staging),
                     save_tracks_figure(result.recording, staging),
                 ]
+            if track_fit is not None:
+                save_fitted_tracks_csv(result, track_fit, staging)
     h5_path, json_path, *figures = (out / path.name for path in written)
     s = summary(result, calibration=str(args.calibration))
     for line in s["warnings"]:
@@ -240,6 +243,8 @@ def run_ptv(args: argparse.Namespace) -> int:
         csv_path, png_path = (out / path.name for path in tracked)
         _print_tracks(s["tracks"])
         print(f"tracks written to {csv_path} and {h5_path} (/tracks), drawn in {png_path}")
+        if track_fit is not None:
+            _print_track_fit(track_fit, out)
     if args.positions_only:
         print(f"positions and links written to {h5_path} and {json_path}")
         return 0
@@ -247,6 +252,37 @@ def run_ptv(args: argparse.Namespace) -> int:
     print(f"results written to {h5_path} and {json_path}")
     print(f"figures written to {', '.join(str(p) for p in figures)}")
     return 0
+
+
+def _fit_tracks(result, settings):
+    """The fit of a recording's tracks (:func:`ptv.tracking.track_fit.fit_recording`), or
+    None with a warning when no track is long enough."""
+    from ptv.tracking.track_fit import fit_recording
+
+    recording = result.recording
+    try:
+        return fit_recording(
+            recording.tracks.track,
+            recording.frame_number,
+            recording.tracks.positions,
+            recording.frame_rate,
+            settings,
+        )
+    except ValueError as err:
+        print(f"synptv ptv: warning: tracks not fitted: {err}", file=sys.stderr)
+        return None
+
+
+def _print_track_fit(track_fit, out: Path) -> None:
+    """What the fit of the tracks did, in two lines."""
+    d = track_fit.as_dict()
+    noise = ", ".join(f"{v * 1e6:.3g}" for v in d["noise"])
+    print(
+        f"tracks fitted  {d['tracks']} tracks, {d['points']} points (window {d['window']}, "
+        f"{'chosen' if d['window_chosen'] else 'given'}), noise x, y, z {noise} um, "
+        f"{d['outliers']} outliers and {d['points_left_out']} points left out"
+    )
+    print(f"fitted tracks written to {out / 'tracks_fitted.csv'} and {out / 'tracks_fit.json'}")
 
 
 def _print_tracks(t: dict) -> None:

@@ -4,15 +4,14 @@ For the tracks of one variant (the true cameras or a calibration) over every rec
 
 1. the points are brought onto the truth (:mod:`validation.score.recorded_tracks`) and
    the recordings joined;
-2. the tracks of at least :data:`MIN_TRACK_POINTS` points are the run's tracks (a cubic
-   fit and one degree of freedom; shorter ones, mostly ghost matches that no later frame
-   continues, are left as unlinked points), and the points their fit does not explain
-   are taken out of them (:func:`cleaned_tracks`: a false point a track took where its
-   particle was missed spoils the fits of its neighbours);
-3. the position noise σ_c per component and ⟨a_c²⟩ come from the tracks' second
-   differences over several steps (:func:`ptv.stats.lagrangian.acceleration_variance`),
-   the fit window from σ and the tracks (:func:`ptv.tracking.fitting.choose_window`,
-   or the scenario's ``fit_window``), and every point is fitted;
+2. the tracks are fitted as ``synptv ptv --tracks`` fits them
+   (:func:`ptv.tracking.track_fit.fit_recording`): those of five points or more
+   (shorter ones, mostly ghost matches that no later frame continues, are left as
+   unlinked points), the points their fit does not explain taken out (a false point a
+   track took where its particle was missed spoils the fits of its neighbours), the
+   noise from their second differences, the window chosen from it (or the scenario's
+   ``fit_window``);
+3. the points kept are the run's tracks;
 4. the tracks are scored (:func:`validation.score.trajectories.trajectory_scores`,
    pairs within one object pixel, as ``synptv score`` pairs; a particle is observed
    where as many cameras image it as a match needs), with the fitted velocity and
@@ -33,7 +32,8 @@ import numpy as np
 
 from ptv.stats.lagrangian import acceleration_variance
 from ptv.stats.track_sample import track_sample
-from ptv.tracking.fitting import choose_window, fit_tracks, track_outliers
+from ptv.tracking.fitting import choose_window, fit_tracks
+from ptv.tracking.track_fit import TrackFitSettings, fit_recording
 from validation.dataset.recording_truth import RecordingTruth
 from validation.report.png import save_figure
 from validation.report.track_score_figures import (
@@ -56,8 +56,6 @@ from validation.score.trajectories import (
     trajectory_scores,
 )
 
-#: Fewest points of a track the run reports (degree 3 + 2).
-MIN_TRACK_POINTS = 5
 #: Cameras that must image a particle for it to count as observed, where the matching's
 #: fewest cameras are not known.
 MIN_CAMERAS = 2
@@ -72,29 +70,6 @@ def long_tracks(tracks: TrackPoints, fewest: int) -> TrackPoints:
     _, index = np.unique(tracks.track, return_inverse=True)
     keep = np.bincount(index)[index] >= fewest
     return TrackPoints(tracks.track[keep], tracks.frame[keep], tracks.position[keep])
-
-
-def cleaned_tracks(tracks: TrackPoints, frame_rate: float, seed: int) -> tuple[TrackPoints, dict]:
-    """The tracks without the points their fit does not explain
-    (:func:`ptv.tracking.fitting.track_outliers`, at the noise of the tracks' second
-    differences and the window chosen from it), those left shorter than
-    :data:`MIN_TRACK_POINTS` dropped; and how many points were taken out."""
-    sample = track_sample(tracks.track, tracks.frame, tracks.position, frame_rate, rng=seed)
-    noise = np.sqrt(np.maximum(acceleration_variance(sample).noise_variance, 0.0))
-    sigma = float(np.sqrt(np.mean(noise**2)))
-    window = choose_window(tracks.track, tracks.frame, tracks.position, frame_rate, sigma).window
-    outlier = track_outliers(
-        tracks.track, tracks.frame, tracks.position, frame_rate, window=window, noise=noise
-    )
-    kept = TrackPoints(tracks.track[~outlier], tracks.frame[~outlier], tracks.position[~outlier])
-    cleaned = long_tracks(kept, MIN_TRACK_POINTS)
-    return cleaned, {
-        "window": window,
-        "noise_um": (noise * 1e6).tolist(),
-        "outliers": int(outlier.sum()),
-        "points_before": len(tracks.track),
-        "points_after": len(cleaned.track),
-    }
 
 
 def _rms(error: np.ndarray) -> float:
@@ -219,18 +194,26 @@ def score_sequences(
     frame_rate, frames = first_truth.frame_rate, len(first_truth.times)
     joined, truth = join_sequences(parts, frames)
     radius = object_pixel(first_truth.rig)
-    tracks, outliers = cleaned_tracks(long_tracks(joined, MIN_TRACK_POINTS), frame_rate, seed)
+    track_fit = fit_recording(
+        joined.track,
+        joined.frame,
+        joined.position,
+        frame_rate,
+        TrackFitSettings(fit_window=fit_window),
+        seed=seed,
+    )
+    kept = track_fit.kept
+    tracks = TrackPoints(joined.track[kept], joined.frame[kept], joined.position[kept])
     row = pair_points(truth, tracks, radius)
     rng = np.random.default_rng(seed)
     lagrangian, noise = lagrangian_scores(
         tracks, truth, row, frame_rate, tau_eta, frames=frames, seed=seed
     )
-    sigma = float(np.sqrt(np.mean(noise**2)))
-    choice = choose_window(tracks.track, tracks.frame, tracks.position, frame_rate, sigma)
-    window = choice.window if fit_window is None else fit_window
-    fitted = fit_tracks(
-        tracks.track, tracks.frame, tracks.position, frame_rate, window=window, noise=sigma
-    )
+    fitted, window = track_fit.fitted, track_fit.fitted.window
+    sigma = float(np.sqrt(np.mean(track_fit.noise**2)))
+    choice = track_fit.choice
+    if choice is None:  # a window given: the prediction drawn beside it all the same
+        choice = choose_window(tracks.track, tracks.frame, tracks.position, frame_rate, sigma)
     scored = TrackPoints(
         tracks.track, tracks.frame, tracks.position, fitted.velocity, fitted.acceleration
     )
@@ -272,8 +255,7 @@ def score_sequences(
     save_figure(lagrangian_figure(lagrangian, label), figures / "lagrangian.png")
     return {
         "alignment": alignments,
-        "min_track_points": MIN_TRACK_POINTS,
-        "outliers": outliers,
+        "track_fit": track_fit.as_dict(),
         "noise_um": (noise * 1e6).tolist(),
         "scores": scores,
         "fit": fit,
