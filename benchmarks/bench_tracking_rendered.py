@@ -48,6 +48,7 @@ def _scores(tracks: TrackPoints, truth, radius: float, seconds: float) -> dict:
             **{k: s[k] for k in ("tracked", "ghost_tracks", "fragmentation", "tracks")},
             "mislinks": s["mislinks"],
             "mislinked_links": round(s["mislinks"] * s["links"]),
+            "avoidable_mislinked_links": round(s["avoidable_mislinks"] * s["links"]),
             "ghost_links": s["ghost_links"],
             "mean_track_length": s["lengths"]["tracks"]["mean"],
         }

@@ -65,7 +65,21 @@ def test_swapped_ids_are_mislinks(truth):
     swapped = np.where(truth.frame >= F // 2, truth.particle ^ 1, truth.particle)
     s = trajectory_scores(truth, _as_tracks(truth, track=swapped), RADIUS)
     assert s["mislinks"] == pytest.approx(P / (P * (F - 1)))
+    # Every particle has its own point in every frame: each jump could have been avoided.
+    assert s["avoidable_mislinks"] == s["mislinks"]
     assert s["fragmentation"] == 2.0 and s["tracked"] == 1.0
+
+
+def test_a_jump_onto_a_neighbour_after_a_merge_is_not_avoidable(truth):
+    # From the middle frame on the even particles are not found (their images merged with
+    # their odd neighbour's) and each even track goes on with its odd neighbour's points:
+    # one jump per even track, none of them avoidable.
+    middle = truth.frame >= F // 2
+    keep = ~(middle & (truth.particle % 2 == 0))  # the even particles lose their points
+    track = np.where(middle & (truth.particle % 2 == 1), truth.particle - 1, truth.particle)
+    s = trajectory_scores(truth, _as_tracks(truth, track=track, keep=keep), RADIUS)
+    links = s["links"]
+    assert s["mislinks"] == pytest.approx((P // 2) / links) and s["avoidable_mislinks"] == 0.0
 
 
 def test_position_noise_is_its_rms(truth):

@@ -306,7 +306,8 @@ def _print_track_scores(result: dict, out: Path) -> None:
     print(
         f"tracked {shown(result['tracked'], 100, ' %')}, fragmentation "
         f"{shown(result['fragmentation'])} segments per trajectory, mislinks "
-        f"{shown(result['mislinks'], 100, ' %')}, ghost tracks "
+        f"{shown(result['mislinks'], 100, ' %')} (avoidable "
+        f"{shown(result['avoidable_mislinks'], 100, ' %')}), ghost tracks "
         f"{shown(result['ghost_tracks'], 100, ' %')}, ghost links "
         f"{shown(result['ghost_links'], 100, ' %')}"
     )

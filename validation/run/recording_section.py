@@ -29,8 +29,8 @@ SEQUENCE_LIMITS = (1, 1_000)
 MIN_FIT_WINDOW = 5
 #: Bytes a particle-frame takes in a recording's run: its truth, points, tracks, fits and
 #: the statistics' samples, with the images and buffers of the work besides (the tr run
-#: held about 1 GB in its tracking stage for its 0.4 M particle-frames).
-BYTES_PER_PARTICLE_FRAME = 2500
+#: peaked at 1.44 GB resident for its 0.4 M particle-frames).
+BYTES_PER_PARTICLE_FRAME = 3600
 #: Share of the machine's memory a recording may plan to take.
 MEMORY_SHARE = 0.5
 

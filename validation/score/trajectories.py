@@ -23,7 +23,11 @@ sheet and comes back starts a new one) and a *link* two consecutive points of a 
   stays one segment); 1 is a whole trajectory in one track;
 - ``mislinks``: the fraction of the links whose two ends are paired with different
   particles (a track that jumps to another particle); links with a ghost end are counted
-  apart (``ghost_links``);
+  apart (``ghost_links``). ``avoidable_mislinks`` counts only the jumps whose first
+  particle has a point of its own (paired with it) in the second frame: the code had
+  that point and linked elsewhere. The others follow a particle whose image merged with
+  a neighbour's into one point (two particles a fraction of a pixel apart), which the
+  pairing gives to whichever is nearer: no tracker can tell them apart;
 - ``errors``: rms per component of position, and of velocity and acceleration where the
   tracks give them, over the points paired with a particle, in µm, mm/s and m/s² (a
   point a fit left out, NaN, counts for its position only).
@@ -156,16 +160,24 @@ def _segments(trajectory, obs, row, track, counted) -> np.ndarray:
 
 
 def _links(truth: TrueTrajectories, tracks: TrackPoints, row: np.ndarray) -> dict:
-    """Links, the fraction that jump to another particle and the fraction with a ghost
-    end."""
+    """Links, the fraction that jump to another particle (and of those, the fraction
+    whose first particle had a point of its own in the second frame) and the fraction
+    with a ghost end."""
     order = np.lexsort((tracks.frame, tracks.track))
     same = tracks.track[order][1:] == tracks.track[order][:-1]
     a, b = row[order][:-1][same], row[order][1:][same]
+    frame_b = tracks.frame[order][1:][same]
     both = (a >= 0) & (b >= 0)
-    jumps = both & (truth.particle[np.maximum(a, 0)] != truth.particle[np.maximum(b, 0)])
+    first = truth.particle[np.maximum(a, 0)]
+    jumps = both & (first != truth.particle[np.maximum(b, 0)])
+    found = row[row >= 0]
+    stride = int(truth.frame.max()) + 1
+    seen = np.isin(first * stride + frame_b, truth.particle[found] * stride + truth.frame[found])
+    avoidable = jumps & seen
     return {
         "links": int(same.sum()),
         "mislinks": float(jumps.sum() / both.sum()) if both.any() else None,
+        "avoidable_mislinks": float(avoidable.sum() / both.sum()) if both.any() else None,
         "ghost_links": float(np.mean(~both)) if same.any() else None,
     }
 
