@@ -76,7 +76,7 @@ def _check(check_id: str, what: str, value, bound: float, sense: str) -> dict:
 
 
 def _relative_check(check_id: str, what: str, deviation: float, se: float) -> dict:
-    """|measured/exact − 1| within max(3 %, 3 SE)."""
+    """|ratio − 1| (``deviation``) within max(3 %, 3 standard errors of the ratio)."""
     bound = max(LAGRANGIAN_TOLERANCE, 3 * se)
     check = _check(check_id, what, abs(deviation), bound, "max")
     check["tolerance"] = f"<= {bound:.3g} (max of 3 % and 3 SE = {3 * se:.3g})"
