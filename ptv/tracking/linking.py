@@ -452,7 +452,8 @@ class RecordingTracks:
         Tracks joined after the frame-by-frame tracking
         (:func:`ptv.tracking.stitching.stitch_tracks`).
     miss_noise : float or None
-        The noise of the first pass's predictions, m, when it set the radius
+        The noise of the first pass's predictions, m (None with too few of them); twice
+        it sets the second pass's radius where that is below the settings' noise
         (:func:`ptv.tracking.recording.track_points`).
     """
 
