@@ -5,6 +5,7 @@ under before it is renamed into place."""
 
 import json
 import logging
+import math
 import os
 import uuid
 from pathlib import Path
@@ -57,6 +58,17 @@ def save_tracks_csv(result, folder: str | os.PathLike) -> Path:
     return path
 
 
+def _json_ready(value):
+    """``value`` with every non-finite float as None (JSON has no NaN)."""
+    if isinstance(value, dict):
+        return {k: _json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def save_fitted_tracks_csv(result, track_fit, folder: str | os.PathLike) -> Path:
     """Write ``tracks_fitted.csv`` and ``tracks_fit.json`` into ``folder``: the fit of the
     tracks of the recording of ``result``
@@ -101,6 +113,7 @@ def save_fitted_tracks_csv(result, track_fit, folder: str | os.PathLike) -> Path
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
-    (Path(folder) / "tracks_fit.json").write_text(json.dumps(track_fit.as_dict(), indent=2))
+    text = json.dumps(_json_ready(track_fit.as_dict()), indent=2, allow_nan=False)
+    (Path(folder) / "tracks_fit.json").write_text(text)
     log.info("fitted tracks written to %s", path)
     return path

@@ -80,14 +80,17 @@ from ptv.stats.track_sample import TrackSample, track_sample
 from ptv.tracking.fitting import FittedTracks
 
 __all__ = [
+    "LAGS",
     "AccelerationPdf",
     "AccelerationVariance",
+    "LagrangianStatistics",
     "LagrangianStructureFunction",
     "TrackSample",
     "VelocityAutocorrelation",
     "VelocityVariance",
     "acceleration_pdf",
     "acceleration_variance",
+    "lagrangian_statistics",
     "lagrangian_structure_function",
     "track_sample",
     "velocity_autocorrelation",
@@ -96,6 +99,9 @@ __all__ = [
 
 #: Default steps of every fit, frames.
 STEPS = (1, 2, 3)
+#: Lags of S2ᴸ, frames, of :func:`lagrangian_statistics` (those beyond a third of the
+#: longest track are left out).
+LAGS = (1, 2, 3, 5, 7, 10, 14, 20, 30, 50, 70, 100)
 
 
 # ---------------------------------------------------------------------------- fits
@@ -632,4 +638,58 @@ def acceleration_pdf(fitted: FittedTracks, *, edges: np.ndarray | None = None) -
     counts, _ = np.histogram((a / rms).ravel(), bins=edges)
     return AccelerationPdf(
         edges=edges, density=counts / (a.size * np.diff(edges)), rms=rms, samples=a.size
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class LagrangianStatistics:
+    """⟨a²⟩, S2ᴸ, ⟨|u|²⟩ and ρ of one set of tracks, from one :class:`TrackSample`."""
+
+    acceleration: AccelerationVariance
+    structure: LagrangianStructureFunction
+    velocity: VelocityVariance
+    autocorrelation: VelocityAutocorrelation
+
+    def as_dict(self) -> dict:
+        """JSON-able summary, SI units."""
+        return {
+            "acceleration_variance": self.acceleration.as_dict(),
+            "structure_function": self.structure.as_dict(),
+            "velocity_variance": self.velocity.as_dict(),
+            "autocorrelation": self.autocorrelation.as_dict(),
+        }
+
+
+def lagrangian_statistics(
+    track: np.ndarray,
+    frame: np.ndarray,
+    position: np.ndarray,
+    frame_rate: float,
+    *,
+    lags=None,
+    resamples: int = 200,
+    rng: np.random.Generator | int | None = 0,
+) -> LagrangianStatistics:
+    """Every statistic of this module on one set of tracks, sharing their replicates.
+
+    Parameters
+    ----------
+    track, frame, position, frame_rate, resamples, rng :
+        As :func:`ptv.stats.track_sample.track_sample`.
+    lags : sequence of int, optional
+        Lags of S2ᴸ, frames (default :data:`LAGS` up to a third of the longest track).
+
+    Returns
+    -------
+    LagrangianStatistics
+    """
+    sample = track_sample(track, frame, position, frame_rate, resamples=resamples, rng=rng)
+    if lags is None:
+        longest = int(np.bincount(sample.track).max())
+        lags = [lag for lag in LAGS if lag <= longest // 3] or [1]
+    acceleration = acceleration_variance(sample)
+    structure = lagrangian_structure_function(sample, lags, acceleration)
+    velocity = velocity_variance(sample, acceleration)
+    return LagrangianStatistics(
+        acceleration, structure, velocity, velocity_autocorrelation(structure, velocity)
     )

@@ -11,14 +11,20 @@
    and the tracks left shorter than ``min_points``;
 4. measures σ_c again on what is left, chooses the window from it
    (:func:`ptv.tracking.fitting.choose_window`) unless one is given, and fits every
-   point kept (:func:`ptv.tracking.fitting.fit_tracks`).
+   point kept (:func:`ptv.tracking.fitting.fit_tracks`);
+5. when asked, computes the Lagrangian statistics of the kept points with the noise
+   removed (:func:`ptv.stats.lagrangian.lagrangian_statistics`).
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from ptv.stats.lagrangian import acceleration_variance
+from ptv.stats.lagrangian import (
+    LagrangianStatistics,
+    acceleration_variance,
+    lagrangian_statistics,
+)
 from ptv.stats.track_sample import track_sample
 from ptv.tracking.fitting import (
     MIN_FIT_POINTS,
@@ -79,6 +85,8 @@ class FittedRecording:
         The window choice (None when the window was given).
     outliers : int
         Points taken out as outliers.
+    statistics : LagrangianStatistics or None
+        ⟨a²⟩, S2ᴸ, ⟨|u|²⟩ and ρ of the kept points, the noise removed, when asked for.
     """
 
     kept: np.ndarray
@@ -86,6 +94,7 @@ class FittedRecording:
     noise: np.ndarray
     choice: WindowChoice | None
     outliers: int
+    statistics: LagrangianStatistics | None = None
 
     def as_dict(self) -> dict:
         """JSON-able summary, SI units."""
@@ -97,6 +106,7 @@ class FittedRecording:
             "points_left_out": int((~self.kept).sum()),
             "outliers": self.outliers,
             "tracks": len(np.unique(self.fitted.track)),
+            "lagrangian": None if self.statistics is None else self.statistics.as_dict(),
         }
 
 
@@ -120,6 +130,7 @@ def fit_recording(
     settings: TrackFitSettings | None = None,
     *,
     seed: int = 0,
+    statistics: bool = False,
 ) -> FittedRecording:
     """Fit a recording's tracks (module docstring).
 
@@ -133,7 +144,10 @@ def fit_recording(
         Hz.
     settings : TrackFitSettings, optional
     seed : int
-        Seeds the bootstrap of the noise estimate.
+        Seeds the bootstraps.
+    statistics : bool
+        Also compute the Lagrangian statistics of the kept points
+        (:func:`ptv.stats.lagrangian.lagrangian_statistics`).
 
     Returns
     -------
@@ -170,4 +184,9 @@ def fit_recording(
     fitted = fit_tracks(
         track[rows], frame[rows], position[rows], frame_rate, window=window, noise=sigma
     )
-    return FittedRecording(keep, fitted, noise, choice, int(outlier.sum()))
+    found = None
+    if statistics:
+        found = lagrangian_statistics(
+            track[rows], frame[rows], position[rows], frame_rate, rng=seed
+        )
+    return FittedRecording(keep, fitted, noise, choice, int(outlier.sum()), found)

@@ -356,6 +356,9 @@ def test_tracks_link_every_frame_of_a_recording(dataset, recording, tmp_path, ca
     fit = json.loads((out / "tracks_fit.json").read_text())
     assert len(fitted.frame) == fit["points"] > 0 and fitted.acceleration is not None
     assert np.isfinite(fitted.velocity).all() and "tracks fitted" in printed
+    # With the noise removed over several steps: the noise a fraction of the raw value.
+    lagrangian = fit["lagrangian"]["acceleration_variance"]
+    assert 0 < lagrangian["total"] < lagrangian["raw"] and "Lagrangian" in printed
     assert matplotlib.image.imread(out / "tracks.png").ndim == 3
     header, rows = read_tracks_csv(out / "tracks.csv")
     assert header == "track,frame,time_s,x,y,z"

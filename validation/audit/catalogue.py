@@ -151,6 +151,7 @@ AUDITED: tuple[Audited, ...] = (
     Audited("ptv.tracking.fitting:OUTLIER_ROUNDS", "not run", (), reason=_RECORDING),
     Audited("ptv.tracking.fitting:MIN_FIT_POINTS", "not run", (), reason=_RECORDING),
     Audited("ptv.stats.lagrangian:STEPS", "not run", (), reason=_RECORDING),
+    Audited("ptv.stats.lagrangian:LAGS", "not run", (), reason=_RECORDING),
     Audited("ptv.pipeline.resolve:LINK_SPEED_SNAPSHOTS", "count"),
     Audited("ptv.pipeline.double_frame:AMBIGUITY_WARNING", "not run", (), reason=_WARNING),
     Audited("ptv.pipeline.frames:STILL_FRACTION", "not run", (), reason=_WARNING),

@@ -267,6 +267,7 @@ def _fit_tracks(result, settings):
             recording.tracks.positions,
             recording.frame_rate,
             settings,
+            statistics=True,
         )
     except ValueError as err:
         print(f"synptv ptv: warning: tracks not fitted: {err}", file=sys.stderr)
@@ -282,6 +283,14 @@ def _print_track_fit(track_fit, out: Path) -> None:
         f"{'chosen' if d['window_chosen'] else 'given'}), noise x, y, z {noise} um, "
         f"{d['outliers']} outliers and {d['points_left_out']} points left out"
     )
+    if track_fit.statistics is not None:
+        a = track_fit.statistics.acceleration
+        u = track_fit.statistics.velocity
+        print(
+            f"Lagrangian     <|a|^2> {a.total:.4g} ± {a.total_se:.2g} m^2/s^4, <|u|^2> "
+            f"{u.total:.4g} ± {u.total_se:.2g} m^2/s^2, noise removed over steps "
+            f"{', '.join(str(s) for s in a.steps)} (S2L and rho in tracks_fit.json)"
+        )
     print(f"fitted tracks written to {out / 'tracks_fitted.csv'} and {out / 'tracks_fit.json'}")
 
 

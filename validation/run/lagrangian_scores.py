@@ -21,20 +21,11 @@ What can be required (docs/run.md §9, measured on the tr recording):
 
 import numpy as np
 
-from ptv.stats.lagrangian import (
-    acceleration_pdf,
-    acceleration_variance,
-    lagrangian_structure_function,
-    velocity_autocorrelation,
-    velocity_variance,
-)
-from ptv.stats.track_sample import track_sample
+from ptv.stats.lagrangian import LAGS, acceleration_pdf, lagrangian_statistics
 from ptv.tracking.fitting import FittedTracks
 from validation.score.trajectories import TrackPoints, TrueTrajectories
 from validation.truth.lagrangian import exact_lagrangian
 
-#: Lags of S2ᴸ, frames (those longer than a third of the recording are left out).
-LAGS = (1, 2, 3, 5, 7, 10, 14, 20, 30, 50, 70, 100)
 #: Shortest lag of the S2ᴸ check, Kolmogorov times.
 CHECKED_TAU_ETA = 0.5
 #: Bootstrap replicates of every statistic.
@@ -43,13 +34,10 @@ RESAMPLES = 200
 
 def _statistics(tracks: TrackPoints, position: np.ndarray, frame_rate: float, lags, seed):
     """⟨a²⟩, S2ᴸ, ⟨|u|²⟩ and ρ of tracks with the given positions."""
-    sample = track_sample(
-        tracks.track, tracks.frame, position, frame_rate, resamples=RESAMPLES, rng=seed
+    found = lagrangian_statistics(
+        tracks.track, tracks.frame, position, frame_rate, lags=lags, resamples=RESAMPLES, rng=seed
     )
-    acceleration = acceleration_variance(sample)
-    structure = lagrangian_structure_function(sample, lags, acceleration)
-    variance = velocity_variance(sample, acceleration)
-    return acceleration, structure, variance, velocity_autocorrelation(structure, variance)
+    return found.acceleration, found.structure, found.velocity, found.autocorrelation
 
 
 def _number(value) -> float | None:
