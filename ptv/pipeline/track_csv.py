@@ -22,6 +22,24 @@ def temporary_path(folder: Path, name: str) -> Path:
     return folder / f".{name}.{os.getpid()}.{uuid.uuid4().hex[:12]}.partial"
 
 
+def _write_rows(path: Path, columns: list, header: str) -> None:
+    """A CSV of ``columns`` under ``header`` (track and frame as integers, the rest to
+    nine digits), written under a temporary name and renamed."""
+    tmp = temporary_path(path.parent, path.name)
+    try:
+        np.savetxt(
+            tmp,
+            np.column_stack(columns),
+            fmt=["%d", "%d"] + ["%.9g"] * (len(columns) - 2),
+            delimiter=",",
+            header=header,
+            comments="",
+        )
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def save_tracks_csv(result, folder: str | os.PathLike) -> Path:
     """Write ``tracks.csv`` into ``folder``: the tracks of the recording of ``result`` (a
     :class:`ptv.pipeline.double_frame.PtvResult`).
@@ -41,19 +59,7 @@ def save_tracks_csv(result, folder: str | os.PathLike) -> Path:
     path = Path(folder) / "tracks.csv"
     tracks = recording.tracks
     columns = [tracks.track, recording.frame_number, recording.time, *tracks.positions.T]
-    tmp = temporary_path(path.parent, path.name)
-    try:
-        np.savetxt(
-            tmp,
-            np.column_stack(columns),
-            fmt=["%d", "%d", "%.9g", "%.9g", "%.9g", "%.9g"],
-            delimiter=",",
-            header="track,frame,time_s,x,y,z",
-            comments="",
-        )
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    _write_rows(path, columns, "track,frame,time_s,x,y,z")
     log.info("tracks written to %s", path)
     return path
 
@@ -100,19 +106,8 @@ def save_fitted_tracks_csv(result, track_fit, folder: str | os.PathLike) -> Path
         fit.acceleration_error[order],
     ]
     path = Path(folder) / "tracks_fitted.csv"
-    tmp = temporary_path(path.parent, path.name)
-    try:
-        np.savetxt(
-            tmp,
-            np.column_stack(columns),
-            fmt=["%d", "%d"] + ["%.9g"] * 13,
-            delimiter=",",
-            header="track,frame,time_s,x,y,z,vx,vy,vz,ax,ay,az,sigma_x,sigma_v,sigma_a",
-            comments="",
-        )
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    header = "track,frame,time_s,x,y,z,vx,vy,vz,ax,ay,az,sigma_x,sigma_v,sigma_a"
+    _write_rows(path, columns, header)
     text = json.dumps(_json_ready(track_fit.as_dict()), indent=2, allow_nan=False)
     (Path(folder) / "tracks_fit.json").write_text(text)
     log.info("fitted tracks written to %s", path)
