@@ -18,9 +18,11 @@ the same assignment. A track of one point is predicted by the mean displacement 
 (or stays where it is) and searched within ``radius``; a longer track by constant
 velocity, X̂_{f+1} = 2 X_f − X_{f−1}, within ``predicted_radius``, which can be much
 smaller: the prediction misses by the acceleration a τ² and the noise of three
-positions, not by the whole displacement. A particle left unlinked starts a track; a
-track that finds no partner is kept alive for up to ``gap`` frames and predicted across
-them (gap closing), then ends.
+positions, not by the whole displacement. Each candidate link is also judged by the
+frame after (a look-ahead): the track continued through the candidate at constant
+velocity should meet a point there. A particle left unlinked starts a track; a track
+that finds no partner is kept alive for up to ``gap`` frames and predicted across them
+(gap closing), then ends.
 
 Trajectory test (:func:`trajectory_residuals`). A particle followed from the same X(t)
 to every Δt (a shared first frame) has displacements on a smooth curve in Δt; a large
@@ -129,10 +131,17 @@ def _candidates(predicted: np.ndarray, radius: np.ndarray, targets: np.ndarray):
     return i[keep], j[keep], d[keep]
 
 
-def _link_step(predicted, radius, targets):
-    """One-to-one links from predictions to targets; (i, j, d, ambiguous, candidates)."""
+def _link_step(predicted, radius, targets, continuation=None):
+    """One-to-one links from predictions to targets; (i, j, d, ambiguous, candidates).
+
+    ``continuation``, a function of the candidate pairs (i, j) → a cost in [0, 1] each,
+    is averaged with (d / r)² into the cost of each candidate link (None: (d / r)² alone).
+    """
     i, j, d = _candidates(predicted, radius, targets)
-    chosen = assign(i, j, (d / radius[i]) ** 2, (len(predicted), len(targets)))
+    cost = (d / radius[i]) ** 2
+    if continuation is not None and len(i):
+        cost = (cost + continuation(i, j)) / 2
+    chosen = assign(i, j, cost, (len(predicted), len(targets)))
     chosen = chosen[np.argsort(i[chosen], kind="stable")]
     # Of the links, those whose particle had another candidate (a fraction of the links).
     ambiguous = int(np.sum(np.bincount(i, minlength=len(predicted))[i[chosen]] > 1))
@@ -299,6 +308,7 @@ def track_frames(
     predicted_noise: float = 0.0,
     predictor: Predictor = None,
     gap: int = 0,
+    lookahead: bool = True,
 ) -> Tracks:
     """Time-resolved tracking: link the particles of frames τ apart into tracks.
 
@@ -307,7 +317,11 @@ def track_frames(
     missed in between), predicts where its particle is: at constant velocity from its
     last two points where it has them, else at its point plus the mean displacement. The
     predictions are linked one-to-one to the frame's points, each within its radius, at
-    the least total of (distance / radius)²; a point left over starts a track.
+    the least total cost; a point left over starts a track. The cost of a link is
+    (distance / radius)², averaged, with ``lookahead``, with the cost of continuing it one
+    frame further (:func:`_continuation`): among close candidates the one whose
+    particle is where the track says it goes next wins, as the multi-frame choices of
+    four-frame trackers do.
 
     Parameters
     ----------
@@ -327,6 +341,8 @@ def track_frames(
         Mean displacement over one frame interval τ, as in :func:`link` (None: none).
     gap : int
         Frames a track may miss and still be continued (0: none).
+    lookahead : bool
+        Weigh each candidate link by how well it continues into the next frame.
 
     Returns
     -------
@@ -362,7 +378,10 @@ def track_frames(
         fresh = ~has_velocity
         predicted[fresh] += _mean_displacement(predictor, last[alive][fresh])
         radii = np.where(has_velocity, predicted_radii(steps, r_next, predicted_noise), r_first)
-        i, j, _, ambiguous, _ = _link_step(predicted, radii, xs[f])
+        continuation = None
+        if lookahead and f + 1 < len(xs):
+            continuation = _continuation(last[alive], steps, xs[f], xs[f + 1], r_next)
+        i, j, _, ambiguous, _ = _link_step(predicted, radii, xs[f], continuation)
         label = np.full(len(xs[f]), -1)
         label[j] = alive[i]
         new = label < 0
@@ -381,6 +400,43 @@ def track_frames(
             ambiguous,
         )
     return _sorted_tracks(labels, xs)
+
+
+def _continuation(start, steps, here, ahead, radius: float):
+    """The cost of continuing each candidate link one frame further.
+
+    A track whose last point ``start[i]`` (``steps[i]`` frames back) is linked to
+    ``here[j]`` predicts its particle at constant velocity one frame further; the cost
+    is (d / ``radius``)² for the nearest point of ``ahead`` at d from that prediction,
+    1 where none lies within ``radius`` (the constant-velocity radius one frame ahead).
+
+    Parameters
+    ----------
+    start : ndarray, shape (A, 3)
+        The last point of each track searching, m.
+    steps : ndarray of int, shape (A,)
+        Frames from that point to this frame.
+    here, ahead : ndarray, shape (N, 3) and (M, 3)
+        The points of this frame and of the next, m.
+    radius : float
+        m.
+
+    Returns
+    -------
+    callable
+        (i, j) candidate pairs, ndarray of int, shape (E,) each → costs in [0, 1], (E,).
+    """
+    tree = cKDTree(ahead) if len(ahead) else None
+
+    def cost(i, j):
+        if tree is None:
+            return np.ones(len(i))
+        x = here[j]
+        predicted = x + (x - start[i]) / steps[i, None]
+        d, _ = tree.query(predicted, distance_upper_bound=radius)
+        return np.minimum((d / radius) ** 2, 1.0)
+
+    return cost
 
 
 def _sorted_tracks(labels: list[np.ndarray], xs: list[np.ndarray]) -> Tracks:

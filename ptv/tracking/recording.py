@@ -12,7 +12,8 @@ frames n = first … last, τ = 1 / frame rate apart. :func:`run_recording`
    constant-velocity prediction (:func:`track_radii`), a track missing from up to
    ``track_gap`` frames (a particle not detected or not matched there) continued across
    the gap, s frames ahead within max_acceleration·τ²·s(s + 1)/2 + 5√6·σ_b·√((s² + s +
-   1)/3) (:func:`ptv.tracking.linking.predicted_radii`); then tracks that continue one
+   1)/3) (:func:`ptv.tracking.linking.predicted_radii`), each candidate weighed by
+   where it leads one frame further (the look-ahead); then tracks that continue one
    another once the last point of the earlier is left out are joined
    (:func:`ptv.tracking.stitching.stitch_tracks`: a false point taken where the particle
    was missed);

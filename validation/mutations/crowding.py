@@ -21,12 +21,15 @@ WIDE_FLOOR = 15.0
 def _greedy(original):
     """Links taken nearest first, each particle once: the greedy linker."""
 
-    def link_step(predicted, radius, targets):
+    def link_step(predicted, radius, targets, continuation=None):
         i, j, d = track._candidates(predicted, radius, targets)
+        cost = (d / radius[i]) ** 2
+        if continuation is not None and len(i):
+            cost = (cost + continuation(i, j)) / 2
         taken_a = np.zeros(len(predicted), dtype=bool)
         taken_b = np.zeros(len(targets), dtype=bool)
         chosen = []
-        for edge in np.argsort(d / radius[i], kind="stable"):
+        for edge in np.argsort(cost, kind="stable"):
             if not (taken_a[i[edge]] or taken_b[j[edge]]):
                 taken_a[i[edge]] = taken_b[j[edge]] = True
                 chosen.append(edge)
