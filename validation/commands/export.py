@@ -59,7 +59,8 @@ def export_dataset(dataset: str | Path, layout: str, out: str | Path) -> list[Pa
     Raises
     ------
     ValueError
-        Bad input (one line naming the file and the field); nothing is written.
+        Bad input (one line naming the file and the field), a recording asked of a
+        layout that takes frame pairs only; nothing is written.
     """
     from validation.export.myptv import write_myptv
     from validation.export.openptv import write_openptv
@@ -72,6 +73,11 @@ def export_dataset(dataset: str | Path, layout: str, out: str | Path) -> list[Pa
     if out.exists():
         raise ValueError(f"--out {out} already exists; choose a new folder")
     source = read_source(dataset)
+    if source.recordings and layout != "openptv":
+        raise ValueError(
+            f"--dataset {source.folder}: a time-resolved recording; --format {layout} "
+            "exports frame pairs only (export recordings with --format openptv)"
+        )
     with hold_new_folder(out, "synptv export") as took_over:
         if took_over:
             print(f"synptv export: {took_over}", file=sys.stderr)

@@ -21,6 +21,9 @@ size; docs/export.md)::
     cal/<camera>/plane_<jj>.tif     8-bit plate image at traverse position j
     cal/target_plane_<jj>.txt       "id X Y Z" of every dot at traverse position j, mm
     img/dt<k>/<camera>.<number>     8-bit particle images, TIFF without extension
+    img/seq<s>/<camera>.<number>    of a recording: frame n of recording s is number
+                                    10001 + n − first (parameters/sequence_seq<s>.par,
+                                    track.par for one frame interval)
 
 OpenPTV's camera model is a pinhole with Brown distortion and an affine term behind
 flat refractive slabs: each camera's slab has its own normal and distance (the glass
@@ -37,6 +40,7 @@ import numpy as np
 from simulator.optics.camera import Camera
 from validation.export.images import grey_shift, noise_threshold, write_8bit
 from validation.export.source import ExportSource, rotation_angles
+from validation.run.experiment import object_pixel
 
 #: OpenPTV's number of the first exposure of a sequence.
 FIRST_NUMBER = 10001
@@ -46,6 +50,9 @@ EPIPOLAR_BAND_PX = 1.0
 VOLUME_MARGIN = 2e-3
 #: Largest grey-level step inside one target before OpenPTV splits it (8-bit).
 DISCONTINUITY = 100
+#: The position noise a recording's track.par allows for, in object-side pixels: a tenth
+#: of a pixel, what a fair calibration and centroid leave.
+NOISE_GUESS_PX = 0.1
 MM = 1e3
 
 
@@ -80,6 +87,12 @@ class Orientation:
     rotation: np.ndarray
     primary_point: np.ndarray
     glass: np.ndarray
+
+
+def recorded_number(recording, n: int) -> int:
+    """OpenPTV's frame number of frame n of a recording (a Dataset with ``sequence``):
+    ``FIRST_NUMBER + n − first``."""
+    return FIRST_NUMBER + n - recording.sequence.first
 
 
 def orientation(camera: Camera) -> Orientation:
@@ -228,23 +241,35 @@ class Guesses:
     plate_threshold: list
 
 
+def _particle_images(source: ExportSource) -> list[tuple[Path, str, Path]]:
+    """(source image, camera, path in the export) of every particle image."""
+    if source.recordings:
+        return [
+            (r.recorded_path(c, n), c, Path(f"img/seq{s}/{c}.{recorded_number(r, n)}"))
+            for s, r in enumerate(source.recordings)
+            for n in r.sequence.frame_numbers()
+            for c in source.cameras
+        ]
+    return [
+        (source.frame_path(k, c, m, f), c, Path(f"img/dt{k}/{c}.{frame_number(m, f)}"))
+        for k in range(source.dataset.n_dt)
+        for m in range(source.dataset.frames[k])
+        for f in "ab"
+        for c in source.cameras
+    ]
+
+
 def _guesses(source: ExportSource) -> Guesses:
     """8-bit shifts and thresholds, from the dataset's images."""
     plates = [p for row in source.plate_images for p in row]
-    particles = [
-        source.frame_path(k, c, m, f)
-        for k in range(source.dataset.n_dt)
-        for c in source.cameras
-        for m in range(source.dataset.frames[k])
-        for f in "ab"
-    ]
-    plate_shift, particle_shift = grey_shift(plates), grey_shift(particles)
+    particles = _particle_images(source)
+    plate_shift = grey_shift(plates)
+    particle_shift = grey_shift([path for path, _, _ in particles])
+    first = {camera: path for path, camera, _ in reversed(particles)}
     return Guesses(
         plate_shift=plate_shift,
         particle_shift=particle_shift,
-        particle_threshold=[
-            noise_threshold(source.frame_path(0, c, 0, "a"), particle_shift) for c in source.cameras
-        ],
+        particle_threshold=[noise_threshold(first[c], particle_shift) for c in source.cameras],
         plate_threshold=[
             max(noise_threshold(row[0], plate_shift), (255 >> 2)) for row in source.plate_images
         ],
@@ -264,13 +289,13 @@ def _par_files(source: ExportSource, guesses: Guesses) -> dict[str, str]:
     n1, n2, n3, d = multimedia(source)
     names = source.cameras
     middle = len(source.dots) // 2
-    frames = source.dataset.frames
+    first_images = "img/seq0" if source.recordings else "img/dt0"
     ptv = _lines(
         len(names),
         *[
             line
             for c in names
-            for line in (f"img/dt0/{c}.{FIRST_NUMBER}", f"cal/{c}/plane_{middle:02d}.tif")
+            for line in (f"{first_images}/{c}.{FIRST_NUMBER}", f"cal/{c}/plane_{middle:02d}.tif")
         ],
         0,  # no highpass filter: the rendered background is uniform
         0,  # allCam_flag: accept pairs and triplets, not only points seen by all cameras
@@ -319,16 +344,46 @@ def _par_files(source: ExportSource, guesses: Guesses) -> dict[str, str]:
             0,
         ),
     }
+    return files | (_recording_files(source) if source.recordings else _pair_files(source))
+
+
+def _pair_files(source: ExportSource) -> dict[str, str]:
+    """sequence and track .par files of each Δt's frame pairs."""
+    files = {}
     for k, dt in enumerate(source.dataset.dt):
-        sequence = _lines(
-            *[f"img/dt{k}/{c}." for c in names], FIRST_NUMBER, frame_number(frames[k] - 1, "b")
-        )
+        last = frame_number(source.dataset.frames[k] - 1, "b")
+        sequence = _lines(*[f"img/dt{k}/{c}." for c in source.cameras], FIRST_NUMBER, last)
         step = source.max_speed * dt * MM
         track = _lines(-step, step, -step, step, -step, step, 120, 0.4 * step, 0)
         files[f"sequence_dt{k}.par"] = sequence
         files[f"track_dt{k}.par"] = track
         if k == 0:
             files["sequence.par"], files["track.par"] = sequence, track
+    return files
+
+
+def recording_bounds(source: ExportSource) -> tuple[float, float]:
+    """track.par's bounds for a recording, mm: the most a particle moves in one frame
+    interval τ per component, max_speed·τ, and the most it leaves its constant-velocity
+    prediction, max_acceleration·τ² + 5√6σ, σ = :data:`NOISE_GUESS_PX` object-side
+    pixels (the noise of the three positions the prediction and its point carry)."""
+    tau = 1.0 / source.recordings[0].sequence.frame_rate
+    noise = 5 * np.sqrt(6) * NOISE_GUESS_PX * object_pixel(source.rig)
+    return source.max_speed * tau * MM, (source.max_acceleration * tau**2 + noise) * MM
+
+
+def _recording_files(source: ExportSource) -> dict[str, str]:
+    """sequence .par files of each recording, and track.par for one frame interval."""
+    step, acceleration = recording_bounds(source)
+    files = {"track.par": _lines(-step, step, -step, step, -step, step, 120, acceleration, 0)}
+    for s, recording in enumerate(source.recordings):
+        numbers = recording.sequence.frame_numbers()
+        files[f"sequence_seq{s}.par"] = _lines(
+            *[f"img/seq{s}/{c}." for c in source.cameras],
+            recorded_number(recording, numbers[0]),
+            recorded_number(recording, numbers[-1]),
+        )
+    files["sequence.par"] = files["sequence_seq0.par"]
     return files
 
 
@@ -383,26 +438,37 @@ def write_openptv(source: ExportSource, out: Path) -> list[Path]:
             target = out / "cal" / name / f"plane_{j:02d}.tif"
             write_8bit(path, target, guesses.plate_shift)
             written.append(target)
-    rows = ["dt,snapshot,frame,number"]
-    for k in range(source.dataset.n_dt):
-        for m in range(source.dataset.frames[k]):
-            for frame in "ab":
-                number = frame_number(m, frame)
-                rows.append(f"{k},{m},{frame},{number}")
-                for name in source.cameras:
-                    target = out / "img" / f"dt{k}" / f"{name}.{number}"
-                    write_8bit(source.frame_path(k, name, m, frame), target, guesses.particle_shift)
-                    written.append(target)
-    text("frames.csv", "\n".join(rows) + "\n")
+    for path, _, relative in _particle_images(source):
+        write_8bit(path, out / relative, guesses.particle_shift)
+        written.append(out / relative)
+    text("frames.csv", _frames_csv(source))
     text("README.txt", readme(source, guesses))
     return written
+
+
+def _frames_csv(source: ExportSource) -> str:
+    """frames.csv: the OpenPTV number of every exposure (frame pairs) or recorded frame."""
+    if source.recordings:
+        rows = ["sequence,frame,number"] + [
+            f"{s},{n},{recorded_number(r, n)}"
+            for s, r in enumerate(source.recordings)
+            for n in r.sequence.frame_numbers()
+        ]
+    else:
+        rows = ["dt,snapshot,frame,number"] + [
+            f"{k},{m},{frame},{frame_number(m, frame)}"
+            for k in range(source.dataset.n_dt)
+            for m in range(source.dataset.frames[k])
+            for frame in "ab"
+        ]
+    return "\n".join(rows) + "\n"
 
 
 def readme(source: ExportSource, guesses: Guesses) -> str:
     """README.txt of an OpenPTV export: each file, and every setting that was guessed."""
     n1, n2, n3, d = multimedia(source)
     width, height, pitch = _common_sensor(source)
-    dt = ", ".join(f"dt{k} = {v * 1e3:.6g} ms" for k, v in enumerate(source.dataset.dt))
+    kind = _acquisition(source)
     z = ", ".join(f"{v * MM:g}" for v in source.dots[:, 0, 2])
     particle = ", ".join(str(v) for v in guesses.particle_threshold)
     plate = ", ".join(str(v) for v in guesses.plate_threshold)
@@ -416,12 +482,7 @@ pixel. OpenPTV's 3-D results are in mm in the dataset's world frame: divide by 1
 score them with `synptv score` (metres).
 
 Cameras: {", ".join(source.cameras)}; {width} x {height} px of {pitch * 1e3:g} um.
-Time separations: {dt}.
-Double-frame acquisition: snapshot m of every dt is a pair of exposures, frame a at t
-and frame b at t + dt; the pairs are independent of each other (do not track from one
-pair to the next). Each dt is one image sequence, img/dt<k>/<camera>.<number>, with
-number = {FIRST_NUMBER} + 2m for frame a and {FIRST_NUMBER + 1} + 2m for frame b; frames.csv
-lists them all (dt, snapshot, frame, number).
+{kind.acquisition}
 
 FILES
   parameters/ptv.par           cameras, first image and calibration image of each,
@@ -431,9 +492,7 @@ FILES
                                correspondence tolerances
   parameters/targ_rec.par      particle detection: thresholds, size bounds
   parameters/detect_plate.par  plate dot detection: thresholds, size bounds
-  parameters/sequence.par      the sequence of dt0; sequence_dt<k>.par for dt<k>
-                               (copy one over sequence.par to process that dt)
-  parameters/track.par         tracking bounds for dt0; track_dt<k>.par for dt<k>
+{kind.sequence_files}
   parameters/cal_ori.par       target file, calibration image and orientation file
                                of each camera, at the middle traverse position
   cal/<camera>.tif.ori         initial orientation (position, angles, rotation matrix,
@@ -444,8 +503,7 @@ FILES
                                the plate's nominal grid at the nominal traverse
                                Z_j = {z} mm (the true dots differ by the
                                plate's manufacturing and traverse errors)
-  img/dt<k>/<camera>.<number>  particle images (8-bit TIFF, no extension)
-  frames.csv                   dt,snapshot,frame,number of every exposure
+{kind.image_files}
 
 WHAT WAS CHOSEN OR GUESSED, AND WHY
   * No highpass filter (ptv.par hp_flag 0): the rendered background is uniform, and
@@ -483,7 +541,66 @@ WHAT WAS CHOSEN OR GUESSED, AND WHY
     since with two cameras each other particle inside the band makes a pair ambiguous
     (set it to about twice your calibration's RMS residual); OpenPTV's usual
     similarity limits (0.02) and corrmin 33.
+{kind.tracking}
+"""
+
+
+@dataclass(frozen=True)
+class _Acquisition:
+    """The parts of README.txt that differ between frame pairs and recordings."""
+
+    acquisition: str
+    sequence_files: str
+    image_files: str
+    tracking: str
+
+
+def _acquisition(source: ExportSource) -> _Acquisition:
+    """README.txt's description of the particle images and their tracking bounds."""
+    if not source.recordings:
+        dt = ", ".join(f"dt{k} = {v * 1e3:.6g} ms" for k, v in enumerate(source.dataset.dt))
+        return _Acquisition(
+            acquisition=f"""\
+Time separations: {dt}.
+Double-frame acquisition: snapshot m of every dt is a pair of exposures, frame a at t
+and frame b at t + dt; the pairs are independent of each other (do not track from one
+pair to the next). Each dt is one image sequence, img/dt<k>/<camera>.<number>, with
+number = {FIRST_NUMBER} + 2m for frame a and {FIRST_NUMBER + 1} + 2m for frame b; frames.csv
+lists them all (dt, snapshot, frame, number).""",
+            sequence_files="""\
+  parameters/sequence.par      the sequence of dt0; sequence_dt<k>.par for dt<k>
+                               (copy one over sequence.par to process that dt)
+  parameters/track.par         tracking bounds for dt0; track_dt<k>.par for dt<k>""",
+            image_files="""\
+  img/dt<k>/<camera>.<number>  particle images (8-bit TIFF, no extension)
+  frames.csv                   dt,snapshot,frame,number of every exposure""",
+            tracking=f"""\
   * Tracking (track.par). Displacement bounds of +-{source.max_speed:.3g} m/s x dt per
     component (the true velocities' mean speed plus five rms of a component); the
-    pairs are double-frame exposures, so only the a -> b link of each pair is meaningful.
-"""
+    pairs are double-frame exposures, so only the a -> b link of each pair is meaningful.""",
+        )
+    rate = source.recordings[0].sequence.frame_rate
+    step, acceleration = recording_bounds(source)
+    return _Acquisition(
+        acquisition=f"""\
+Time-resolved acquisition: {len(source.recordings)} recording(s) at {rate:.6g} frames per
+second. Recording s is one image sequence, img/seq<s>/<camera>.<number>, its frame n
+numbered {FIRST_NUMBER} + n - first; frames.csv lists them all (sequence, frame, number).
+Track them with OpenPTV's tracker, frame after frame.""",
+        sequence_files="""\
+  parameters/sequence.par      the images of recording 0; sequence_seq<s>.par of
+                               recording s (copy one over sequence.par to track it)
+  parameters/track.par         tracking bounds for one frame interval""",
+        image_files="""\
+  img/seq<s>/<camera>.<number> particle images (8-bit TIFF, no extension)
+  frames.csv                   sequence,frame,number of every recorded frame""",
+        tracking=f"""\
+  * Tracking (track.par). Displacement bounds of +-{step:.4g} mm per frame and
+    component: {source.max_speed:.3g} m/s (the true velocities' mean speed plus five rms of a
+    component) over one frame interval. Acceleration bound dacc = {acceleration:.4g} mm: the
+    most a particle leaves its constant-velocity prediction, {source.max_acceleration:.3g} m/s2 (the
+    true accelerations' mean plus five rms of a component) times the interval squared,
+    plus five times the noise of the three positions behind the prediction and its
+    point, sqrt(6) x {NOISE_GUESS_PX:g} object-side pixel. Angle bound 120 gon; no
+    particles added.""",
+    )
