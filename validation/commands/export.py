@@ -29,7 +29,9 @@ def add_export_parser(sub) -> None:
         description="Write a dataset rendered by synptv (plate images, particle images, "
         "the rig's cameras and windows) in the folder layout of another PTV code, with its "
         "parameter files, initial camera guesses and a README.txt saying what each file is "
-        "and which settings were guessed. Formats: "
+        "and which settings were guessed. A recorded dataset (synptv run's dataset folder "
+        "of a [recording] scenario) exports to OpenPTV as one image sequence per "
+        "recording. Formats: "
         + "; ".join(f"{k}: {v}" for k, v in FORMATS.items())
         + ". See docs/export.md.",
     )
