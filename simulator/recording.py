@@ -14,6 +14,14 @@ seeds.
 The flow is kinematic simulation (:class:`simulator.particles.KSFlow`), one realization
 per recording, each trajectory by the same classical RK4 as the snapshots' with steps
 no longer than min(τ/2, 0.05 τ_η, 0.2/ω_N), τ the frame interval.
+
+A Navier–Stokes DNS (:func:`follow_periodic_recording`) lives in a periodic box of side
+L that tiles space. Padding the region by the distance its tracers travel would seed
+thousands of times the region's volume over a recording of a few eddy times, so the
+tracers are seeded once in one period cell, at the density the region asks, followed
+with the flow, and every periodic image X + Lk of each that enters the region is kept
+as a tracer of its own: the same field, exactly, wherever the region lies, with
+particles entering and leaving it as they are carried.
 """
 
 from collections.abc import Callable
@@ -22,7 +30,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from simulator.flow import draw_ks_field
-from simulator.particles import MARGIN_IN_U_RMS, SHEET, Box, KSFlow, integrate, max_step
+from simulator.particles import (
+    MARGIN_IN_U_RMS,
+    SHEET,
+    Box,
+    KSFlow,
+    TracerFlow,
+    integrate,
+    max_step,
+)
 
 #: Seeds followed at once: bounds the memory of a batch to about 72 bytes × batch × F.
 BATCH = 20_000
@@ -95,12 +111,7 @@ def follow_recording(
     -------
     RecordedParticles
     """
-    if not (np.isfinite(frame_rate) and frame_rate > 0):
-        raise ValueError(f"frame_rate must be finite and > 0 Hz, got {frame_rate!r}")
-    if not isinstance(frames, int) or frames < 2:
-        raise ValueError(f"frames must be an integer >= 2, got {frames!r}")
-    if not isinstance(particles, int) or particles < 1:
-        raise ValueError(f"particles must be an integer >= 1, got {particles!r}")
+    _check_counts(frame_rate, frames, particles)
     keep = region if keep is None else keep
     times = np.arange(frames) / frame_rate
     margin = MARGIN_IN_U_RMS * flow.u_rms * times[-1]
@@ -127,7 +138,80 @@ def follow_recording(
         parts.append((start + which, frame, x, velocity, acceleration))
         if progress is not None:
             progress(b + 1, len(starts))
-    particle, frame, x, velocity, acceleration = (
+    return _recorded(times, parts, seeds)
+
+
+def follow_periodic_recording(
+    flow: TracerFlow,
+    box_side: float,
+    frame_rate: float,
+    frames: int,
+    *,
+    particles: int,
+    region: Box = SHEET,
+    keep: Box | None = None,
+    rng: np.random.Generator | int | None = None,
+    snapshot: int = 0,
+) -> RecordedParticles:
+    """Follow one period cell's tracers of a periodic flow over a recording, and keep
+    each of their periodic images inside ``keep`` (module docstring).
+
+    Parameters
+    ----------
+    flow : TracerFlow
+        A flow periodic in x, y and z with period ``box_side`` (a DNS); its positions
+        may come folded into one period.
+    box_side : float
+        The period L, m.
+    frame_rate : float
+        Frames per second, Hz, > 0.
+    frames : int
+        Frames F ≥ 2.
+    particles : int
+        Mean number of tracers inside ``region`` at any frame.
+    region : Box
+        The illuminated volume.
+    keep : Box, optional
+        The particle-frames kept (default ``region``).
+    rng : numpy.random.Generator, int or None
+        The seeds' randomness.
+    snapshot : int
+        The flow's snapshot the recording starts from.
+
+    Returns
+    -------
+    RecordedParticles
+        Particle id i + n·c for image c (a fixed numbering of the shifts k) of seed i of
+        n; ``seeds`` = n.
+    """
+    _check_counts(frame_rate, frames, particles)
+    if not (np.isfinite(box_side) and box_side > 0):
+        raise ValueError(f"box_side must be finite and > 0 m, got {box_side!r}")
+    keep = region if keep is None else keep
+    times = np.arange(frames) / frame_rate
+    seeds = max(1, round(particles * box_side**3 / region.volume))
+    cell = Box((box_side,) * 3, centre=region.centre)
+    x, u, a = flow.follow_snapshot(snapshot, np.random.default_rng(rng), cell, seeds, times)
+    # A periodic flow may hand its positions back folded into one period: unfold them
+    # along time (a tracer moves far less than L/2 in a frame).
+    x = np.unwrap(x, period=box_side, axis=0)
+    centre, half = np.asarray(keep.centre), np.asarray(keep.size) / 2
+    lowest = np.floor((centre - half - x.max(axis=(0, 1))) / box_side).astype(int)
+    highest = np.ceil((centre + half - x.min(axis=(0, 1))) / box_side).astype(int)
+    parts = []
+    for c, shift in enumerate(np.ndindex(*(highest - lowest + 1))):
+        image = x + box_side * (lowest + np.asarray(shift))
+        frame, which = np.nonzero(keep.contains(image))
+        parts.append(
+            (which + seeds * c, frame, image[frame, which], u[frame, which], a[frame, which])
+        )
+    return _recorded(times, parts, seeds)
+
+
+def _recorded(times: np.ndarray, parts: list, seeds: int) -> RecordedParticles:
+    """The recording of parts (particle, frame, position, velocity, acceleration), its
+    rows sorted by particle, then frame."""
+    particle, frame, position, velocity, acceleration = (
         np.concatenate(p) for p in zip(*parts, strict=True)
     )
     order = np.lexsort((frame, particle))
@@ -135,8 +219,19 @@ def follow_recording(
         times=times,
         particle=particle[order],
         frame=frame[order],
-        position=x[order],
+        position=position[order],
         velocity=velocity[order],
         acceleration=acceleration[order],
         seeds=seeds,
     )
+
+
+def _check_counts(frame_rate: float, frames: int, particles: int) -> None:
+    """ValueError unless the frame rate is > 0 and the frames (≥ 2) and particles (≥ 1)
+    are integers."""
+    if not (np.isfinite(frame_rate) and frame_rate > 0):
+        raise ValueError(f"frame_rate must be finite and > 0 Hz, got {frame_rate!r}")
+    if not isinstance(frames, int) or frames < 2:
+        raise ValueError(f"frames must be an integer >= 2, got {frames!r}")
+    if not isinstance(particles, int) or particles < 1:
+        raise ValueError(f"particles must be an integer >= 1, got {particles!r}")

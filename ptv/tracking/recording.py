@@ -9,7 +9,8 @@ frames n = first … last, τ = 1 / frame rate apart. :func:`run_recording`
 2. links them frame to frame into tracks (:func:`ptv.tracking.linking.track_frames`): the first
    link of a track within r = max_speed·τ + 5σ_b (the double-frame link radius at
    Δt = τ), a longer track within r_p = max_acceleration·τ² + 5√6·σ_b of its
-   constant-velocity prediction (:func:`track_radii`), a track missing from up to
+   constant-velocity prediction (:func:`track_radii`; the acceleration term no more
+   than 2·max_speed·τ), a track missing from up to
    ``track_gap`` frames (a particle not detected or not matched there) continued across
    the gap, s frames ahead within max_acceleration·τ²·s(s + 1)/2 + 5√6·σ_b·√((s² + s +
    1)/3) (:func:`ptv.tracking.linking.predicted_radii`), each candidate weighed by
@@ -153,13 +154,18 @@ def track_radii(frame_rate: float, settings: PipelineSettings) -> tuple[float, f
     -------
     (float, float, float)
         The first link's r = max_speed·τ + 5σ_b, the constant-velocity prediction's
-        r_p = max_acceleration·τ² + 5√6·σ_b one frame ahead, and the part 5√6·σ_b of it
-        from the noise, τ = 1 / frame_rate (module docstring).
+        r_p = min(max_acceleration·τ², 2·max_speed·τ) + 5√6·σ_b one frame ahead, and
+        the part 5√6·σ_b of it from the noise, τ = 1 / frame_rate (module docstring).
+        The prediction X_f + (X_f − X_{f−1}) misses by τ times the change of the
+        velocity over one frame, which is at most 2·max_speed: in a slow flow at a low
+        frame rate the acceleration bound can ask more than that (100 m/s² over 30 ms
+        is 90 mm), and then the speed bounds the radius.
     """
     tau = 1.0 / frame_rate
     noise = 5 * np.sqrt(6) * settings.position_noise
-    predicted = settings.max_acceleration * tau**2 + noise
-    return link_radius(tau, settings), float(predicted), float(noise)
+    reach = link_radius(tau, settings)
+    change = min(settings.max_acceleration * tau**2, 2 * settings.max_speed * tau)
+    return reach, float(change + noise), float(noise)
 
 
 @dataclass(frozen=True, eq=False)

@@ -160,11 +160,12 @@ def test_an_integer_is_accepted_for_a_float_field(tmp_path):
         ("[recording]\ntau_tau_eta = 0.1\nfit_window = 3\n", "recording.fit_window"),
         ("[recording]\ntau_tau_eta = 0.1\nframes = 100_000\n", "recording.frames: 2000 tracers"),
         ("[recording]\ntau_tau_eta = 0.1\nrate = 4\n", "unknown field(s) 'rate'"),
+        ("[recording]\ntau_tau_eta = 0.1\nmax_acceleration = 0.0\n", "max_acceleration"),
         (
             '[flow]\nkind = "dns"\nepsilon = 1e-5\ngrid = 64\ndt_tau_eta = [0.1, 0.2]\n'
             "[ptv]\nr_range = [1e-3, 25e-3]\nplateau = [2e-3, 20e-3]\n"
-            "[recording]\ntau_tau_eta = 0.1\n",
-            "[recording] follows a kinematic-simulation flow",
+            "[particles]\nframes = 2\n[recording]\ntau_tau_eta = 0.1\nsequences = 3\n",
+            "particles.frames (2) is the DNS's number of snapshots",
         ),
     ],
 )

@@ -30,9 +30,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from simulator.dns.flow import DnsTracerFlow
 from simulator.particles import KSFlow
 from simulator.presets import FlowPreset
-from simulator.recording import follow_recording
+from simulator.recording import follow_periodic_recording, follow_recording
 from simulator.render.camera_frames import ParticleLighting, record_particles
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig
@@ -176,16 +177,7 @@ def _write_sequence(
     truth = RecordingTruthWriter(folder / "truth.h5", rig.camera_names, chunks)
     if not truth.started():
         folder.mkdir(parents=True, exist_ok=True)
-        if not isinstance(flow.tracers, KSFlow):
-            raise ValueError("a recording follows a kinematic-simulation flow")
-        recorded = follow_recording(
-            flow.tracers,
-            plan.frame_rate,
-            plan.frames,
-            particles=settings.particles,
-            region=rig.sheet,
-            rng=np.random.SeedSequence([settings.seed, 3, s]),
-        )
+        recorded = _follow(flow, plan, settings, rig, s)
         truth.create(recorded, plan.frame_rate, s, truth_header(rig, preset, flow))
     todo = truth.todo()
     for _ in range(len(chunks) - len(todo)):
@@ -198,6 +190,33 @@ def _write_sequence(
     truth.finish()
     description = sequence_description(rig, plan, settings)
     (folder / "experiment.json").write_text(json.dumps(description, indent=2))
+
+
+def _follow(flow: DatasetFlow, plan: RecordingPlan, settings: RenderSettings, rig: Rig, s: int):
+    """The tracers of recording s: kinematic simulation, or a DNS's snapshot s with its
+    periodic images (:mod:`simulator.recording`)."""
+    rng = np.random.SeedSequence([settings.seed, 3, s])
+    if isinstance(flow.tracers, KSFlow):
+        return follow_recording(
+            flow.tracers,
+            plan.frame_rate,
+            plan.frames,
+            particles=settings.particles,
+            region=rig.sheet,
+            rng=rng,
+        )
+    if isinstance(flow.tracers, DnsTracerFlow):
+        return follow_periodic_recording(
+            flow.tracers,
+            flow.tracers.spec.setup().grid.box_side,
+            plan.frame_rate,
+            plan.frames,
+            particles=settings.particles,
+            region=rig.sheet,
+            rng=rng,
+            snapshot=s,
+        )
+    raise ValueError("a recording follows a kinematic simulation or a DNS")
 
 
 def _plates_written(path: Path) -> bool:
@@ -232,7 +251,7 @@ def build_recording_dataset(
     preset : FlowPreset
         The flow's scales (written to the truth).
     flow : DatasetFlow
-        A kinematic-simulation flow.
+        A kinematic-simulation flow, or a DNS's (recording s starts at its snapshot s).
     settings : RenderSettings
         Plate, traverse, tracers in the sheet, lighting, sensor, seed (``frames`` and
         ``shared_first_frame`` are the frame pairs' and not used).

@@ -20,7 +20,7 @@ Stages (folders of ``out``, reused when their inputs are unchanged,
 
 import json
 import logging
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from ptv.calibration.io import load_calibrations
@@ -126,12 +126,17 @@ class RecordingRun:
                 path = calibrations.folder / f"{variant}.h5"
                 cams, described = load_calibrations(path), str(path)
             target.mkdir()
+            settings = run.settings
+            if self.scenario.recording.max_acceleration is not None:
+                settings = replace(
+                    settings, max_acceleration=self.scenario.recording.max_acceleration
+                )
             sequences = []
             for s in range(self.plan.sequences):
                 folder = sequence_folder(dataset.folder, s)
                 detector = ImageDetector(open_dataset(folder), run.detector)
                 result = run_recording(
-                    detector, cams, run.settings, progress=run.bar(f"tracks {variant} {s}")
+                    detector, cams, settings, progress=run.bar(f"tracks {variant} {s}")
                 )
                 out = target / folder.name
                 out.mkdir()

@@ -11,6 +11,7 @@ counts, the steps against the frames, and the memory the recording's truth and t
 will take against the machine's (:func:`recording_memory`).
 """
 
+import math
 import os
 from dataclasses import dataclass
 
@@ -39,7 +40,9 @@ MEMORY_SHARE = 0.5
 class RecordingSection:
     """A time-resolved acquisition (module docstring). ``[particles] count`` is the mean
     number of tracers in the sheet at every frame; its ``frames`` and the flow's Δt set
-    are not used."""
+    are not used (a DNS keeps ``frames`` snapshots, one per recording at least).
+    ``max_acceleration``, m/s², is the largest acceleration the tracker allows for
+    (left out, the PTV stack's default, which suits the fast flows of the paper)."""
 
     frames: int = 200
     sequences: int = 1
@@ -47,6 +50,7 @@ class RecordingSection:
     tau_tau_eta: float | None = None
     steps: tuple[int, ...] = (1, 2, 4, 8)
     fit_window: int | None = None
+    max_acceleration: float | None = None
 
     def rate(self, tau_eta: float) -> float:
         """Frames per second, Hz, for a flow of Kolmogorov time ``tau_eta`` (s)."""
@@ -89,10 +93,16 @@ def check_recording(scenario, source: str, *, memory: float | None = None) -> No
     def fail(message: str):
         raise ScenarioError(f"{source}: recording.{message}")
 
-    if scenario.flow.kind != "ks":
+    if scenario.flow.kind not in ("ks", "dns"):
         raise ScenarioError(
-            f"{source}: [recording] follows a kinematic-simulation flow, not kind "
-            f"{scenario.flow.kind!r} (a recorded DNS is not rendered yet)"
+            f"{source}: [recording] follows a kinematic simulation or a DNS, not kind "
+            f"{scenario.flow.kind!r}"
+        )
+    if scenario.flow.kind == "dns" and scenario.particles.frames < r.sequences:
+        raise ScenarioError(
+            f"{source}: particles.frames ({scenario.particles.frames}) is the DNS's number "
+            f"of snapshots and each recording starts at one: give at least "
+            f"recording.sequences ({r.sequences})"
         )
     if (r.frame_rate is None) == (r.tau_tau_eta is None):
         fail("frame_rate: give the frame rate (Hz) or tau_tau_eta (Kolmogorov times), one")
@@ -103,7 +113,7 @@ def check_recording(scenario, source: str, *, memory: float | None = None) -> No
             f"frame_rate must be from {FRAME_RATE_LIMITS[0]:g} to {FRAME_RATE_LIMITS[1]:g} Hz, "
             f"got {r.frame_rate!r}"
         )
-    tau_eta = scenario.flow.as_preset().parameters.tau_eta
+    tau_eta = _tau_eta(scenario)
     ratio = 1.0 / (r.rate(tau_eta) * tau_eta)
     lo, hi = TAU_TAU_ETA_LIMITS
     if not lo <= ratio <= hi:
@@ -127,6 +137,10 @@ def check_recording(scenario, source: str, *, memory: float | None = None) -> No
         r.fit_window >= MIN_FIT_WINDOW and r.fit_window % 2 == 1 and r.fit_window <= r.frames
     ):
         fail(f"fit_window must be odd, >= {MIN_FIT_WINDOW} and <= frames, got {r.fit_window}")
+    if r.max_acceleration is not None and not (
+        math.isfinite(r.max_acceleration) and r.max_acceleration > 0
+    ):
+        fail(f"max_acceleration must be a finite number > 0 (m/s²), got {r.max_acceleration!r}")
     memory = machine_memory() if memory is None else memory
     need = recording_memory(scenario.particles.count, r.frames)
     if need > MEMORY_SHARE * memory:
@@ -135,3 +149,11 @@ def check_recording(scenario, source: str, *, memory: float | None = None) -> No
             f"{need / 2**30:.3g} GiB, more than half this machine's {memory / 2**30:.3g} GiB: "
             "record fewer frames per sequence and more sequences"
         )
+
+
+def _tau_eta(scenario) -> float:
+    """The flow's Kolmogorov time, s: (ν/ε)^½ (a DNS's u′ is measured later, its τ_η is
+    known from the start)."""
+    if scenario.flow.kind == "dns":
+        return math.sqrt(scenario.flow.nu / scenario.flow.epsilon)
+    return scenario.flow.as_preset().parameters.tau_eta

@@ -59,3 +59,33 @@ def test_tracers_start_on_the_snapshot_and_carry_its_velocity(folder):
     # displacements over Δt agree with the velocity to first order
     d = first.positions[0, 1] - first.positions[0, 0]
     assert np.allclose(d, first.velocity[0, 0] * times[1], atol=0.1 * u_rms * times[1] + 1e-12)
+
+
+def test_a_recording_of_the_dns_keeps_every_trajectory_whole(folder):
+    """A recording (simulator.recording.follow_periodic_recording) of the box's tracers
+    and their periodic images across a sheet two boxes wide: every trajectory is
+    continuous (its second differences are a·τ² to the time step's accuracy, not a fold
+    of the box, L = 25 mm) and its velocity the centred difference of its positions."""
+    from simulator.recording import follow_periodic_recording
+
+    flow = DnsTracerFlow(SPEC, folder / FIELD_FILE, u_rms=0.006)
+    side = SPEC.setup().grid.box_side
+    region = Box((2 * side, 2 * side, 0.004))
+    tau = 0.03  # s, τ_η/10
+    recorded = follow_periodic_recording(
+        flow, side, 1 / tau, 12, particles=100, region=region, rng=2
+    )
+    assert np.all(region.contains(recorded.position))
+    worst, velocity_error, scale = 0.0, 0.0, 0.0
+    for p in np.unique(recorded.particle):
+        rows = recorded.particle == p
+        x, u, a = (v[rows] for v in (recorded.position, recorded.velocity, recorded.acceleration))
+        if len(x) < 3:
+            continue
+        assert np.all(np.diff(recorded.frame[rows]) == 1)
+        worst = max(worst, np.abs(np.diff(x, 2, axis=0) - a[1:-1] * tau**2).max())
+        velocity_error = max(velocity_error, np.abs((x[2:] - x[:-2]) / (2 * tau) - u[1:-1]).max())
+        scale = max(scale, np.abs(u).max())
+    # a·τ² is about 10 µm here and its change over a frame a fraction of it
+    assert worst < 1e-5
+    assert velocity_error < 0.05 * scale
