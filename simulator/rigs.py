@@ -1,8 +1,11 @@
 """Camera rigs described by TOML files: presets ``paper-stereo``, ``conventional``,
-``box-3cam`` and ``box-4cam``.
+``box-3cam``, ``box-4cam``, ``box-4cam-unequal``, ``lpt-challenge`` and
+``lpt-challenge-small``.
 
 A rig file has a ``name``, a ``description``, a ``[sheet]`` table (width, height and
-thickness of the laser sheet, m, centred on the origin with its normal along Z), a
+thickness of the laser sheet, m, centred on the origin with its normal along Z; and its
+light ``profile``: ``"gaussian"``, the default laser sheet of the particle lighting, or
+``"top-hat"``, uniform over the thickness, for a volume lit through its depth), a
 ``[tank]`` table and one ``[[cameras]]`` table per camera. The tank is one of::
 
     kind = "icosahedron"   inradius (m, centre to faces); the default kind
@@ -49,7 +52,10 @@ from simulator.particles import Box
 from simulator.tank import box_tank, sight_face, wall_window
 
 _TOP = {"name": True, "description": False, "sheet": True, "tank": True, "cameras": True}
-_SHEET = {"width": True, "height": True, "thickness": True}
+_SHEET = {"width": True, "height": True, "thickness": True, "profile": False}
+#: Light profiles of a [sheet] (``simulator.render.spot.SHEET_PROFILES``, which the rig
+#: loader does not import: it would bring the renderer along).
+_SHEET_PROFILES = ("gaussian", "top-hat")
 _TANKS = {
     "icosahedron": {"kind": False, "inradius": True},
     "box": {
@@ -147,6 +153,10 @@ class Rig:
         The vessel.
     spec : dict
         The parsed rig description (to save beside a dataset).
+    sheet_profile : str
+        ``"gaussian"`` (the particle lighting's own Gaussian sheet) or ``"top-hat"``
+        (uniform over the sheet's thickness,
+        :func:`simulator.render.camera_frames.rig_lighting`).
     """
 
     name: str
@@ -156,6 +166,7 @@ class Rig:
     sheet: Box
     tank: Tank
     spec: dict
+    sheet_profile: str = "gaussian"
 
 
 #: Camera names become folder and file names: letters, digits, '.', '_' and '-',
@@ -454,6 +465,12 @@ def rig_from_dict(spec: dict, *, source: str = "<rig>") -> Rig:
     _check_fields(spec, _TOP, source)
     s = _check_fields(spec["sheet"], _SHEET, f"{source}: sheet")
     sheet = Box(tuple(_number(s, k, f"{source}: sheet") for k in ("width", "height", "thickness")))
+    profile = s.get("profile", "gaussian")
+    if not isinstance(profile, str) or profile not in _SHEET_PROFILES:
+        raise RigFileError(
+            f"{source}: sheet.profile: expected one of {', '.join(_SHEET_PROFILES)}, "
+            f"got {profile!r}"
+        )
     tank = _tank(spec["tank"], f"{source}: tank")
     check_sheet_in_tank(sheet, tank, f"{source}: sheet")
     cameras_spec = spec["cameras"]
@@ -477,6 +494,7 @@ def rig_from_dict(spec: dict, *, source: str = "<rig>") -> Rig:
         sheet=sheet,
         tank=tank,
         spec=spec,
+        sheet_profile=profile,
     )
 
 

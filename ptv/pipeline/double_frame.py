@@ -56,10 +56,11 @@ from ptv.box import Box, inside_box
 from ptv.camera_model import CameraModel
 from ptv.io.dataset import cameras_in_order
 from ptv.pipeline.frames import FrameDetections
-from ptv.pipeline.options import PipelineSettings, link_radius
+from ptv.pipeline.options import PipelineSettings, link_radius, predicted_radius, radius_at
 from ptv.pipeline.resolve import MeasuredSettings, match_frame, resolve_settings
 from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import PtvStatistics, compute_statistics
+from ptv.tracking.link_prediction import chained_link
 from ptv.tracking.link_speed import nearest_spacing
 from ptv.tracking.linking import RecordingTracks, link
 from ptv.tracking.outliers import median_test_outliers
@@ -121,6 +122,9 @@ class SnapshotMeasurement:
     spacing : float
         Median nearest-neighbour distance of the matched points of frame a, m (nan
         below two points).
+    rows_a : ndarray of int, shape (N,), or None
+        Row of each link's particle among the matched points of frame a (None once
+        :meth:`within` dropped links): what predicts the links of a larger Δt.
     """
 
     k: int
@@ -134,6 +138,7 @@ class SnapshotMeasurement:
     matched: tuple[np.ndarray, np.ndarray] | None = None
     ambiguous: int = 0
     spacing: float = float("nan")
+    rows_a: np.ndarray | None = None
 
     def within(self, box: Box) -> "SnapshotMeasurement":
         """The same measurement keeping only the links whose X(t) lies in ``box``."""
@@ -143,6 +148,7 @@ class SnapshotMeasurement:
             positions=self.positions[keep],
             displacements=self.displacements[keep],
             outlier=self.outlier[keep],
+            rows_a=None,
         )
 
 
@@ -155,6 +161,7 @@ def measure_snapshot(
     *,
     frame_a: tuple[list[int], np.ndarray] | None = None,
     keep_matched: bool = False,
+    previous: "SnapshotMeasurement | None" = None,
 ) -> SnapshotMeasurement:
     """Match frames a and b of snapshot m at Δt_k, then link and test the links.
 
@@ -173,6 +180,12 @@ def measure_snapshot(
         every Δt shares it).
     keep_matched : bool
         Keep the matched points of both frames in the measurement.
+    previous : SnapshotMeasurement, optional
+        The same snapshot measured at a smaller Δt from the same frame a: its links'
+        displacements predict this Δt's, searched within ``settings.predicted_radii[k]``
+        of the prediction (:func:`ptv.tracking.link_prediction.chained_link`); without
+        it, or without that radius, links are searched within max_speed·Δt_k + 5σ_b of
+        X(t).
 
     Returns
     -------
@@ -194,9 +207,16 @@ def measure_snapshot(
         points.append(matched)
     dt = float(frames.dt[k])
     ambiguous = 0
+    rows_a = np.empty(0, dtype=np.int64)
+    predicted = predicted_radius(k, settings)
     if len(points[0]) and len(points[1]):
-        links = link(points[0], points[1], radius=link_radius(dt, settings))
+        if previous is not None and predicted is not None:
+            step = (float(frames.dt[previous.k]), previous.rows_a, previous.displacements)
+            links = chained_link(points[0], points[1], dt, step, radius=predicted)
+        else:
+            links = link(points[0], points[1], radius=link_radius(dt, settings))
         positions, displacements, ambiguous = links.positions, links.displacements, links.ambiguous
+        rows_a = links.index_a
     else:
         positions = displacements = np.empty((0, 3))
     if settings.outlier_threshold is None:
@@ -221,6 +241,7 @@ def measure_snapshot(
         matched=(points[0], points[1]) if keep_matched else None,
         ambiguous=ambiguous,
         spacing=nearest_spacing(points[0]),
+        rows_a=rows_a,
     )
 
 
@@ -257,21 +278,37 @@ def measure_snapshots(
         Per Δt, the snapshots measured in the order given.
     """
     out: list[list[SnapshotMeasurement]] = [[] for _ in frames.dt]
+    shared = frames.shared_first_frame
+    # With a shared first frame the Δt are measured from the smallest up, each predicted
+    # from the last one linked; otherwise in the dataset's order, each on its own.
+    order = np.argsort(frames.dt, kind="stable") if shared else range(len(frames.dt))
     for m in snapshots:
         frame_a = None  # with a shared first frame, matched once for every k
-        for k in range(len(frames.dt)):
+        previous = None
+        measured = {}
+        for k in order:
+            k = int(k)
             if m >= settings.snapshot_count(frames.frames[k]):
                 continue
-            if frames.shared_first_frame and frame_a is None:
+            if shared and frame_a is None:
                 xy = frames.detections(k, m, "a")
                 frame_a = ([len(v) for v in xy], match_frame(xy, cameras, settings))
-            out[k].append(
-                measure_snapshot(
-                    frames, k, m, cameras, settings, frame_a=frame_a, keep_matched=keep_matched
-                )
+            measured[k] = measure_snapshot(
+                frames,
+                k,
+                m,
+                cameras,
+                settings,
+                frame_a=frame_a,
+                keep_matched=keep_matched,
+                previous=previous,
             )
+            if shared:
+                previous = measured[k]
             if tick is not None:
                 tick()
+        for k, measurement in sorted(measured.items()):
+            out[k].append(measurement)
     return out
 
 
@@ -334,7 +371,7 @@ def run_particles(
                 k,
                 dt,
                 res.m,
-                link_radius(dt, settings) * 1e3,
+                radius_at(k, dt, settings) * 1e3,
             )
         else:
             kept.append(res)
@@ -393,7 +430,7 @@ def ambiguity_message(
     )
     return (
         f"Δt_{run.k} = {run.dt:.4g} s: {100 * run.ambiguity:.0f} % of the links had a second "
-        f"candidate within the link radius ({link_radius(run.dt, settings) * 1e3:.3g} mm; "
+        f"candidate within the link radius ({radius_at(run.k, run.dt, settings) * 1e3:.3g} mm; "
         f"particle spacing {spacing * 1e3:.3g} mm): linking is ambiguous; {advice}"
     )
 

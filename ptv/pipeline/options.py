@@ -2,6 +2,7 @@
 volume and tolerance, linking, the median test, the snapshots processed, the statistics;
 and the link radius they give."""
 
+import math
 from dataclasses import dataclass, field
 
 from ptv._checks import positive
@@ -9,7 +10,14 @@ from ptv.box import Box, check_box
 from ptv.stats.run_statistics import StatisticsSettings
 from ptv.tracking.linking import search_radius
 
-__all__ = ["MEASUREMENT_VOLUME", "PipelineSettings", "default_min_cameras", "link_radius"]
+__all__ = [
+    "MEASUREMENT_VOLUME",
+    "PipelineSettings",
+    "default_min_cameras",
+    "link_radius",
+    "predicted_radius",
+    "radius_at",
+]
 
 #: The 100 × 100 × 10 mm laser sheet plus a 1 mm margin, m: the default matching volume.
 MEASUREMENT_VOLUME: Box = ((-0.051, -0.051, -0.006), (0.051, 0.051, 0.006))
@@ -35,6 +43,12 @@ class PipelineSettings:
     position_noise : float
         Expected position noise σ_b (one component), m: adds 5σ_b to the link radius
         (default 30 µm).
+    predicted_radii : tuple of float or None
+        With a shared first frame, the radius (m) around each particle's prediction at
+        every Δt but the smallest, in the dataset's Δt order (NaN for the smallest): the
+        link at a larger Δt is searched around X(t) + ΔX_j·Δt/Δt_j of the particle's link
+        at the next smaller Δt_j (:mod:`ptv.tracking.link_prediction`). Default None:
+        measured on the data (:func:`ptv.pipeline.resolve.resolve_settings`).
     max_acceleration : float
         Largest particle acceleration expected, m/s²: sets the radius around a track's
         constant-velocity prediction in a time-resolved recording
@@ -60,6 +74,7 @@ class PipelineSettings:
     min_cameras: int | None = None
     max_speed: float | None = None
     position_noise: float = 30e-6
+    predicted_radii: tuple[float, ...] | None = None
     max_acceleration: float = 100.0
     track_gap: int = 3
     outlier_threshold: float | None = 4.0
@@ -76,6 +91,13 @@ class PipelineSettings:
             object.__setattr__(
                 self, "outlier_threshold", positive("outlier_threshold", self.outlier_threshold)
             )
+        if self.predicted_radii is not None:
+            radii = tuple(float(r) for r in self.predicted_radii)
+            if not all(r > 0 or math.isnan(r) for r in radii):
+                raise ValueError(
+                    f"predicted_radii must be > 0 (m; NaN at the smallest Δt), got {radii}"
+                )
+            object.__setattr__(self, "predicted_radii", radii)
         if self.min_cameras is not None and (
             isinstance(self.min_cameras, bool)
             or not isinstance(self.min_cameras, int)
@@ -134,3 +156,20 @@ def link_radius(dt: float, settings: PipelineSettings) -> float:
     return search_radius(
         dt, u_rms=settings.max_speed, sigma_b=settings.position_noise, k_v=1.0, k_b=5.0
     )
+
+
+def predicted_radius(k: int, settings: PipelineSettings) -> float | None:
+    """The radius around the predicted links at Δt_k (None where Δt_k is linked around
+    X(t): the smallest Δt, or settings without predicted radii), m."""
+    radii = settings.predicted_radii
+    if radii is None or k >= len(radii) or math.isnan(radii[k]):
+        return None
+    return radii[k]
+
+
+def radius_at(k: int, dt: float, settings: PipelineSettings) -> float:
+    """The radius the links of Δt_k are searched within, m: around their prediction
+    (:func:`predicted_radius`) where the settings have one, else around X(t)
+    (:func:`link_radius`)."""
+    predicted = predicted_radius(k, settings)
+    return link_radius(dt, settings) if predicted is None else predicted

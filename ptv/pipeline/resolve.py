@@ -1,8 +1,10 @@
 """The settings of the double-frame PTV that follow the rig and the data, resolved
 before the snapshots are measured: the fewest cameras per match (from the camera
-count), the matching tolerance (:mod:`ptv.matching.tolerance`) and the largest particle
-speed (:mod:`ptv.tracking.link_speed`), each as the settings give it or derived; and
-:func:`match_frame`, which matches one frame with them."""
+count), the matching tolerance (:mod:`ptv.matching.tolerance`), the largest particle
+speed (:mod:`ptv.tracking.link_speed`) and, with a shared first frame, the radius
+around each larger Δt's predicted links (:mod:`ptv.tracking.link_prediction`), each as
+the settings give it or derived; and :func:`match_frame`, which matches one frame with
+them."""
 
 import logging
 from collections.abc import Sequence
@@ -14,7 +16,8 @@ from ptv.camera_model import CameraModel
 from ptv.matching.stereo import match
 from ptv.matching.tolerance import MatchTolerance, match_tolerance
 from ptv.pipeline.frames import FrameDetections
-from ptv.pipeline.options import PipelineSettings, default_min_cameras
+from ptv.pipeline.options import PipelineSettings, default_min_cameras, link_radius
+from ptv.tracking.link_prediction import LinkPrediction, measure_prediction
 from ptv.tracking.link_speed import LinkSpeed, link_speed
 
 __all__ = [
@@ -43,10 +46,14 @@ class MeasuredSettings:
         How the matching tolerance was measured (None when the settings gave it).
     link_speed : LinkSpeed or None
         How max_speed was measured (None when the settings gave it).
+    link_prediction : LinkPrediction or None
+        How the radii around the predicted links were measured (None when the settings
+        gave them, or without a shared first frame).
     """
 
     tolerance: MatchTolerance | None = None
     link_speed: LinkSpeed | None = None
+    link_prediction: LinkPrediction | None = None
 
 
 def resolve_matching(
@@ -112,7 +119,11 @@ def resolve_settings(
     min_cameras and the tolerance come from :func:`resolve_matching`. When
     ``settings.max_speed`` is None, the first :data:`LINK_SPEED_SNAPSHOTS` snapshots of
     the smallest Δt with matched particles in both frames are matched and their links
-    measure it (:func:`ptv.tracking.link_speed.link_speed`).
+    measure it (:func:`ptv.tracking.link_speed.link_speed`). When every Δt shares frame
+    a and ``settings.predicted_radii`` is None, the first such snapshots with matched
+    particles in every frame measure how far each larger Δt's links miss their
+    prediction from the next smaller Δt
+    (:func:`ptv.tracking.link_prediction.measure_prediction`).
 
     Parameters
     ----------
@@ -121,22 +132,38 @@ def resolve_settings(
     cameras : sequence of CameraModel
         Calibrations in the order of ``frames.cameras``.
     settings : PipelineSettings
-        Options; min_cameras, tolerance and max_speed None to derive them.
+        Options; min_cameras, tolerance, max_speed and predicted_radii None to derive
+        them.
 
     Returns
     -------
     (PipelineSettings, MeasuredSettings)
-        The settings with all three set, and what was measured.
+        The settings with all of them set (predicted_radii only with a shared first
+        frame), and what was measured.
 
     Raises
     ------
     ValueError
         No particle matched at the tolerance's floor; no snapshot of the smallest Δt with
-        matched particles in both frames, or too few links in them to measure a speed.
+        matched particles in both frames, or too few links in them to measure a speed;
+        too few predicted links to measure their misses.
     """
     settings, tolerance = resolve_matching(frames, cameras, settings)
-    if settings.max_speed is not None:
-        return settings, MeasuredSettings(tolerance=tolerance)
+    speed = None
+    if settings.max_speed is None:
+        settings, speed = _with_measured_speed(frames, cameras, settings)
+    prediction = None
+    if frames.shared_first_frame and len(frames.dt) > 1 and settings.predicted_radii is None:
+        settings, prediction = _with_prediction_radii(frames, cameras, settings)
+    return settings, MeasuredSettings(
+        tolerance=tolerance, link_speed=speed, link_prediction=prediction
+    )
+
+
+def _with_measured_speed(
+    frames: FrameDetections, cameras: Sequence[CameraModel], settings: PipelineSettings
+) -> tuple[PipelineSettings, LinkSpeed]:
+    """max_speed measured on the first snapshots of the smallest Δt (resolve_settings)."""
     k = int(np.argmin(frames.dt))
     pairs = []
     for m in range(settings.snapshot_count(frames.frames[k])):
@@ -151,8 +178,37 @@ def resolve_settings(
             "frames: nothing to link (check the images, the detection settings and that the "
             "calibration is of this rig)"
         )
-    settings, speed = settings_with_measured_speed(settings, pairs, k, float(frames.dt[k]))
-    return settings, MeasuredSettings(tolerance=tolerance, link_speed=speed)
+    return settings_with_measured_speed(settings, pairs, k, float(frames.dt[k]))
+
+
+def _with_prediction_radii(
+    frames: FrameDetections, cameras: Sequence[CameraModel], settings: PipelineSettings
+) -> tuple[PipelineSettings, LinkPrediction]:
+    """The radii around the predicted links of every larger Δt, measured on the first
+    :data:`LINK_SPEED_SNAPSHOTS` snapshots with matched points in every frame."""
+    dt = np.asarray(frames.dt, dtype=float)
+    count = min(settings.snapshot_count(n) for n in frames.frames)
+    snapshots = []
+    for m in range(count):
+        a = match_frame(frames.detections(0, m, "a"), cameras, settings)
+        b = [match_frame(frames.detections(k, m, "b"), cameras, settings) for k in range(len(dt))]
+        if len(a) >= 2 and all(len(p) for p in b):
+            snapshots.append((a, b))
+        if len(snapshots) == LINK_SPEED_SNAPSHOTS:
+            break
+    if not snapshots:
+        raise ValueError(
+            "no snapshot has matched particles in frame a and in frame b of every Δt: "
+            "nothing to measure the predicted links on"
+        )
+    first = int(np.argmin(dt))
+    prediction = measure_prediction(
+        snapshots,
+        dt,
+        first_radius=link_radius(float(dt[first]), settings),
+        search_radius=lambda step: link_radius(step, settings),
+    )
+    return replace(settings, predicted_radii=tuple(prediction.radii.tolist())), prediction
 
 
 def settings_with_measured_speed(

@@ -78,7 +78,7 @@ import h5py
 import numpy as np
 
 from ptv.pipeline.double_frame import MatchedPoints, PtvResult, ambiguity_message
-from ptv.pipeline.options import link_radius
+from ptv.pipeline.options import radius_at
 from ptv.pipeline.track_csv import temporary_path
 from ptv.stats.dissipation import Plateau
 from ptv.stats.links import RunParticles
@@ -141,6 +141,7 @@ def _settings_dict(result: PtvResult) -> dict:
         "min_cameras": s.min_cameras,
         "max_speed": s.max_speed,
         "position_noise": s.position_noise,
+        "predicted_radii": None if s.predicted_radii is None else _list(s.predicted_radii),
         "max_acceleration": s.max_acceleration,
         "analysis_volume": [list(v) for v in st.analysis_volume],
         "r_min": st.r_min,
@@ -265,6 +266,7 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
         "counts": counts,
         "match_tolerance": _measured(result.measured.tolerance),
         "link_speed": _measured(result.measured.link_speed),
+        "link_prediction": _measured(result.measured.link_prediction),
         # An image detector (ImageDetector) first: what it found wrong with the images
         # explains the thin data after it.
         "warnings": list(getattr(result.source, "warnings", ()))
@@ -326,6 +328,7 @@ def statistics_summary(st: PtvStatistics) -> dict:
         entry = {"dt": [float(v) for v in st.dt[sub.used]], "plateau": _plateau_dict(sub.plateau)}
         if sub.plateau is not None and np.isfinite(eps_all):
             entry["epsilon_ratio_to_all"] = _num(sub.plateau.epsilon / eps_all)
+            entry["se_epsilon_ratio_to_all"] = _paired_ratio_se(sub.plateau, st.plateau)
         subsets[name] = entry
     sf = st.structure
     noise = sf.noise[sf.fitted]
@@ -340,6 +343,7 @@ def statistics_summary(st: PtvStatistics) -> dict:
             "se": _num(up.se),
             "per_component": _list(up.per_component),
             "n_cells": up.n_cells,
+            "se_snapshots": _num(up.se_snapshots),
         },
         "epsilon": {
             "plateau": _plateau_dict(st.plateau),
@@ -372,13 +376,43 @@ def statistics_summary(st: PtvStatistics) -> dict:
             "fitted": [bool(v) for v in sf.fitted],
             "method": sf.method,
         },
+        "bootstrap": _bootstrap_dict(st),
+    }
+
+
+def _paired_ratio_se(part: Plateau, whole: Plateau | None) -> float | None:
+    """Standard error of one plateau ε over another refitted on the same bootstrap
+    replicates (None without replicates)."""
+    if whole is None or part.replicates is None or whole.replicates is None:
+        return None
+    return _num(np.std(part.replicates / whole.replicates, ddof=1))
+
+
+def _bootstrap_dict(st: PtvStatistics) -> dict | None:
+    """The bootstrap every estimate shares (:class:`ptv.stats.resampling.SnapshotBootstrap`):
+    how it drew the snapshots, and the replicates of the plateau ε and of u′, which pair
+    with those of another measurement of the same snapshots (None: errors from the pairs)."""
+    boot = st.bootstrap
+    if boot is None:
+        return None
+    eps, up = (getattr(v, "replicates", None) for v in (st.plateau, st.u_prime))
+    return {
+        "replicates": boot.replicates,
+        "seed": boot.seed,
+        "block": boot.block,
+        "correlation": boot.correlation.as_dict(),
+        "snapshot_ids": [[int(m) for m in ids] for ids in boot.snapshot_ids],
+        "epsilon_plateau": None if eps is None else _list(eps),
+        "u_prime": None if up is None else _list(up),
     }
 
 
 def _link_radius(run: RunParticles, result: PtvResult) -> float | None:
     """The link radius of a run, m (None for links not made by distance, as the exact
     trajectories' of a simulation)."""
-    return None if result.settings.max_speed is None else link_radius(run.dt, result.settings)
+    if result.settings.max_speed is None:
+        return None
+    return radius_at(run.k, run.dt, result.settings)
 
 
 def _run_counts(run: RunParticles, result: PtvResult) -> dict:

@@ -9,7 +9,7 @@ Sections and the dataclass fields they fill (SI units: m, s, m/s, m/s²)::
                    outlier_threshold, outlier_neighbours
     [statistics]   StatisticsSettings: analysis_volume, r_min, r_max, n_bins, binning, plateau,
                    plateau_method, kolmogorov_c2, n_boot, eulerian_cells,
-                   min_cell_count, trajectory_threshold, seed
+                   min_cell_count, trajectory_threshold, snapshot_block, seed
     [run]          PipelineSettings: snapshots
     [tracks]       TrackFitSettings: fit_window, min_points (``--tracks`` only)
 
@@ -17,7 +17,8 @@ A missing section or field keeps its default. Boxes are ``[[x0, y0, z0], [x1, y1
 (lower and upper corners). TOML has no null: a field whose default is "none"
 (``saturation``: the image type's maximum; ``diameter``: spots of about 3 px;
 ``snapshots``: all; ``max_speed``: measured on the data; ``min_cameras``: from the
-camera count; ``fit_window``: chosen from the data) is left out for that default, and
+camera count; ``fit_window``: chosen from the data; ``snapshot_block``: from the
+correlation of successive snapshots) is left out for that default, and
 ``outlier_threshold`` or ``trajectory_threshold`` = false turns that test off. Unknown
 sections or fields, wrong types and values the settings refuse are
 :class:`SettingsError` naming the file, the section and the field.
@@ -68,6 +69,7 @@ _NONE_WHEN_ABSENT = (
     "max_speed",
     "min_cameras",
     "fit_window",
+    "snapshot_block",
 )
 #: Units and meaning written beside each field by :func:`settings_toml`.
 _COMMENTS = {
@@ -105,6 +107,8 @@ _COMMENTS = {
     "eulerian_cells": "cells of the mean-flow grid over the analysis volume",
     "min_cell_count": "displacements a cell needs at every Δt",
     "trajectory_threshold": "trajectory test, times the median residual (false: off)",
+    "snapshot_block": "consecutive snapshots the bootstrap draws together (left out: from the "
+    "correlation of successive snapshots, 1 for independent ones)",
     "seed": "seed of the bootstrap",
     "snapshots": "process only the first N snapshots per Δt (left out: all)",
     "fit_window": "points per track fit, odd, >= 5, for --tracks (left out: chosen from the "

@@ -201,6 +201,10 @@ class Plateau:
         Separation of the maximum, m (NaN for "mean").
     epsilon_paper_caption : float
         The same plateau of the uncorrected S2^{3/2}/r, m²/s³ (= C2^{3/2}·epsilon).
+    replicates : ndarray, shape (R,), or None
+        The plateau ε of each bootstrap replicate of the profile, m²/s³ (None without
+        them, or where one is not finite): what pairs this plateau with another
+        measurement's of the same snapshots.
     """
 
     epsilon: float
@@ -211,6 +215,7 @@ class Plateau:
     n_bins: int
     r_at_max: float
     epsilon_paper_caption: float
+    replicates: np.ndarray | None = None
 
 
 def plateau_epsilon(
@@ -256,6 +261,7 @@ def plateau_epsilon(
         value, value_caption = float(eps[i]), float(caption[i])
         r_at = float(r[inside][i])
         se = float(profile.se_epsilon[inside][i])
+    reps = None
     if profile.epsilon_boot is not None:
         boot = profile.epsilon_boot[:, inside]
         if np.all(np.isfinite(boot)):
@@ -272,6 +278,7 @@ def plateau_epsilon(
         n_bins=n,
         r_at_max=r_at,
         epsilon_paper_caption=value_caption,
+        replicates=reps,
     )
 
 

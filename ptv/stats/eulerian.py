@@ -28,13 +28,16 @@ import numpy as np
 from ptv.stats.multidt import fit_multi_dt, select_dt, wls_line
 
 __all__ = [
+    "CellSums",
     "EulerianFit",
     "EulerianMoments",
     "Grid",
     "UPrime",
+    "cell_sums",
     "eulerian_fit",
     "eulerian_moments",
     "u_prime",
+    "u_prime_replicates",
 ]
 
 logger = logging.getLogger(__name__)
@@ -309,18 +312,30 @@ class UPrime:
     value : float
         u′ = sqrt(mean over cells and the chosen components of the variance), m/s.
     se : float
-        Standard error from the per-cell errors taken as independent, m/s.
+        Standard error from the per-cell errors taken as independent, m/s (a lower
+        bound: particles of one snapshot see the same eddies).
     per_component : ndarray, shape (3,)
         sqrt of the spatially averaged variance of each component, m/s (NaN where the
         average is negative).
     n_cells : int
         Cells averaged.
+    replicates : ndarray, shape (R,), or None
+        u′ of each bootstrap replicate over snapshots (:func:`u_prime_replicates`), m/s;
+        their spread is the error that knows the snapshots are the independent units.
     """
 
     value: float
     se: float
     per_component: np.ndarray
     n_cells: int
+    replicates: np.ndarray | None = None
+
+    @property
+    def se_snapshots(self) -> float:
+        """Standard error from the bootstrap over snapshots, m/s (NaN without it)."""
+        if self.replicates is None or not np.isfinite(self.replicates).all():
+            return float("nan")
+        return float(np.std(self.replicates, ddof=1))
 
 
 def u_prime(fit: EulerianFit, *, components: Sequence[int] = (0, 1, 2)) -> UPrime:
@@ -349,3 +364,102 @@ def u_prime(fit: EulerianFit, *, components: Sequence[int] = (0, 1, 2)) -> UPrim
     se_v = float(np.sqrt(np.sum(se[:, comps] ** 2)) / se[:, comps].size)
     value = float(np.sqrt(v)) if v > 0 else float("nan")
     return UPrime(value=value, se=se_v / (2 * value), per_component=per_component, n_cells=n)
+
+
+@dataclass(frozen=True)
+class CellSums:
+    """Sums of the displacements of each snapshot per cell at one Δt.
+
+    Attributes
+    ----------
+    count : ndarray of int64, shape (M, G)
+        Displacements of snapshot m in cell g.
+    first : ndarray, shape (M, G, 3)
+        Σ ΔX per component, m.
+    second : ndarray, shape (M, G, 3)
+        Σ ΔX² per component, m².
+    """
+
+    count: np.ndarray
+    first: np.ndarray
+    second: np.ndarray
+
+
+def cell_sums(snapshots: Sequence[tuple[np.ndarray, np.ndarray]], grid: Grid) -> CellSums:
+    """:class:`CellSums` of the (positions, displacements) of each snapshot, shapes
+    (N_m, 3) in m; points outside the grid are left out."""
+    g = grid.n_cells
+    m = len(snapshots)
+    count = np.zeros((m, g), dtype=np.int64)
+    first, second = np.zeros((m, g, 3)), np.zeros((m, g, 3))
+    for i, (x, d) in enumerate(snapshots):
+        if len(x) == 0:
+            continue
+        cell = grid.index(np.asarray(x, dtype=np.float64))
+        keep = cell >= 0
+        cell, d = cell[keep], np.asarray(d, dtype=np.float64)[keep]
+        count[i] = np.bincount(cell, minlength=g)
+        for c in range(3):
+            first[i, :, c] = np.bincount(cell, d[:, c], minlength=g)
+            second[i, :, c] = np.bincount(cell, d[:, c] ** 2, minlength=g)
+    return CellSums(count, first, second)
+
+
+def u_prime_replicates(
+    sums: Sequence[CellSums],
+    weights: Sequence[np.ndarray],
+    moments: EulerianMoments,
+    fit: EulerianFit,
+    *,
+    components: Sequence[int] = (0, 1, 2),
+) -> np.ndarray:
+    """u′ of each bootstrap replicate over snapshots, fitted as :func:`u_prime` fits it.
+
+    Each replicate weighs every snapshot's cell sums by how often it was drawn, forms the
+    cell variances about the cell means (n − 1 in the denominator, as
+    :func:`eulerian_moments`), and fits their slope in Δt² with the weights of the
+    point estimate (1/se_var² of ``moments``), over the cells ``fit`` found valid.
+
+    Parameters
+    ----------
+    sums : sequence of K CellSums
+        Per Δt, the sums of its snapshots.
+    weights : sequence of K ndarray, shape (R, M_k)
+        How often each of those snapshots is drawn in each replicate.
+    moments : EulerianMoments
+        The point estimate's moments (their se_var weigh the fit).
+    fit : EulerianFit
+        The point estimate's fit (its valid cells).
+    components : sequence of int
+        As :func:`u_prime`.
+
+    Returns
+    -------
+    ndarray, shape (R,)
+        m/s; NaN in a replicate whose mean variance is not positive.
+    """
+    if len(sums) != len(weights) or len(sums) != moments.dt.size:
+        raise ValueError(
+            f"need cell sums and weights per Δt ({moments.dt.size}), got {len(sums)} and "
+            f"{len(weights)}"
+        )
+    ok = fit.valid
+    comps = np.asarray(components)
+    variances = []
+    for s, w in zip(sums, weights, strict=True):
+        w = np.asarray(w, dtype=np.float64)
+        n = np.einsum("rm,mg->rg", w, s.count.astype(np.float64))[:, ok, None]
+        s1 = np.einsum("rm,mgc->rgc", w, s.first)[:, ok][..., comps]
+        s2 = np.einsum("rm,mgc->rgc", w, s.second)[:, ok][..., comps]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            variances.append((s2 - s1**2 / n) / (n - 1))
+    var = np.stack(variances, axis=-1)  # (R, G_ok, C, K)
+    x = moments.dt**2
+    with np.errstate(divide="ignore"):
+        w_fit = 1.0 / np.moveaxis(moments.se_var[ok][..., comps], 1, 2) ** 2  # (G_ok, C, K)
+    xbar = np.sum(w_fit * x, axis=-1, keepdims=True) / np.sum(w_fit, axis=-1, keepdims=True)
+    a1 = w_fit * (x - xbar)
+    a1 /= np.sum(a1 * (x - xbar), axis=-1, keepdims=True)
+    slope = np.einsum("rgck,gck->r", var, a1) / a1[..., 0].size
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(np.where(slope > 0, slope, np.nan))

@@ -6,7 +6,7 @@ between frames a and b, a calibration that differs between frames).
 """
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.stats import chi2 as chi2_distribution
@@ -16,7 +16,15 @@ from ptv.stats.links import RunParticles
 from ptv.stats.multidt import LineFit, wls_line
 from ptv.stats.snapshots import cluster_mean
 
-__all__ = ["MeanDisplacement", "mean_displacement", "shared_mean_displacement"]
+__all__ = [
+    "OFFSET_FALSE_ALARM",
+    "MeanDisplacement",
+    "mean_displacement",
+    "shared_mean_displacement",
+]
+
+#: The offset test's false alarms: how often β0 = 0 is rejected when it holds.
+OFFSET_FALSE_ALARM = 0.001
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,7 +73,20 @@ class MeanDisplacement:
         chi2 = np.nan_to_num(self.fit.chi2_dof, nan=1.0)
         return self.fit.se_c2 * np.sqrt(np.maximum(chi2, 1.0))
 
-    def offset_test(self, false_alarm: float = 0.01) -> tuple[float, float]:
+    def with_correlated_snapshots(self, tau: float) -> "MeanDisplacement":
+        """The same line with the covariance of the shared means scaled for snapshots
+        whose integrated autocorrelation time is ``tau`` (≥ 1, in snapshots): the variance
+        of a mean of correlated snapshots is τ times that of independent ones, and the
+        covariance is worth M/τ snapshots (:mod:`ptv.stats.resampling`)."""
+        if self.offset_covariance is None or tau <= 1.0:
+            return self
+        return replace(
+            self,
+            offset_covariance=self.offset_covariance * tau,
+            snapshots=max(4, int(self.snapshots / tau)),
+        )
+
+    def offset_test(self, false_alarm: float = OFFSET_FALSE_ALARM) -> tuple[float, float]:
         """β0ᵀ C⁻¹ β0 and the limit it stays below when β0 = 0, but for ``false_alarm``.
 
         C is ``offset_covariance`` when the K means share their particles: estimated

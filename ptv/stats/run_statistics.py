@@ -25,7 +25,7 @@ docs/statistics.md §2):
 
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -38,7 +38,16 @@ from ptv.stats.dissipation import (
     dissipation_profile,
     plateau_epsilon,
 )
-from ptv.stats.eulerian import EulerianFit, Grid, UPrime, eulerian_fit, eulerian_moments, u_prime
+from ptv.stats.eulerian import (
+    EulerianFit,
+    Grid,
+    UPrime,
+    cell_sums,
+    eulerian_fit,
+    eulerian_moments,
+    u_prime,
+    u_prime_replicates,
+)
 from ptv.stats.links import RunParticles, shared_snapshots
 from ptv.stats.mean_displacement import (
     MeanDisplacement,
@@ -47,6 +56,7 @@ from ptv.stats.mean_displacement import (
 )
 from ptv.stats.multidt import dt_subsets
 from ptv.stats.pairs import BINNINGS, LogBins
+from ptv.stats.resampling import SnapshotBootstrap, block_length
 from ptv.stats.snapshots import SnapshotSums
 from ptv.stats.structure import (
     StructureFunction,
@@ -104,6 +114,11 @@ class StatisticsSettings:
         from a smooth path in Δt by more than this many times the median residual of
         all particles (:func:`ptv.tracking.linking.trajectory_residuals`) are mislinked at some
         Δt and left out of S2 (default 5; None keeps them).
+    snapshot_block : int or None
+        Consecutive snapshots the bootstrap draws together: None (default) to follow
+        the correlation of successive snapshots measured on the data
+        (:func:`ptv.stats.resampling.block_length`: 1 for independent snapshots), or a
+        given block length ≥ 1.
     seed : int
         Seed of the bootstrap.
     """
@@ -120,6 +135,7 @@ class StatisticsSettings:
     eulerian_cells: tuple[int, int, int] = (4, 4, 1)
     min_cell_count: int = 10
     trajectory_threshold: float | None = 5.0
+    snapshot_block: int | None = None
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -142,6 +158,11 @@ class StatisticsSettings:
         Grid((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), self.eulerian_cells)  # validates the shape
         if not isinstance(self.min_cell_count, int) or self.min_cell_count < 3:
             raise ValueError(f"min_cell_count must be an integer >= 3, got {self.min_cell_count!r}")
+        block = self.snapshot_block
+        if block is not None and (
+            not isinstance(block, int) or isinstance(block, bool) or block < 1
+        ):
+            raise ValueError(f"snapshot_block must be None or an integer >= 1, got {block!r}")
         if self.trajectory_threshold is not None:
             object.__setattr__(
                 self,
@@ -245,6 +266,8 @@ class PtvStatistics:
         Snapshots per Δt used.
     population : S2Population or None
         The particles of S2 with a shared first frame (None: each run's own links).
+    bootstrap : SnapshotBootstrap or None
+        The replicates every estimate was refitted on (None with ``errors`` "pairs").
     """
 
     dt_index: np.ndarray
@@ -262,6 +285,7 @@ class PtvStatistics:
     errors: str
     n_snapshots: np.ndarray
     population: S2Population | None = None
+    bootstrap: SnapshotBootstrap | None = None
 
 
 def _plateau(
@@ -280,8 +304,14 @@ def _plateau(
         return None
 
 
-def _eulerian(runs: Sequence[RunParticles], dt: np.ndarray, settings: StatisticsSettings):
-    """Grid, per-cell fit, u′ (or None) and σ_b per component (NaN where not measurable)."""
+def _eulerian(
+    runs: Sequence[RunParticles],
+    dt: np.ndarray,
+    settings: StatisticsSettings,
+    bootstrap: SnapshotBootstrap | None,
+):
+    """Grid, per-cell fit, u′ (or None; with its bootstrap replicates when ``bootstrap``
+    is given) and σ_b per component (NaN where not measurable)."""
     x, d = [], []
     for run in runs:
         sel = run.used
@@ -289,7 +319,8 @@ def _eulerian(runs: Sequence[RunParticles], dt: np.ndarray, settings: Statistics
         d.append(run.displacements[sel])
     lower, upper = settings.analysis_volume
     grid = Grid(lower, upper, settings.eulerian_cells)
-    fit = eulerian_fit(eulerian_moments(x, d, dt, grid), min_count=settings.min_cell_count)
+    moments = eulerian_moments(x, d, dt, grid)
+    fit = eulerian_fit(moments, min_count=settings.min_cell_count)
     if not fit.valid.any() and grid.n_cells > 1:
         log.warning(
             "no Eulerian cell of %s holds %d displacements at every Δt; using one cell",
@@ -297,9 +328,14 @@ def _eulerian(runs: Sequence[RunParticles], dt: np.ndarray, settings: Statistics
             settings.min_cell_count,
         )
         grid = Grid(lower, upper, (1, 1, 1))
-        fit = eulerian_fit(eulerian_moments(x, d, dt, grid), min_count=settings.min_cell_count)
+        moments = eulerian_moments(x, d, dt, grid)
+        fit = eulerian_fit(moments, min_count=settings.min_cell_count)
     if fit.valid.any():
         up = u_prime(fit)
+        if bootstrap is not None:
+            sums = [cell_sums(run.snapshot_arrays(), grid) for run in runs]
+            weights = [_run_weights(run, i, bootstrap) for i, run in enumerate(runs)]
+            up = replace(up, replicates=u_prime_replicates(sums, weights, moments, fit))
         noise = np.nanmean(fit.noise[fit.valid], axis=0)
         with np.errstate(invalid="ignore"):
             sigma_b = np.sqrt(np.where(noise >= 0, noise / 2.0, np.nan))
@@ -307,6 +343,22 @@ def _eulerian(runs: Sequence[RunParticles], dt: np.ndarray, settings: Statistics
         log.warning("no Eulerian cell could be fitted: no u'")
         up, sigma_b = None, np.full(3, np.nan)
     return grid, fit, up, sigma_b
+
+
+def _run_weights(run: RunParticles, index: int, bootstrap: SnapshotBootstrap) -> np.ndarray:
+    """The bootstrap weights of a run's kept snapshots, shape (R, M_k): the column of the
+    snapshot in its stratum (the run's own, or the one every Δt shares); a snapshot the
+    strata do not hold (linked at this Δt but not at every Δt) counts once in every
+    replicate."""
+    strata = bootstrap.snapshot_ids
+    stratum = 0 if len(strata) == 1 else index
+    offset = sum(len(ids) for ids in strata[:stratum])
+    column = {int(m): offset + i for i, m in enumerate(strata[stratum])}
+    out = np.ones((bootstrap.replicates, len(run.snapshot_ids)))
+    for j, m in enumerate(run.snapshot_ids.tolist()):
+        if m in column:
+            out[:, j] = bootstrap.weights[:, column[m]]
+    return out
 
 
 def _consistent(joined, dt: np.ndarray, settings: StatisticsSettings):
@@ -372,6 +424,7 @@ class _Sample:
     n_snapshots: np.ndarray
     mean_displacement: MeanDisplacement
     population: S2Population | None
+    snapshot_ids: tuple[np.ndarray, ...]
 
 
 def _shared_sample(
@@ -406,6 +459,7 @@ def _shared_sample(
             displacements=tuple(d for _, d in joined),
             trajectory_outliers=linked - sum(len(x) for x, _ in joined),
         ),
+        snapshot_ids=(ids,),
     )
 
 
@@ -417,7 +471,28 @@ def _independent_sample(usable: Sequence[RunParticles], settings: StatisticsSett
         n_snapshots=np.array([len(p) for p in per_run], dtype=np.int64),
         mean_displacement=mean_displacement(usable),
         population=None,
+        snapshot_ids=tuple(r.snapshot_ids.copy() for r in usable),
     )
+
+
+def _bootstrap(sample: _Sample, settings: StatisticsSettings) -> SnapshotBootstrap:
+    """The snapshot weights every estimate of the run is refitted on, in blocks as long
+    as the correlation of successive snapshots asks (or ``settings.snapshot_block``)."""
+    correlation = sample.sums.correlation()
+    block = settings.snapshot_block
+    if block is None:
+        block = block_length(correlation)
+    if block > 1:
+        log.info(
+            "successive snapshots correlate (lag-one %.2f, τ = %.2g snapshots): the bootstrap "
+            "draws blocks of %d consecutive snapshots; %.3g effective snapshots",
+            correlation.rho1,
+            correlation.tau,
+            block,
+            correlation.effective_snapshots,
+        )
+    weights = sample.sums.bootstrap_weights(settings.n_boot, rng=settings.seed, block=block)
+    return SnapshotBootstrap(weights, block, correlation, sample.snapshot_ids, settings.seed)
 
 
 def compute_statistics(
@@ -462,15 +537,24 @@ def compute_statistics(
     else:
         sample = _independent_sample(usable, settings)
     errors = "bootstrap"
+    bootstrap = None
     if sample.n_snapshots.min() < 2:
         log.warning(
             "a Δt has a single snapshot: S2 errors from the pair count (they underestimate)"
         )
         errors = "pairs"
+    else:
+        bootstrap = _bootstrap(sample, settings)
 
     def fit(use=None) -> StructureFunction:
         return structure_function(
-            sample.sums, dt, errors=errors, n_boot=settings.n_boot, use=use, rng=settings.seed
+            sample.sums,
+            dt,
+            errors=errors,
+            n_boot=settings.n_boot,
+            use=use,
+            rng=settings.seed,
+            weights=None if bootstrap is None else bootstrap.weights,
         )
 
     def profile_of(sf: StructureFunction) -> DissipationProfile:
@@ -489,7 +573,7 @@ def compute_statistics(
         sf = fit(use)
         prof = profile_of(sf)
         refits[name] = Subset(name, use, sf, prof, _plateau(prof, settings, name))
-    grid, eul, up, sigma_b = _eulerian(usable, dt, settings)
+    grid, eul, up, sigma_b = _eulerian(usable, dt, settings, bootstrap)
     return PtvStatistics(
         dt_index=np.array([r.k for r in usable], dtype=np.int64),
         dt=dt,
@@ -498,7 +582,9 @@ def compute_statistics(
         profile=profile,
         plateau=_plateau(profile, settings, "all Δt"),
         subsets=refits,
-        mean_displacement=sample.mean_displacement,
+        mean_displacement=sample.mean_displacement
+        if bootstrap is None
+        else sample.mean_displacement.with_correlated_snapshots(bootstrap.correlation.tau),
         grid=grid,
         eulerian=eul,
         u_prime=up,
@@ -506,4 +592,5 @@ def compute_statistics(
         errors=errors,
         n_snapshots=sample.n_snapshots,
         population=sample.population,
+        bootstrap=bootstrap,
     )

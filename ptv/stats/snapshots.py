@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ptv.stats.pairs import PairSums
+from ptv.stats.resampling import SnapshotCorrelation, autocorrelation_time, block_weights
 
 __all__ = ["SnapshotSums", "cluster_mean"]
 
@@ -195,15 +196,23 @@ class SnapshotSums:
     # ------------------------------------------------------------------ bootstrap
 
     def bootstrap_weights(
-        self, n_boot: int, *, rng: np.random.Generator | int | None = None
+        self,
+        n_boot: int,
+        *,
+        rng: np.random.Generator | int | None = None,
+        block: int = 1,
     ) -> np.ndarray:
         """How often each snapshot is drawn in each of n_boot replicates, shape (R, M).
 
         Snapshots are drawn with replacement within their stratum, as many as the
-        stratum holds.
+        stratum holds: one at a time (``block`` 1, independent snapshots), or in blocks
+        of ``block`` consecutive snapshots of the stratum where successive snapshots are
+        correlated (:func:`ptv.stats.resampling.block_weights`).
         """
         if not isinstance(n_boot, int | np.integer) or n_boot < 2:
             raise ValueError(f"n_boot must be an integer >= 2, got {n_boot!r}")
+        if not isinstance(block, int | np.integer) or block < 1:
+            raise ValueError(f"block must be an integer >= 1, got {block!r}")
         gen = np.random.default_rng(rng)
         w = np.zeros((n_boot, self.n_snapshots))
         for s in np.unique(self.stratum):
@@ -213,6 +222,9 @@ class SnapshotSums:
                     f"stratum {s} has {members.size} snapshot: the bootstrap over "
                     "snapshots needs at least 2 per stratum"
                 )
+            if block > 1:
+                w[:, members] = block_weights(n_boot, members.size, min(block, members.size), gen)
+                continue
             p = np.full(members.size, 1.0 / members.size)
             w[:, members] = gen.multinomial(members.size, p, size=n_boot)
         return w
@@ -240,17 +252,59 @@ class SnapshotSums:
         ndarray, shape (R, B, K)
             Replicate means; NaN where a replicate has no pair in a bin and column.
         """
-        w = self.bootstrap_weights(n_boot, rng=rng)
+        return self.weighted_means(self.bootstrap_weights(n_boot, rng=rng), chunk=chunk)
+
+    def weighted_means(self, weights: np.ndarray, *, chunk: int = 256) -> np.ndarray:
+        """⟨q⟩ per bin and column of each row of snapshot weights (a bootstrap replicate).
+
+        Parameters
+        ----------
+        weights : ndarray, shape (R, M)
+            How often each snapshot counts in each replicate
+            (:meth:`bootstrap_weights`).
+        chunk : int
+            Replicates per matrix product (bounds the memory to chunk × M weights).
+
+        Returns
+        -------
+        ndarray, shape (R, B, K)
+            Replicate means; NaN where a replicate has no pair in a bin and column.
+        """
+        w = np.asarray(weights, dtype=np.float64)
         m, b, k = self.count.shape
+        if w.ndim != 2 or w.shape[1] != m:
+            raise ValueError(f"weights must have shape (R, {m}), got {w.shape}")
         cnt = self.count.reshape(m, b * k).astype(np.float64)
         sq = self.sum_q.reshape(m, b * k)
-        out = np.empty((n_boot, b * k))
-        for start in range(0, n_boot, max(int(chunk), 1)):
+        out = np.empty((len(w), b * k))
+        for start in range(0, len(w), max(int(chunk), 1)):
             ws = w[start : start + chunk]
             with np.errstate(invalid="ignore", divide="ignore"):
                 out[start : start + chunk] = (ws @ sq) / (ws @ cnt)
-        logger.debug("bootstrap over %d snapshots: %d replicates of %d×%d", m, n_boot, b, k)
-        return out.reshape(n_boot, b, k)
+        logger.debug("bootstrap over %d snapshots: %d replicates of %d×%d", m, len(w), b, k)
+        return out.reshape(len(w), b, k)
+
+    def correlation(self) -> SnapshotCorrelation:
+        """How correlated successive snapshots of each stratum are: the lag-one
+        autocorrelation of the snapshots' ⟨q⟩ in every bin and column that each snapshot
+        fills, pooled over them and over the strata
+        (:func:`ptv.stats.resampling.autocorrelation_time`)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            means = self.sum_q / self.count
+        found = []
+        for s in np.unique(self.stratum):
+            members = np.flatnonzero(self.stratum == s)
+            series = means[members].reshape(members.size, -1)
+            found.append(autocorrelation_time(series))
+        usable = [c for c in found if np.isfinite(c.rho1)]
+        if not usable:
+            return SnapshotCorrelation(np.nan, self.n_snapshots, 0)
+        rho1 = np.average([c.rho1 for c in usable], weights=[c.snapshots for c in usable])
+        return SnapshotCorrelation(
+            float(rho1),
+            int(max(c.snapshots for c in usable)),
+            int(sum(c.series for c in usable)),
+        )
 
 
 def cluster_mean(

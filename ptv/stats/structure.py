@@ -198,6 +198,7 @@ def structure_function(
     use: np.ndarray | None = None,
     min_pairs: int = 20,
     rng: np.random.Generator | int | None = None,
+    weights: np.ndarray | None = None,
 ) -> StructureFunction:
     """Fit ⟨q⟩ = S2·Δt² + N in every separation bin.
 
@@ -228,6 +229,11 @@ def structure_function(
         (and, with bootstrap, every replicate has one).
     rng : numpy.random.Generator, int or None
         Randomness of the bootstrap.
+    weights : ndarray, shape (R, M), optional
+        The bootstrap's snapshot weights, drawn beforehand
+        (:meth:`ptv.stats.snapshots.SnapshotSums.bootstrap_weights`: in blocks where
+        snapshots are correlated, and the same for every estimate of a run so that their
+        replicates pair up); ``n_boot`` and ``rng`` are then not used.
 
     Returns
     -------
@@ -250,7 +256,11 @@ def structure_function(
         y_boot = None
     else:
         gls = method == "gls"
-        y_boot = sums.bootstrap_means(n_boot, rng=rng)
+        y_boot = (
+            sums.bootstrap_means(n_boot, rng=rng)
+            if weights is None
+            else sums.weighted_means(weights)
+        )
         with np.errstate(invalid="ignore"):
             se_y = np.std(y_boot, axis=0, ddof=1)
         fit_name = "gls-bootstrap" if gls else "wls-bootstrap"

@@ -5,9 +5,13 @@ For each particle: the exact image of its centre through the camera's refracting
 M·d_p, the diffraction spot 2.44 f#(M+1)λ and the defocus blur computed by the optics
 for that particle, and a brightness set by the laser-sheet profile. The sensor model
 then records the expected photo-electrons as a uint16 image.
+
+A rig's sheet may ask for a top-hat light (``profile = "top-hat"`` in its ``[sheet]``):
+:func:`rig_lighting` then lights the particles uniformly over the sheet's thickness.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -15,6 +19,9 @@ from simulator.optics import Camera, defocus_blur
 from simulator.render.particles import render_particles
 from simulator.render.sensor import Sensor
 from simulator.render.spot import LaserSheet, SpotOptics, gaussian_sigma, particle_electrons
+
+if TYPE_CHECKING:
+    from simulator.rigs import Rig
 
 
 @dataclass(frozen=True)
@@ -26,14 +33,15 @@ class ParticleLighting:
     particle_diameter : float
         d_p, m (the paper's polystyrene tracers: 225 µm).
     sheet : LaserSheet
-        Laser-sheet profile (centre and e⁻² half-width, m).
+        Laser-sheet profile (centre and e⁻² half-width, m; or a top-hat slab).
     electrons_at_reference : float
         Photo-electrons collected from a particle of diameter d_p on the sheet's centre
         plane, e⁻.
     wavelength : float
         Laser wavelength, m.
     cutoff : float
-        Particles further than ``cutoff`` e⁻² half-widths from the sheet centre are dark.
+        Particles further than ``cutoff`` e⁻² half-widths from the sheet centre are dark;
+        under a top-hat sheet, also those outside its slab (beyond one half-width).
     """
 
     particle_diameter: float = 225e-6
@@ -47,6 +55,40 @@ class ParticleLighting:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be > 0, got {value!r}")
+
+    def lit(self, z: np.ndarray) -> np.ndarray:
+        """Whether particles at world Z (shape (N,), m) are lit (``cutoff``)."""
+        reach = self.cutoff * self.sheet.half_width
+        if self.sheet.profile == "top-hat":
+            reach = min(reach, self.sheet.half_width)
+        return np.abs(z - self.sheet.center) <= reach
+
+
+def rig_lighting(lighting: ParticleLighting, rig: "Rig") -> ParticleLighting:
+    """The lighting of ``rig``'s particles (``[sheet] profile`` of its rig file).
+
+    Parameters
+    ----------
+    lighting : ParticleLighting
+        The tracers and the default Gaussian sheet (a scenario's).
+    rig : simulator.rigs.Rig
+        The rig.
+
+    Returns
+    -------
+    ParticleLighting
+        ``lighting`` itself for the default ``"gaussian"`` profile; for ``"top-hat"``,
+        ``lighting`` with a top-hat sheet over the rig's sheet (centre and half its
+        thickness), lit uniformly through its depth.
+    """
+    if rig.sheet_profile == "gaussian":
+        return lighting
+    sheet = LaserSheet(
+        center=float(rig.sheet.centre[2]),
+        half_width=0.5 * float(rig.sheet.size[2]),
+        profile=rig.sheet_profile,
+    )
+    return replace(lighting, sheet=sheet)
 
 
 @dataclass(frozen=True)
@@ -138,10 +180,7 @@ def record_particles(
     if positions.ndim != 2 or positions.shape[1] != 3 or not np.isfinite(positions).all():
         raise ValueError(f"positions must be finite with shape (P, 3), got {positions.shape}")
     lens = camera.lens
-    lit = (
-        np.abs(positions[:, 2] - lighting.sheet.center)
-        <= lighting.cutoff * lighting.sheet.half_width
-    )
+    lit = lighting.lit(positions[:, 2])
     xy = np.full((len(positions), 2), np.nan)
     sigma = np.full(len(positions), np.nan)
     electrons = np.zeros(len(positions))

@@ -15,7 +15,9 @@ Gaussian σ from d_τ, two conventions (a parameter everywhere, default ``"e2"``
 
 Brightness: Mie scattering ∝ d_p² (an approximation valid for d_p ≫ λ), times the
 Gaussian laser-sheet profile exp(−2 (Z − Z₀)² / w²), w being the e⁻² half-width of the
-sheet intensity (w ≈ 5 mm for a 1 cm sheet).
+sheet intensity (w ≈ 5 mm for a 1 cm sheet); or, for a volume lit uniformly through its
+depth (dense volumetric PTV), a top-hat profile: 1 for |Z − Z₀| ≤ w, 0 beyond, w being
+the half-thickness of the lit slab.
 
 M is the lateral magnification at the particle (image size / object size); inside a
 water tank use the effective magnification of the refracting system. Depth of field
@@ -40,6 +42,10 @@ AIRY_BETA2 = 3.67
 DIAMETER_PER_SIGMA: dict[str, float] = {"e2": 4.0, "airy": 2.0 * sqrt(2.0 * AIRY_BETA2)}
 
 Convention = Literal["e2", "airy"]
+
+#: Intensity profiles of a light sheet across Z (:class:`LaserSheet`).
+SHEET_PROFILES = ("gaussian", "top-hat")
+SheetProfile = Literal["gaussian", "top-hat"]
 
 #: Green Nd:YAG / DPSS wavelength, m.
 WAVELENGTH_532 = 532e-9
@@ -252,26 +258,38 @@ class SpotOptics:
 
 @dataclass(frozen=True)
 class LaserSheet:
-    """Gaussian light sheet normal to world Z.
+    """Light sheet normal to world Z: a Gaussian laser sheet, or a top-hat volume light.
 
     Parameters
     ----------
     center : float
         Z₀ of the sheet's centre plane, m.
     half_width : float
-        w, the e⁻² half-width of the intensity profile, m (≈ 5 mm for a 1 cm sheet).
+        w, m: the e⁻² half-width of the intensity profile of a Gaussian sheet (≈ 5 mm for
+        a 1 cm sheet); the half-thickness of the uniformly lit slab of a top-hat one.
+    profile : {"gaussian", "top-hat"}
+        ``"gaussian"``: exp(−2 (Z − Z₀)² / w²); ``"top-hat"``: 1 for |Z − Z₀| ≤ w, else 0
+        (a volume lit uniformly through its depth).
     """
 
     center: float = 0.0
     half_width: float = 5e-3
+    profile: SheetProfile = "gaussian"
 
     def __post_init__(self) -> None:
         finite_float("center", self.center)
         positive_float("half_width", self.half_width)
+        if self.profile not in SHEET_PROFILES:
+            raise ValueError(
+                f"profile must be one of {', '.join(SHEET_PROFILES)}, got {self.profile!r}"
+            )
 
     def relative_intensity(self, z: object) -> np.ndarray:
-        """exp(−2 (Z − Z₀)² / w²) for Z of shape (N,) or scalar, m; same shape, in [0, 1]."""
+        """The profile (class docstring) at Z of shape (N,) or scalar, m; same shape, in
+        [0, 1]."""
         dz = _finite_array("z", z) - self.center
+        if self.profile == "top-hat":
+            return np.where(np.abs(dz) <= self.half_width, 1.0, 0.0)
         return np.exp(-2.0 * dz * dz / (self.half_width * self.half_width))
 
 
@@ -285,8 +303,9 @@ def particle_electrons(
 ) -> np.ndarray:
     """Expected photo-electrons N_e per particle image.
 
-    N_e = N_ref (d_p / d_ref)² exp(−2 (Z − Z₀)² / w²), where N_ref is what a particle of
-    diameter d_ref on the sheet's centre plane gives (quantum efficiency, lens aperture,
+    N_e = N_ref (d_p / d_ref)² exp(−2 (Z − Z₀)² / w²) (a Gaussian sheet; a top-hat one
+    gives N_ref (d_p / d_ref)² inside its slab, 0 outside), where N_ref is what a particle
+    of diameter d_ref on the sheet's centre plane gives (quantum efficiency, lens aperture,
     exposure and laser energy are all folded into it).
 
     Parameters

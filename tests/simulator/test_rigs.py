@@ -7,7 +7,10 @@ from importlib import resources
 import numpy as np
 import pytest
 
+from simulator import rigs
 from simulator.optics import Camera, defocus_blur, focus_on_plane
+from simulator.render.camera_frames import local_magnification
+from simulator.render.spot import SHEET_PROFILES
 from simulator.rigs import RigFileError, check_sees_sheet, load_rig, rig_from_dict, rig_presets
 from validation.cli import main
 
@@ -18,6 +21,12 @@ def sheet_grid(n=21, half=0.05):
     return np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
 
 
+def volume_grid(size, n=9):
+    """An n × n × n grid over a sheet of ``size`` (X, Y, Z), centred on the origin, m."""
+    axes = [np.linspace(-0.5 * s, 0.5 * s, n) for s in size]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+
+
 def preset_spec(name):
     return tomllib.loads(
         (resources.files("simulator") / "rig_presets" / f"{name}.toml").read_text()
@@ -25,7 +34,22 @@ def preset_spec(name):
 
 
 def test_presets_are_listed():
-    assert {"paper-stereo", "conventional"} <= set(rig_presets())
+    assert set(rig_presets()) == {
+        "paper-stereo",
+        "conventional",
+        "box-3cam",
+        "box-4cam",
+        "box-4cam-unequal",
+        "lpt-challenge",
+        "lpt-challenge-small",
+    }
+
+
+@pytest.mark.parametrize("name", sorted(rig_presets()))
+def test_every_preset_loads_and_sees_all_of_its_sheet(name):
+    rig = load_rig(name)
+    for camera in rig.cameras:
+        assert np.isfinite(camera.project(volume_grid(rig.sheet.size, 5))).all()
 
 
 @pytest.mark.parametrize("name", ["paper-stereo", "conventional"])
@@ -283,3 +307,54 @@ def test_a_bad_rig_file_exits_2_in_one_line_and_writes_nothing(
     printed = capsys.readouterr()
     assert printed.err.count("\n") == 1 and message in printed.err and "rig.toml" in printed.err
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["rig.toml", "s.toml"]
+
+
+@pytest.mark.parametrize(
+    ("name", "sensor"), [("lpt-challenge", (1920, 1200)), ("lpt-challenge-small", (512, 512))]
+)
+def test_lpt_challenge_sees_its_whole_volume_in_focus_at_a_60_micrometre_voxel(name, sensor):
+    """Four cameras in the XZ plane at −30°, −10°, +10°, +30°, f = 100 mm, 10 µm pixels,
+    a 60 µm voxel, and at f/16 the defocus blur over the 30 mm depth no larger than the
+    diffraction spot (≈ 2.4 px): the whole volume in focus within a particle image."""
+    rig = load_rig(name)
+    assert rig.sheet_profile == "top-hat" and rig.tank.kind == "box"
+    assert rig.sheet.size[2] == 0.030
+    points = volume_grid(rig.sheet.size)
+    azimuths = []
+    for camera in rig.cameras:
+        lens = camera.lens
+        assert (lens.focal_length, lens.pixel_pitch, lens.sensor_size) == (0.1, 10e-6, sensor)
+        assert camera.center[1] == pytest.approx(0.0, abs=1e-12)  # all in one plane
+        azimuths.append(np.rad2deg(np.arctan2(camera.center[0], camera.center[2])))
+        voxel = lens.pixel_pitch / local_magnification(camera, np.zeros((1, 3)))[0]
+        assert voxel == pytest.approx(60e-6, rel=0.01)
+        xy = camera.project(points)
+        assert np.isfinite(xy).all()
+        assert (xy.min(axis=0) > 10).all() and (xy.max(axis=0) < np.array(sensor) - 10).all()
+        diffraction = 2.44 * lens.f_number * (lens.pixel_pitch / voxel + 1) * 532e-9
+        blur = defocus_blur(camera, points)
+        assert blur.max() <= diffraction / lens.pixel_pitch
+        # The Scheimpflug tilt matters: untilted, focused on the centre, it blurs more.
+        if name == "lpt-challenge":
+            assert defocus_blur(focus_on_plane(camera, tilt=False), points).max() > 1.2 * blur.max()
+    np.testing.assert_allclose(azimuths, [-30, -10, 10, 30], atol=1e-9)
+
+
+def test_the_small_lpt_rig_is_a_crop_of_the_full_one():
+    full, small = load_rig("lpt-challenge"), load_rig("lpt-challenge-small")
+    for a, b in zip(full.cameras, small.cameras, strict=True):
+        np.testing.assert_allclose(a.center, b.center, atol=1e-12)
+        np.testing.assert_allclose(a.rotation, b.rotation, atol=1e-12)
+        assert a.lens.image_distance == pytest.approx(b.lens.image_distance, rel=1e-3)
+
+
+def test_the_sheet_profile_is_gaussian_unless_asked_and_checked():
+    assert rigs._SHEET_PROFILES == SHEET_PROFILES  # the loader's list is the renderer's
+    assert load_rig("paper-stereo").sheet_profile == "gaussian"
+    spec = spec_of("paper-stereo", ("sheet", "profile"), "top-hat")
+    assert rig_from_dict(spec).sheet_profile == "top-hat"
+    with pytest.raises(
+        RigFileError,
+        match=r"mine.toml: sheet.profile: expected one of gaussian, top-hat, got 'flat'",
+    ):
+        rig_from_dict(spec_of("paper-stereo", ("sheet", "profile"), "flat"), source="mine.toml")

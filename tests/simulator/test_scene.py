@@ -79,7 +79,7 @@ def _of_colour(rgb, colour):
     return (np.minimum(step, 180 - step) <= 5) & (hsv[:, :, 1] > 60)
 
 
-@pytest.mark.parametrize("name", ["box-3cam", "box-4cam"])
+@pytest.mark.parametrize("name", ["box-3cam", "box-4cam", "lpt-challenge"])
 def test_every_camera_of_a_box_rig_is_drawn_and_labelled(name):
     rig = load_rig(name)
     options = SceneOptions(size=(800, 500))

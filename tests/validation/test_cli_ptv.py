@@ -64,7 +64,12 @@ def test_ptv_command_writes_results_summary_and_figures(dataset, tmp_path, capsy
     assert summary["dataset"] == str(folder) and summary["calibration"] == str(calibration)
     assert [c["snapshots_kept"] for c in summary["counts"]] == [2] * 5
     assert summary["epsilon"]["plateau"]["epsilon"] > 0
-    assert summary["counts"][4]["link_radius"] == pytest.approx(1.2 * 5.093e-4 + 1.5e-4, rel=1e-3)
+    # The smallest Δt is linked around X(t) within max_speed·Δt + 5σ_b; the others share
+    # its frame a and are linked around their predictions, within the measured misses.
+    assert summary["counts"][0]["link_radius"] == pytest.approx(1.2 * 0.97e-4 + 1.5e-4, rel=2e-3)
+    radii = summary["settings"]["predicted_radii"]
+    assert radii[0] is None and all(0 < r < 1.2 * 0.97e-4 + 1.5e-4 for r in radii[1:])
+    assert [c["link_radius"] for c in summary["counts"][1:]] == radii[1:]
     with h5py.File(out / "results.h5") as f:
         assert f["statistics/s2"].shape == (24,)
         assert f["particles/dt0/offsets"].shape == (3,)

@@ -68,3 +68,47 @@ def test_a_flow_whose_range_comes_out_empty_is_refused(tmp_path):
     body = "[flow]\nu_rms = 0.01\nepsilon = 1.0e-8\nnu = 1.0e-5\ndt_tau_eta = [0.05, 0.1]\n"
     with pytest.raises(ScenarioError, match=r"ptv\.r_range derived from the flow"):
         load_scenario(write(tmp_path, body))
+
+
+def test_a_plateau_that_cannot_start_at_40_eta_takes_the_widest_the_volume_allows(
+    tmp_path, caplog
+):
+    """η = 0.75 mm (ν 4·10⁻⁶, ε 10⁻⁴): 40η = 30 mm lies beyond the 21 mm the volume
+    allows the plateau, 10η = 7.5 mm does not; the plateau runs from 10η with a warning,
+    and the checks name it."""
+    from validation.run.verdict import plateau_row
+
+    body = "[flow]\nu_rms = 0.02\nepsilon = 1.0e-4\nnu = 4.0e-6\ndt_tau_eta = [0.05, 0.1]\n"
+    with caplog.at_level(logging.WARNING):
+        scenario = load_scenario(write(tmp_path, body))
+    eta = (4e-6**3 / 1e-4) ** 0.25
+    lo, hi = scenario.ptv.plateau
+    assert lo == pytest.approx(10 * eta) and hi == pytest.approx(0.6 * 35e-3)
+    assert "the widest plateau the volume allows" in caplog.text
+    row = plateau_row(scenario.ptv.plateau, eta)
+    assert row["value"] == pytest.approx(10) and "below 40η" in row["tolerance"]
+    assert "informative" in row
+    assert plateau_row((2e-3, 20e-3), 49.2e-6) is None  # the paper's: 40.6η
+
+
+def test_independent_pairs_whose_radius_reaches_the_spacing_are_warned_about(tmp_path, caplog):
+    """3000 tracers in the 100 × 100 × 10 mm sheet, u′ = 2 cm/s: at Δt = 20 and 25 ms the
+    radius 5u′Δt + 5σ_b (2.15, 2.65 mm) takes a second particle from the density
+    3·10⁷ m⁻³ with probability 1 − exp(−n 4π r³/3): 71 % and 90 %."""
+    from validation.run.derived_ptv import independent_pair_ambiguity
+
+    body = (
+        "[flow]\nu_rms = 0.02\nepsilon = 1.0e-4\nnu = 1.0e-6\n"
+        "dt_tau_eta = [0.05, 0.1, 0.15, 0.2, 0.25]\n"
+        '[rig]\nname = "box-4cam"\n'
+        "[particles]\ncount = 3000\nshared_first_frame = false\n"
+    )
+    with caplog.at_level(logging.WARNING):
+        scenario = load_scenario(write(tmp_path, body))
+    assert "at Δt = 20, 25 ms" in caplog.text and "71, 90 %" in caplog.text
+    assert "the largest Δt this seeding links unambiguously is 15 ms" in caplog.text
+    n = 3000 / (0.1 * 0.1 * 0.01)
+    radius = 5 * 0.02 * np.array([5, 10, 15, 20, 25]) * 1e-3 + 5 * 30e-6
+    expected = 1 - np.exp(-n * 4 / 3 * np.pi * radius**3)
+    got = independent_pair_ambiguity(scenario, (0.1, 0.1, 0.01), 0.02, "s")
+    np.testing.assert_allclose(got, expected, rtol=1e-6)

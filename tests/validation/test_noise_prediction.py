@@ -5,13 +5,8 @@ import pytest
 
 from ptv.stats.multidt import wls_line
 from ptv.stats.pairs import LogBins
-from validation.run.checks import (
-    C2_MARGIN,
-    NoisePrediction,
-    _c2_check,
-    c2_margin,
-    predicted_noise,
-)
+from validation.run.checks import C2_MARGIN, _c2_check, c2_margin
+from validation.run.noise_prediction import NoisePrediction, predicted_noise
 
 BINS = LogBins(1e-4, 1e-2, 4)
 BOX = (0.07, 0.07, 0.008)
@@ -75,7 +70,9 @@ def test_the_exact_positions_c2_is_taken_off_before_the_noise_comparison():
 
 def test_the_c2_margin_follows_the_error_of_the_median_where_it_is_larger():
     """Nine bins each 30 % uncertain: the median is uncertain by √(π/2)·0.3/3 = 0.125, so
-    the margin is 0.25; bins 1 % uncertain keep the 5 % floor."""
-    assert c2_margin(np.full(9, 0.3)) == pytest.approx(2 * np.sqrt(np.pi / 2) * 0.1)
+    the margin is z times that (z = 3.29 standard errors by default, two-sided 0.1 %);
+    bins 1 % uncertain keep the 5 % floor."""
+    assert c2_margin(np.full(9, 0.3)) == pytest.approx(3.2905 * np.sqrt(np.pi / 2) * 0.1, rel=1e-4)
+    assert c2_margin(np.full(9, 0.3), 2.0) == pytest.approx(2 * np.sqrt(np.pi / 2) * 0.1)
     assert c2_margin(np.full(9, 0.01)) == C2_MARGIN
     assert c2_margin(np.full(3, np.nan)) == C2_MARGIN

@@ -76,3 +76,17 @@ def test_detections_in_memory_are_those_of_the_written_images(tmp_path):
                 kept = stored.detections(k, m, frame)
                 assert all(np.array_equal(a, b) for a, b in zip(read, kept, strict=True))
     assert TruthFile(folder).frames == SETTINGS.frames
+
+
+def test_a_chunk_of_a_rig_lit_through_its_depth_has_its_lit_particles_all_equally_bright():
+    """A rig whose [sheet] asks for the top-hat profile lights its particles with it, and a
+    rig that does not keeps the settings' own lighting."""
+    job = particle_job(load_rig("lpt-challenge-small"), flow_preset("lem-10hz"), SETTINGS)
+    assert job.lighting.sheet.profile == "top-hat" and job.lighting.sheet.half_width == 0.015
+    chunk = render_chunk((0, 1), job=job)
+    positions = chunk.truth[0].positions[0, 0]
+    plain = particle_job(load_rig("paper-stereo"), flow_preset("lem-10hz"), SETTINGS)
+    assert plain.lighting is SETTINGS.lighting
+    assert (np.abs(positions[:, 2]) > 0.015).any()  # some in the padding, dark
+    visible = chunk.truth[0].visible["cam1"][0, 0]
+    np.testing.assert_array_equal(visible, np.abs(positions[:, 2]) <= 0.015)

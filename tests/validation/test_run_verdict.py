@@ -29,15 +29,46 @@ def comparison(*, c1=0.01, epsilon=0.01, negative_bins=0, raw_s2=3.0, statistic=
             "r_range_m": [2e-3, 20e-3],
             "max_abs_deviation": c1,
             "tolerance": 0.05,
+            "z": 4.4,
             "passed": c1 <= 0.05,
         },
-        "epsilon": {"relative_to_exact_d_ll": epsilon, "tolerance": 0.05, "passed": True},
-        "c2": {"negative_bins": negative_bins, "passed": negative_bins == 0},
+        "epsilon": {
+            "relative_to_exact_d_ll": epsilon,
+            "relative_to_exact_rung": epsilon,
+            "method_tolerance": 0.01,
+            "z": 3.56,
+            "paired": True,
+            "tolerance": 0.02,
+            "passed": abs(epsilon) <= 0.02,
+        },
+        "c2": {
+            "negative_bins": negative_bins,
+            "significantly_negative_bins": negative_bins,
+            "z": 4.4,
+            "passed": negative_bins == 0,
+        },
         "raw_s2": {"ratio_smallest_dt": raw_s2, "minimum": 2.0, "passed": raw_s2 > 2.0},
-        "mean_linear": {"statistic": statistic, "limit": 13.8, "passed": statistic < 13.8},
+        "mean_linear": {
+            "statistic": statistic,
+            "limit": 13.8,
+            "false_alarm_rate": 0.001,
+            "passed": statistic < 13.8,
+        },
         "subsets": {
-            "3 largest dt": {"change": -0.01, "tolerance": 0.10, "passed": True},
-            "smallest and largest dt": {"change": 0.01, "tolerance": 0.05, "passed": True},
+            "3 largest dt": {
+                "change": -0.01,
+                "tolerance": 0.10,
+                "z": 3.56,
+                "allowed": 0.11,
+                "passed": True,
+            },
+            "smallest and largest dt": {
+                "change": 0.01,
+                "tolerance": 0.05,
+                "z": 3.56,
+                "allowed": 0.06,
+                "passed": True,
+            },
         },
     }
 
@@ -97,21 +128,24 @@ def test_the_comparisons_with_independent_references_are_checked_when_the_truth_
     c = comparison()
     c["c1_independent"] = {
         "max_abs_deviation": 0.02,
-        "tolerance": "5% + 2σ of the reference per bin",
+        "tolerance": "5% + 4.4σ per bin",
         "sample_over_reference": 1.031,
         "se_sample_over_reference": 0.004,
+        "z_sample_over_reference": 3.56,
         "passed": False,  # the sample truth 7.8σ off the brute force: a shared-code error
     }
     c["epsilon_independent"] = {
         "relative_to_reference": 0.01,
         "plateau_deficit": -0.2,
-        "tolerance": 0.05,
+        "z": 3.56,
+        "tolerance": 0.08,
         "passed": True,
     }
     checks = rung_checks(c, matching())
     assert failed(checks) == ["stats.c1_matches_independent_truth"]
     assert "stats.epsilon_matches_input_deficit" in [r["id"] for r in checks]
-    assert "1.0310 within 3σ" in checks[5]["tolerance"]
+    row = next(r for r in checks if r["id"] == "stats.c1_matches_independent_truth")
+    assert "1.0310 within 3.56σ" in row["tolerance"]
 
 
 def test_a_rung_without_a_raw_s2_bin_has_no_raw_s2_check():
@@ -208,7 +242,7 @@ def test_a_relative_deviation_prints_in_percent_over_the_bins_actually_used():
     checks, must_hold = verdict(run_checks(detection(), DETECTED, None), rungs, ["model-free"], {})
     printed = summary_lines({"checks": checks, "must_hold": must_hold})
     line = next(p for p in printed if "c1_matches_truth" in p)
-    assert "614 %" in line and "≤ 5%" in line
+    assert "614 %" in line and "≤ 5% + 4.4σ per bin" in line
     assert "9 fitted bins at 7.5–33.1 mm" in line and "7.1–62.5 mm asked" in line
     # a ratio stays a ratio
     assert any("1.23" in p for p in summary_lines_with_raw(1.23))
@@ -220,16 +254,24 @@ def summary_lines_with_raw(raw: float) -> list[str]:
     return summary_lines({"checks": checks, "must_hold": must_hold})
 
 
-def test_the_epsilon_tolerance_widens_to_two_standard_errors_only_where_they_exceed_it():
-    from validation.run.checks import epsilon_tolerance
-
-    assert epsilon_tolerance({"epsilon": 0.13, "se_epsilon": 0.0017}) == 0.05  # a KS run
-    # the dns run: ε 3.86e-6 ± 1.85e-7 (4.8 %): 9.6 %, and the check says why
-    widened = epsilon_tolerance({"epsilon": 3.86e-6, "se_epsilon": 1.85e-7})
-    assert widened == pytest.approx(2 * 1.85e-7 / 3.86e-6)
-    c = comparison(epsilon=-0.063)
-    c["epsilon"].update(tolerance=widened, passed=abs(-0.063) <= widened)
-    rows = rung_checks(c, matching())
+def test_the_epsilon_row_names_its_reference_and_its_false_alarm_rate():
+    rows = rung_checks(comparison(epsilon=-0.006), matching())
     row = next(r for r in rows if r["id"] == "stats.epsilon_recovered")
-    assert row["passed"] and "9.6 % (2 standard errors of the plateau ε)" in row["tolerance"]
-    assert epsilon_tolerance(None) == 0.05
+    assert row["passed"] and row["value"] == -0.006
+    assert "paired" in row["tolerance"] and "exact trajectories" in row["tolerance"]
+    assert "0.1 % false alarms" in row["tolerance"]
+    c = comparison(epsilon=0.03)  # a 3 % bias against a tolerance of 2 %
+    assert "stats.epsilon_recovered" in failed(rung_checks(c, matching()))
+
+
+def test_a_u_prime_check_is_required_where_the_comparison_has_one():
+    c = comparison()
+    c["u_prime"] = {
+        "relative_to_exact_rung": 0.02,
+        "tolerance": 0.013,
+        "method_tolerance": 0.01,
+        "z": 3.56,
+        "paired": True,
+        "passed": False,
+    }
+    assert failed(rung_checks(c, matching())) == ["stats.u_prime_recovered"]

@@ -78,6 +78,14 @@ _U_PRIME = (
 )
 _CASES_UNSET = "the rendered cases detect with the threshold and saturation only"
 _DERIVED = "left out (None) it is derived; its rule's constants are audited"
+_INDEPENDENT = (
+    "sets how correlated snapshots are resampled; the claims' snapshots are independent "
+    "realizations, drawn one at a time whatever it is"
+)
+_RATE = (
+    "a false-alarm rate: how often an honest run fails a test, not a size the claims "
+    "measure (benchmarks/bench_false_alarms.py counts it)"
+)
 _RECORDING = "read by time-resolved recordings only"
 _WARNING = "sets when a warning is printed; no result depends on it"
 _COMPILED = "compiled into a detection kernel: a perturbation needs the kernel recompiled"
@@ -99,6 +107,7 @@ AUDITED: tuple[Audited, ...] = (
     Audited(_PIPE + "min_cameras", "not run", (), reason=_DERIVED),
     Audited(_PIPE + "max_speed", "not run", (), reason=_DERIVED),
     Audited(_PIPE + "position_noise", "tolerance"),
+    Audited(_PIPE + "predicted_radii", "not run", (), reason=f"{_DERIVED}; {_SHARED}"),
     Audited(_PIPE + "max_acceleration", "not run", (), reason=_RECORDING),
     Audited(_PIPE + "track_gap", "not run", (), reason=_RECORDING),
     Audited(_PIPE + "outlier_threshold", "tolerance"),
@@ -132,6 +141,7 @@ AUDITED: tuple[Audited, ...] = (
     Audited(_STAT + "eulerian_cells", "not run", (), reason=_U_PRIME),
     Audited(_STAT + "min_cell_count", "not run", (), reason=_U_PRIME),
     Audited(_STAT + "trajectory_threshold", "not run", (), reason=_SHARED),
+    Audited(_STAT + "snapshot_block", "not run", (), reason=_INDEPENDENT),
     Audited(_STAT + "seed", "not run", (), reason="the bootstrap's seed: another draw, not a size"),
     Audited("ptv.matching.tolerance:PIXEL_FLOOR", "tolerance"),
     Audited("ptv.matching.tolerance:SPREAD_PER_MEDIAN", "tolerance"),
@@ -153,6 +163,11 @@ AUDITED: tuple[Audited, ...] = (
     Audited("ptv.stats.lagrangian:STEPS", "not run", (), reason=_RECORDING),
     Audited("ptv.stats.lagrangian:LAGS", "not run", (), reason=_RECORDING),
     Audited("ptv.pipeline.resolve:LINK_SPEED_SNAPSHOTS", "count"),
+    Audited("ptv.tracking.link_prediction:MISS_SIGMAS", "not run", (), reason=_SHARED),
+    Audited("ptv.tracking.link_prediction:MIN_MISSES", "not run", (), reason=_SHARED),
+    Audited("ptv.stats.resampling:RESOLVED_RHO1", "not run", (), reason=_INDEPENDENT),
+    Audited("ptv.stats.mean_displacement:OFFSET_FALSE_ALARM", "not run", (), reason=_RATE),
+    Audited("simulator.render.spot:SHEET_PROFILES", "not run", (), reason=_CHOICES),
     Audited("ptv.pipeline.double_frame:AMBIGUITY_WARNING", "not run", (), reason=_WARNING),
     Audited("ptv.pipeline.frames:STILL_FRACTION", "not run", (), reason=_WARNING),
     Audited("ptv.pipeline.frames:MIN_STILL_CHECK", "not run", (), reason=_WARNING),

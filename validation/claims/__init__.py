@@ -13,9 +13,12 @@ law at the windows and the sheet's focus on Scheimpflug mounts (``optics.*``), P
 spectrum (``flow.pope_spectrum``); five check the rendered images against their
 specification (:mod:`validation.claims.formation`), four the stack's choices where
 particles crowd (:mod:`validation.claims.crowding`), two the conventions of a bin's r and
-of Δt in files (:mod:`validation.claims.conventions`). ``quick`` sizes run in CI (about a
-minute on an idle 2-core machine); ``full`` sizes take the sample sizes the tolerances
-were designed for.
+of Δt in files (:mod:`validation.claims.conventions`), and three the time-resolved
+stack's track fits and Lagrangian statistics on a short recording of exact trajectories
+measured with known noise (``tracks.*``, ``lagrangian.*``:
+:mod:`validation.claims.recording`). ``quick`` sizes run in CI (about a minute on an
+idle 2-core machine); ``full`` sizes take the sample sizes the tolerances were designed
+for.
 
 Not regressed here: the calibration claims on rendered plate images
 (``synptv calibrate`` and ``synptv run`` measure those; here dots are exact
@@ -32,6 +35,7 @@ from validation.claims.crowding import CROWDING_CLAIMS
 from validation.claims.formation import FORMATION_CLAIMS
 from validation.claims.images import IMAGE_CLAIMS
 from validation.claims.optics import OPTICS_CLAIMS
+from validation.claims.recording import RECORDING_CLAIMS
 from validation.claims.run_statistics import RUN_STATISTICS_CLAIMS
 from validation.claims.spectrum import SPECTRUM_CLAIMS
 from validation.claims.statistics import FLOW_CLAIMS, STATISTICS_CLAIMS, dt3_gamma
@@ -59,6 +63,7 @@ CLAIMS: tuple[Claim, ...] = (
     + FORMATION_CLAIMS
     + CROWDING_CLAIMS
     + CONVENTION_CLAIMS
+    + RECORDING_CLAIMS
 )
 
 

@@ -13,6 +13,13 @@ from simulator.spectra import KolmogorovBandSpectrum, PopeSpectrum
 from simulator.target import Imperfections, PlateDesign, build_plate, traverse_positions
 from validation.claims.crowded_scores import CrowdedScores, crowded_scores
 from validation.claims.formation_scores import FormationScores, formation_scores
+from validation.claims.recorded_case import RecordedCase, record_case
+from validation.claims.recorded_scores import (
+    LagrangianScores,
+    TrackFitScores,
+    lagrangian_scores,
+    track_fit_scores,
+)
 from validation.claims.rendered_case import CROWDED_CASE, SLOW_CASE, RenderedCase, render_case
 from validation.studies.calibration_methods import (
     calibrate_cameras,
@@ -62,6 +69,10 @@ class Sizes:
         Dot-centre noise of the synthetic calibration dots, px.
     image_snapshots : int
         Frame pairs of the rendered case of the image-stack claims.
+    recording_particles : int
+        Tracers in the sheet of the recorded case of the track claims (#51–#53).
+    recording_frames : int
+        Its frames, τ_η/10 apart.
     """
 
     particles: int
@@ -69,11 +80,20 @@ class Sizes:
     reference_particles: int = 300
     dot_noise_px: float = 0.05
     image_snapshots: int = 3
+    recording_particles: int = 500
+    recording_frames: int = 60
 
 
 SIZES = {
     "quick": Sizes(particles=1000, snapshots=100),
-    "full": Sizes(particles=2000, snapshots=600, reference_particles=500, image_snapshots=12),
+    "full": Sizes(
+        particles=2000,
+        snapshots=600,
+        reference_particles=500,
+        image_snapshots=12,
+        recording_particles=1000,
+        recording_frames=120,
+    ),
 }
 
 
@@ -240,6 +260,24 @@ class ClaimContext:
         return formation_scores(self.slow_case, seed=self.seed + 13)
 
     @cached_property
+    def recorded_case(self) -> RecordedCase:
+        """The short recording of exact trajectories and their noisy measurement
+        (claims #51–#53)."""
+        return record_case(
+            self.sizes.recording_particles, self.sizes.recording_frames, seed=self.seed + 16
+        )
+
+    @cached_property
+    def track_fits(self) -> TrackFitScores:
+        """The recorded case's tracks fitted by the stack, against their floors."""
+        return track_fit_scores(self.recorded_case, seed=self.seed + 18)
+
+    @cached_property
+    def lagrangian(self) -> LagrangianScores:
+        """The recorded case's Lagrangian statistics, noisy and noise-free."""
+        return lagrangian_scores(self.recorded_case, seed=self.seed + 18)
+
+    @cached_property
     def reference(self) -> BruteForceS2:
         """S2 of the exact velocities of the Pope-spectrum runs at t, by brute force over
         two groups of ``reference_particles`` per snapshot in the claims' bins
@@ -288,6 +326,12 @@ class ClaimContext:
     def multi_dt(self) -> MultiDtResult:
         """The multi-Δt experiment with 15 µm white noise."""
         return self._analyse(Measurement())
+
+    @cached_property
+    def multi_dt_exact(self) -> MultiDtResult:
+        """The same sample's exact positions (no noise): the reference of the run
+        statistics' u′ on the same snapshots (#54)."""
+        return self._analyse(Measurement(noise=(0.0, 0.0, 0.0)))
 
     @cached_property
     def multi_dt_correlated(self) -> MultiDtResult:

@@ -44,6 +44,10 @@ class DetectionScores:
         Their Cramér–Rao standard deviations, px.
     fraction : ndarray, shape (N, 2)
         Exact centre − nearest pixel centre, in [−½, ½), px.
+    sigma : ndarray, shape (N,)
+        Their spots' exact Gaussian σ, px.
+    electrons : ndarray, shape (N,)
+        Their spots' expected photo-electrons, e⁻.
     bright_found : int
         Isolated particles whose brightest pixel expects at least twice the detection
         threshold, found.
@@ -54,12 +58,15 @@ class DetectionScores:
     errors: np.ndarray
     bound: np.ndarray
     fraction: np.ndarray
+    sigma: np.ndarray
+    electrons: np.ndarray
     bright_found: int
     bright: int
 
 
 def _exposure_scores(exposure: Exposure, read_noise: float, threshold_e: float) -> tuple:
-    """Errors, bounds, fractions of the isolated particles found; bright found, bright."""
+    """Errors, bounds, fractions, σ and photo-electrons of the isolated particles found;
+    bright found, bright."""
     frame = exposure.frame
     rows, cols = frame.image.shape
     xy = frame.xy[frame.visible]
@@ -77,7 +84,8 @@ def _exposure_scores(exposure: Exposure, read_noise: float, threshold_e: float) 
     errors = exposure.detected.xy[nearest[keep]] - xy[keep]
     bound = localisation_bound(xy[keep], sigma[keep], electrons[keep], read_noise)
     fraction = xy[keep] - np.round(xy[keep])
-    return errors, bound, fraction, int(np.sum(bright & found)), int(np.sum(bright))
+    spots = (sigma[keep], electrons[keep])
+    return errors, bound, fraction, *spots, int(np.sum(bright & found)), int(np.sum(bright))
 
 
 def _centre_pixel_fraction(offset: np.ndarray, sigma: np.ndarray) -> np.ndarray:
@@ -103,8 +111,10 @@ def detection_scores(case: RenderedCase, threshold_sigmas: float) -> DetectionSc
         errors=np.concatenate([p[0] for p in parts]),
         bound=np.concatenate([p[1] for p in parts]),
         fraction=np.concatenate([p[2] for p in parts]),
-        bright_found=sum(p[3] for p in parts),
-        bright=sum(p[4] for p in parts),
+        sigma=np.concatenate([p[3] for p in parts]),
+        electrons=np.concatenate([p[4] for p in parts]),
+        bright_found=sum(p[5] for p in parts),
+        bright=sum(p[6] for p in parts),
     )
 
 

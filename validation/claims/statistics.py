@@ -18,12 +18,14 @@ from ptv.stats.dissipation import (
     plateau_epsilon,
     turbulence_scales,
 )
-from ptv.stats.mean_displacement import mean_displacement
+from ptv.stats.mean_displacement import OFFSET_FALSE_ALARM, mean_displacement
 from ptv.stats.multidt import wls_line
 from ptv.stats.structure import StructureFunction
 from simulator.presets import FLOW_PRESETS
 from validation.claims.base import Claim, ClaimResult, result
 from validation.claims.context import CORRELATION_LENGTH, PLATEAU_RANGE, ClaimContext
+from validation.run.checks import NORMAL_Z
+from validation.run.tolerances import false_alarm_z
 from validation.studies.multi_dt_experiment import Measurement
 from validation.truth.independent import (
     REFERENCE_C2,
@@ -88,27 +90,30 @@ def _c1_against_reference(
     """c₁ against S2_ref: per bin, and pooled over r ≥ POOLED_FROM·L_int.
 
     Returns the worst deviation over its allowance (≤ 1 passes) and the tolerance in
-    words. Per bin |c₁/S2_ref − 1| ≤ max(3 %, 2σ), σ² the sum of c₁'s bootstrap
-    variance and S2_ref's subsampling variance. Pooled: the mean of c₁/S2_ref within 3σ,
-    σ from c₁'s bootstrap replicates of that mean and S2_ref's subsampling error (the
+    words. Per bin |c₁/S2_ref − 1| ≤ max(3 %, zσ), σ² the sum of c₁'s bootstrap
+    variance and S2_ref's subsampling variance, z the normal quantile of 0.1 % false
+    alarms shared over the bins. Pooled: the mean of c₁/S2_ref within 3.29σ (0.1 %), σ
+    from c₁'s bootstrap replicates of that mean and S2_ref's subsampling error (the
     bootstrap includes the sampling of the flow, which c₁ and S2_ref share, so this
     overstates the error of their ratio).
     """
     s2_ref, se_ref = reference.s2, reference.se_s2()
     ok = fit.fitted & np.isfinite(s2_ref) & (s2_ref > 0)
     ratio = fit.s2 / s2_ref
-    allowed = np.maximum(C1_METHOD_ERROR, 2 * np.hypot(fit.se_s2, se_ref) / s2_ref)
+    z_bins = false_alarm_z(None, tests=max(int(ok.sum()), 1))
+    allowed = np.maximum(C1_METHOD_ERROR, z_bins * np.hypot(fit.se_s2, se_ref) / s2_ref)
     per_bin = float(np.max(np.abs(ratio[ok] - 1) / allowed[ok]))
     far = ok & (reference.r >= POOLED_FROM * l_int)
     pooled = float(np.mean(ratio[far]))
     boot = np.std(np.mean(fit.s2_boot[:, far] / s2_ref[far], axis=1), ddof=1)
     _, se_sub = reference.pooled(np.where(far, fit.s2 / s2_ref**2, 0.0) / far.sum())
-    tolerance = 3 * float(np.hypot(boot, se_sub))
+    tolerance = NORMAL_Z * float(np.hypot(boot, se_sub))
     value = max(per_bin, abs(pooled - 1) / tolerance)
     groups, size = reference.count.shape[1], int(reference.group_size.max())
     text = (
-        f"every bin |c₁/S2_ref − 1| ≤ max(3 %, 2σ) (worst {per_bin:.2f} of allowed); "
-        f"r ≥ {POOLED_FROM:g} L_int: mean c₁/S2_ref {pooled:.4f} within 3σ = {tolerance:.2%} "
+        f"every bin |c₁/S2_ref − 1| ≤ max(3 %, {z_bins:.3g}σ) (worst {per_bin:.2f} of "
+        f"allowed); r ≥ {POOLED_FROM:g} L_int: mean c₁/S2_ref {pooled:.4f} within "
+        f"{NORMAL_Z:.3g}σ = {tolerance:.2%} (0.1 % false alarms each) "
         f"(S2_ref: brute force, {groups} groups of ≤ {size} particles "
         f"per snapshot, subsampling σ {se_sub:.2%})"
     )
@@ -169,15 +174,16 @@ def _epsilon(claim: Claim, ctx: ClaimContext) -> ClaimResult:
     s2, radius = r.fit.s2[r.inertial], r.fit.r[r.inertial]
     boot = np.nanmax(r.fit.s2_boot[:, r.inertial] ** 1.5 / radius, axis=1)
     relative_se = float(np.std(boot, ddof=1) / np.nanmax(s2**1.5 / radius))
-    tolerance = 3 * relative_se + 1.5 * C1_PLATEAU_BIAS
+    tolerance = NORMAL_Z * relative_se + 1.5 * C1_PLATEAU_BIAS
     deficit = ctx.epsilon_reference / ctx.preset.parameters.epsilon - 1
     return result(
         claim,
         value,
         f"ε / (ε_input × (1 {deficit:+.1%})) within ±{tolerance:.1%} (the deficit of "
         f"max (D_LL/{REFERENCE_C2:g})^{{3/2}}/r over {PLATEAU_RANGE[0] * 1e3:g}–"
-        f"{PLATEAU_RANGE[1] * 1e3:g} mm by an independent quadrature; 3σ of the plateau's "
-        f"bootstrap + 1.5 × c₁'s {C1_PLATEAU_BIAS:.0%} bias there)",
+        f"{PLATEAU_RANGE[1] * 1e3:g} mm by an independent quadrature; {NORMAL_Z:.3g}σ of the "
+        f"plateau's bootstrap (0.1 % false alarms) + 1.5 × c₁'s {C1_PLATEAU_BIAS:.0%} bias "
+        "there)",
         abs(value - 1) <= tolerance,
     )
 
@@ -203,7 +209,8 @@ def _mean_linear(claim: Claim, ctx: ClaimContext) -> ClaimResult:
     return result(
         claim,
         statistic,
-        f"Σ(β₀/σ)² < {limit:.3g} (χ²₃, 1 % false alarms, the stack's test); a frame offset of "
+        f"Σ(β₀/σ)² < {limit:.3g} (χ²₃, {100 * OFFSET_FALSE_ALARM:g} % false alarms, the "
+        "stack's test); a frame offset of "
         f"{OFFSET_IN_SE:g}σ per component (σ of β₀ from the snapshot means' scatter, apart "
         f"from the stack) detected ({detected:.3g}) and recovered "
         f"(β₀ shift / offset {recovered.min():.3f}–{recovered.max():.3f}, within 1 %)",

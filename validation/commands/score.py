@@ -160,32 +160,55 @@ def score(args: argparse.Namespace) -> tuple[dict, np.ndarray]:
     return as_json(result), errors
 
 
-#: Bootstrap standard errors within which a failed check is sampling scatter, not bias.
-SCATTER_SE = 3.0
+#: Effective independent snapshots below which a verdict is too weak to mean much: at
+#: 0.1 % false alarms the Student quantile of 9 degrees of freedom is 4.8 standard
+#: errors (3.3 for many), of 3 (four snapshots) 12.9.
+MIN_SNAPSHOTS_FOR_VERDICT = 10
 
 
 def _statistics_lines(statistics: dict, snapshots: int) -> list[str]:
-    """c1 and the plateau ε against the truth, each with its tolerance and verdict; when
-    a check fails within :data:`SCATTER_SE` bootstrap errors, a line saying that the
-    snapshots are too few to tell a bias from the sampling scatter."""
+    """c1, the plateau ε and u′ against the truth of the same snapshots, each with its
+    tolerance and verdict; where the snapshots are too few for a verdict with any power
+    (:data:`MIN_SNAPSHOTS_FOR_VERDICT` effective snapshots), a line saying so."""
     c1, eps = statistics["c1"], statistics["epsilon"]
-    deviation, relative = c1["max_abs_deviation"], eps["relative_to_exact_d_ll"]
+    deviation = c1["max_abs_deviation"]
     lines = [
         "c1 within "
         + ("–" if deviation is None else f"{100 * deviation:.3g} %")
-        + f" of the sample truth over the check range (≤ {100 * c1['tolerance']:g} %): "
+        + f" of the sample truth over the check range (≤ {100 * c1['tolerance']:g} % + "
+        f"{c1['z']:.3g}σ per bin): "
         + ("PASS" if c1["passed"] else "FAIL"),
-        "plateau epsilon "
-        + ("–" if relative is None else f"{100 * relative:+.3g} %")
-        + f" from the estimator on the exact D_LL (≤ {100 * eps['tolerance']:g} %): "
-        + ("PASS" if eps["passed"] else "FAIL"),
     ]
-    in_se = c1["max_deviation_in_se"]
-    if not c1["passed"] and in_se is not None and in_se <= SCATTER_SE:
+    if "relative_to_exact_rung" in eps:
         lines.append(
-            f"too few snapshots ({snapshots} per dt) for a verdict on c1: its deviation is "
-            f"{in_se:.2g} bootstrap standard errors, within the sampling scatter; score "
-            "more snapshots (docs/run.md §8 gives the sizes the checks assume)"
+            f"plateau epsilon {100 * eps['relative_to_exact_rung']:+.3g} % from the true "
+            f"positions of the same snapshots (≤ {100 * eps['tolerance']:.3g} %, "
+            f"{'paired' if eps['paired'] else 'unpaired'}): "
+            + ("PASS" if eps["passed"] else "FAIL")
+        )
+    else:
+        relative = eps["relative_to_exact_d_ll"]
+        tolerance = "–" if eps["tolerance"] is None else f"{100 * eps['tolerance']:.3g} %"
+        lines.append(
+            "plateau epsilon "
+            + ("–" if relative is None else f"{100 * relative:+.3g} %")
+            + f" from the estimator on the exact D_LL (≤ {tolerance}): "
+            + ("PASS" if eps["passed"] else "FAIL")
+        )
+    up = statistics.get("u_prime")
+    if up is not None:
+        lines.append(
+            f"u' {100 * up['relative_to_exact_rung']:+.3g} % from the true positions of the "
+            f"same snapshots (≤ {100 * up['tolerance']:.3g} %): "
+            + ("PASS" if up["passed"] else "FAIL")
+        )
+    effective = statistics.get("effective_snapshots")
+    if effective is not None and effective < MIN_SNAPSHOTS_FOR_VERDICT:
+        lines.append(
+            f"too few snapshots for a verdict with power: {snapshots} per dt "
+            f"({effective:.3g} effective), so each check allows {c1['z']:.3g} standard errors "
+            f"per bin at 0.1 % false alarms; score at least {MIN_SNAPSHOTS_FOR_VERDICT} "
+            "(docs/score.md §5)"
         )
     return lines
 

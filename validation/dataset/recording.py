@@ -34,7 +34,7 @@ from simulator.dns.flow import DnsTracerFlow
 from simulator.particles import KSFlow
 from simulator.presets import FlowPreset
 from simulator.recording import follow_periodic_recording, follow_recording
-from simulator.render.camera_frames import ParticleLighting, record_particles
+from simulator.render.camera_frames import ParticleLighting, record_particles, rig_lighting
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig
 from simulator.target import build_plate, traverse_positions
@@ -182,7 +182,8 @@ def _write_sequence(
     todo = truth.todo()
     for _ in range(len(chunks) - len(todo)):
         tick()
-    job = FrameJob(rig, settings.lighting, settings.sensor, settings.seed, s, folder)
+    lighting = rig_lighting(settings.lighting, rig)
+    job = FrameJob(rig, lighting, settings.sensor, settings.seed, s, folder)
     items = [(chunks[i][0], truth.positions(i)) for i in todo]
     for i, (xy, visible) in executor.map(render_frames, items, shared={"job": job}):
         truth.write_chunk(todo[i], xy, visible)

@@ -40,7 +40,7 @@ from ptv.pipeline.frames import DetectorSettings
 from simulator.flow import DEFAULT_UNSTEADINESS
 from simulator.particles import KSFlow, TracerFlow
 from simulator.presets import FlowPreset
-from simulator.render.camera_frames import ParticleLighting
+from simulator.render.camera_frames import ParticleLighting, rig_lighting
 from simulator.render.plate import render_plate
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig
@@ -104,6 +104,12 @@ class RenderSettings:
         (:func:`simulator.particles.double_frame`).
     seed : int
         Seed of every random choice.
+    centre_noise : float or None
+        A points dataset: no particle image is drawn, and each lit particle's exact image
+        centre plus white Gaussian noise of this many pixels per axis stands for its
+        detection (:attr:`validation.run.particle_chunks.ParticleJob.centre_noise`; for
+        what the stack does without images, e.g. ``benchmarks/bench_false_alarms.py``).
+        None (default) renders.
     """
 
     frames: int = 10
@@ -119,6 +125,7 @@ class RenderSettings:
     sensor: Sensor = field(default_factory=Sensor)
     shared_first_frame: bool = True
     seed: int = 0
+    centre_noise: float | None = None
 
 
 def _camera_attributes(camera) -> dict:
@@ -291,12 +298,13 @@ def particle_job(
         dt=np.asarray(preset.dt, dtype=float),
         frames=settings.frames,
         particles=settings.particles,
-        lighting=settings.lighting,
+        lighting=rig_lighting(settings.lighting, rig),
         sensor=settings.sensor,
         shared_first_frame=settings.shared_first_frame,
         seed=settings.seed,
         detector=detector,
         images=images,
+        centre_noise=settings.centre_noise,
     )
 
 

@@ -10,11 +10,13 @@ from validation.mutations.base import Mutation
 from validation.mutations.calibration import CALIBRATION_MUTATIONS
 from validation.mutations.conventions import CONVENTION_MUTATIONS
 from validation.mutations.crowding import CROWDING_MUTATIONS
+from validation.mutations.dns import DNS_MUTATIONS
 from validation.mutations.flow import FLOW_MUTATIONS
 from validation.mutations.formation import FORMATION_MUTATIONS
 from validation.mutations.images import IMAGE_MUTATIONS
 from validation.mutations.optics import OPTICS_MUTATIONS
 from validation.mutations.statistics import STATISTICS_MUTATIONS
+from validation.mutations.tracks import TRACK_MUTATIONS
 
 __all__ = ["MUTATIONS", "Mutation", "mutation"]
 
@@ -27,6 +29,8 @@ MUTATIONS: tuple[Mutation, ...] = (
     + FORMATION_MUTATIONS
     + CROWDING_MUTATIONS
     + CONVENTION_MUTATIONS
+    + DNS_MUTATIONS
+    + TRACK_MUTATIONS
 )
 
 

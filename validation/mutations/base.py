@@ -30,6 +30,11 @@ class Mutation:
     probe : callable
         A cheap computation through the patched code, returning numbers that differ
         with the mutation applied (proof that the patch reaches what it names).
+    run_checks : tuple of str
+        For a mutation out of every claim's reach (``expected`` empty): the required
+        checks of ``synptv run`` that fail with it (ids of the run's verdict), shown by
+        a test of their own (``tests/mutations/test_dns_kills.py``), not by the claims
+        runner.
     """
 
     name: str
@@ -38,6 +43,7 @@ class Mutation:
     expected: tuple[str, ...]
     groups: tuple[str, ...]
     probe: Callable[[], Any]
+    run_checks: tuple[str, ...] = ()
 
     @contextmanager
     def applied(self) -> Iterator[None]:

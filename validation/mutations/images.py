@@ -6,6 +6,9 @@ the Cramér–Rao bound and peak locking, matching against a brute-force matcher
 and the link radius on a slow flow) reach this code.
 """
 
+import inspect
+import sys
+import textwrap
 from dataclasses import replace
 
 import numpy as np
@@ -26,6 +29,25 @@ LINKING = ("image.linking",)
 SLOW_LINKING = ("image.slow_link_speed", "image.slow_linking")
 #: The link speed the stack used before it was measured on the data, m/s.
 PAPER_FLOW_SPEED = 1.5
+#: The compiled kernels of the refinement that call the lone spot's normal equations,
+#: callees before their callers: a Numba kernel binds the kernels it calls when it is
+#: compiled, so each is compiled again (without its disk cache) to call the mutated one.
+_JACOBIAN_CALLERS = ("ptv.detect._refine:fit_group", "ptv.detect._refine:_refine_chunks")
+#: The split stage's kernels that reach ``fit_group`` (its model tests fit trial spots),
+#: callees first. After an edit of ``_refine.py`` alone they keep the fit they were
+#: compiled with for as long as their disk cache holds them (Numba's cache does not see a
+#: change in a kernel of another file): so the bug escaped, the y error 20 % larger on
+#: ``ci`` and every claim passing the pooled #29. They are compiled again bound to the
+#: correct fit (:func:`_with_correct_fit`), so that the mutation is the refinement's bug
+#: whatever the cache holds and no kernel compiled with the bug reaches the cache. With
+#: the split's trial fits broken too, the y error reaches 2.7× its bound and #31, #42 and
+#: #43 fail besides #29.
+_SPLIT_KERNELS = (
+    "ptv.detect._split:_trial",
+    "ptv.detect._split:_rescue",
+    "ptv.detect._split:_split_group",
+    "ptv.detect._split:_split_chunks",
+)
 
 
 def _detected():
@@ -92,6 +114,40 @@ def _swapped(original):
     return match
 
 
+def _recompiled(target: str) -> Patch:
+    """The compiled kernel ``target`` compiled again (without its disk cache), so that it
+    calls the kernels its module holds when it is first called."""
+    return Patch(target, edited("cache=True", "cache=False"))
+
+
+def _compiled_again(function, namespace: dict):
+    """The Numba kernel of ``function``'s source (without its disk cache), its globals
+    ``namespace``."""
+    source = textwrap.dedent(inspect.getsource(function)).replace("cache=True", "cache=False")
+    code = compile(source, f"<again {function.__module__}.{function.__qualname__}>", "exec")
+    found: dict = {}
+    exec(code, namespace, found)
+    return found[function.__name__]
+
+
+def _with_correct_fit(target: str) -> Patch:
+    """The split kernel ``target`` compiled again (without its disk cache) in a copy of
+    its module's namespace as it is when the patch is applied, and where it calls
+    ``fit_group``, a copy of it compiled from its source in a copy of ``_refine``'s
+    namespace as it is then: neither sees what the patches that follow put in either
+    module, and no kernel compiled with them is written to a disk cache."""
+
+    def make(original):
+        function = original.py_func
+        namespace = dict(function.__globals__)
+        if "fit_group" in function.__code__.co_names:
+            refine = sys.modules["ptv.detect._refine"]
+            namespace["fit_group"] = _compiled_again(refine.fit_group.py_func, dict(vars(refine)))
+        return _compiled_again(function, namespace)
+
+    return Patch(target, make)
+
+
 def _noise() -> float:
     """The background noise estimated on 200 × 200 px of 3 DN white noise."""
     image = np.random.default_rng(0).normal(100.0, 3.0, (200, 200))
@@ -134,6 +190,25 @@ IMAGE_MUTATIONS: tuple[Mutation, ...] = (
         "every detected centre half a pixel to the right of where the detector put it",
         (Patch("ptv.detect.locate:detect_particles", _shifted),),
         ("image.detection_rms", "image.position_bias"),
+        ("image",),
+        _detected,
+    ),
+    Mutation(
+        "detector-y-jacobian-takes-x",
+        "a copy-paste in the detector's least-squares refinement: the Jacobian of a lone "
+        "spot's model with respect to its y centre takes the x derivative of the pixel "
+        "masses (A·m_x·∂m_x/∂x, not A·m_x·∂m_y/∂y); the y error of isolated spots 10 % "
+        "larger, x unchanged (the split stage's trial fits keep the correct Jacobian, as "
+        "they did when the bug was measured: _SPLIT_KERNELS)",
+        (
+            *(_with_correct_fit(target) for target in _SPLIT_KERNELS),
+            Patch(
+                "ptv.detect._refine:_normal_equations_one",
+                edited("j2 = w * (a * mx * dyc)", "j2 = w * (a * mx * dxc)"),
+            ),
+            *(_recompiled(target) for target in _JACOBIAN_CALLERS),
+        ),
+        ("image.detection_rms",),
         ("image",),
         _detected,
     ),

@@ -19,6 +19,8 @@ def kill_table(outcomes: Sequence[Outcome]) -> list[str]:
         expected = ", ".join(
             c + (" (not registered)" if c in o.awaiting else "") for c in o.mutation.expected
         )
+        if not expected and o.mutation.run_checks:
+            expected = "the run's " + ", ".join(o.mutation.run_checks) + " (not claims)"
         lines.append(f"{'':34s} {'':16s} expected: {expected or '- (out of scope)'}")
         lines.extend(
             f"{'':34s} {'':16s} {claim} raised {error}" for claim, error in o.errors.items()

@@ -169,17 +169,21 @@ class Outcome:
     def status(self) -> str:
         """``killed``; ``partly killed`` (an expected killer passed); ``survived``;
         ``awaiting claims`` (no expected killer registered yet); ``out of scope`` (no
-        claim is expected to catch it, docs/claims.md §5)."""
+        claim is expected to catch it, docs/claims.md §5); ``run checks`` (no claim
+        can, required checks of a run do: ``Mutation.run_checks``, shown by their own
+        test)."""
         if self.missed:
             return "partly killed" if self.killed_by else "survived"
         if self.killed_by:
             return "killed"
-        return "awaiting claims" if self.awaiting else "out of scope"
+        if self.awaiting:
+            return "awaiting claims"
+        return "run checks" if self.mutation.run_checks else "out of scope"
 
     @property
     def ok(self) -> bool:
         """Whether the claims did what the mutation expects of them."""
-        return self.status in ("killed", "awaiting claims", "out of scope")
+        return self.status in ("killed", "awaiting claims", "out of scope", "run checks")
 
     def as_dict(self) -> dict:
         """JSON-able form: mutation, description, killed_by, expected_killers, killed,

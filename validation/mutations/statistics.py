@@ -269,6 +269,23 @@ STATISTICS_MUTATIONS: tuple[Mutation, ...] = (
         lambda: run_statistics_probe().plateau.epsilon,
     ),
     Mutation(
+        "u-prime-noise-kept",
+        "the Eulerian variance fit reports the raw variance at the largest Δt over Δt², the "
+        "noise 2σ_b²/Δt² left in u′",
+        (
+            Patch(
+                "ptv.stats.eulerian:eulerian_fit",
+                edited(
+                    '("variance", vfit.c1),',
+                    '("variance", vfit.c1 + vfit.c2 / dt[idx].max() ** 2),',
+                ),
+            ),
+        ),
+        ("run.u_prime",),
+        ("run",),
+        lambda: run_statistics_probe().u_prime.value,
+    ),
+    Mutation(
         "kolmogorov-constant-1.3",
         "the simulator's Pope spectrum takes C_K = 1.3 instead of 1.5 (c_L, c_η re-solved, "
         "so u′ and ε still hold; the exact D_LL and the ε deficit move with the flow)",

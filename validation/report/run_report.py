@@ -22,16 +22,20 @@ from validation.report.linking_table import linking_table
 from validation.report.png import save_figure
 from validation.report.run_figures import budget_figure, noise_figure
 from validation.report.sheet_region_table import sheet_region_table
-from validation.run.checks import compare_variant, error_budget, float_array, predicted_noise
+from validation.run.checks import error_budget
 from validation.run.dns_checks import dns_section
 from validation.run.experiment import REFERENCE_VARIANTS, ExperimentStages, run_label
-from validation.run.scenario import Scenario, pipeline_settings
+from validation.run.rung_comparisons import compare_rungs
+from validation.run.scenario import Scenario
+from validation.run.tolerances import float_array
 from validation.run.verdict import (
     calibration_check,
     dns_rows,
     failed_rung_checks,
+    plateau_row,
     run_checks,
     rung_checks,
+    sample_row,
     verdict,
     verdict_line,
 )
@@ -118,49 +122,15 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
         }
     failed = calibration.get("failed", {})
     given, scenario = scenario, without_failed(scenario, failed)
-    settings = pipeline_settings(scenario).statistics
     truth = _read(stages.truth.folder / "truth.json")
     detection = _read(stages.ptv["detection"].folder / "detection.json")
     p = truth["parameters"]
-    check_range = (
-        scenario.checks.c1_r_min_eta * p["eta"],
-        scenario.checks.c1_r_max_l_int * p["L_int"],
+    compared = compare_rungs(
+        scenario, truth, detection, {v: stage.folder for v, stage in stages.ptv.items()}
     )
-    box = scenario.ptv.analysis_volume
-    noise = {"detection": predicted_noise(detection, settings.bins, box)}
-    noise_source = {"detection": "detection"}  # whose particles' noise each prediction is
-    summaries, comparisons, matching, populations = {}, {}, {}, {}
-    # The fit's c2 on the exact positions: the flow's terms beyond Δt², in every rung's c2.
-    exact_fit = _read(stages.ptv["exact"].folder / "summary.json")["structure_function"]
-    noise_free = (float_array(exact_fit["noise"]), float_array(exact_fit["se_noise"]))
-    for variant, stage in stages.ptv.items():
-        summary = _read(stage.folder / "summary.json")
-        summary.pop("dataset", None)
-        summary["calibration"] = variant
-        summaries[variant] = summary
-        population = stage.folder / "population.json"
-        populations[variant] = _read(population) if population.is_file() else None
-        # c2 is predicted from the noise of the very particles this S2 used (the
-        # trajectory test drops the noisiest), else from the detection rung's.
-        measured = populations[variant] is not None and all(
-            v is not None for row in populations[variant]["displacement_noise_m"] for v in row
-        )
-        noise[variant] = (
-            predicted_noise(populations[variant], settings.bins, box)
-            if measured
-            else noise["detection"]
-        )
-        noise_source[variant] = variant if measured else "detection"
-        comparisons[variant] = compare_variant(
-            summary,
-            truth,
-            check_range=check_range,
-            noise=noise[variant],
-            population=populations[variant],
-            noise_free_c2=None if variant == "exact" else noise_free,
-        )
-        if (stage.folder / "matching.json").is_file():
-            matching[variant] = _read(stage.folder / "matching.json")
+    summaries, comparisons = compared.summaries, compared.comparisons
+    matching, populations, noise = compared.matching, compared.populations, compared.noise
+    check_range, noise_free = compared.check_range, compared.noise_free
     order = [(v, *_RUNGS[v]) for v in REFERENCE_VARIANTS]
     order += [(m, f"calibration ({m})", "true-cameras") for m in scenario.ptv.methods]
     main = scenario.ptv.methods[0]
@@ -184,7 +154,7 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
             check_range,
             noise_free=noise_free[0],
             label=label,
-            predicted_for=noise_source[main],
+            predicted_for=compared.noise_source[main],
         ),
         figures / "noise.png",
     )
@@ -198,13 +168,15 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
             ptv=scenario.ptv,
             seed=scenario.seed,
         )
+    notes = [sample_row(comparisons[main]), plateau_row(scenario.ptv.plateau, p["eta"])]
     checks, must_hold = verdict(
         run_checks(
             detection,
             comparisons["detection"],
             calibration_check(table1, load_rig(scenario.rig.name).spec),
         )
-        + dns_rows(dns),
+        + dns_rows(dns)
+        + [row for row in notes if row is not None],
         {
             m: failed_rung_checks(failed[m])
             if m in failed

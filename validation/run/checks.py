@@ -45,15 +45,30 @@ Checks on one variant (tolerances from the issue and docs/claims.md):
   all-Δt value (the paper: −5 % and +2 %; |Δ| < 10 % and < 5 %, docs/claims.md #13).
 """
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from ptv.stats.pairs import LogBins
+from ptv.stats.mean_displacement import OFFSET_FALSE_ALARM
+from validation.run.noise_prediction import NoisePrediction
+from validation.run.tolerances import (
+    FALSE_ALARM,
+    false_alarm_z,
+    float_array,
+    paired_ratio,
+    pairs_with,
+    snapshot_dof,
+)
 
-#: Tolerances of the checks.
+#: The method's allowances (what the stack may add, beyond its statistical error).
 C1_TOLERANCE = 0.05
+#: ε against the estimator on the ensemble's exact D_LL (or an independent quadrature):
+#: the realized sample's own fluctuation is added through its standard error.
 EPSILON_TOLERANCE = 0.05
+#: ε and u′ against the exact trajectories of the same snapshots (paired): what a
+#: calibration gain error of 0.5 % does to them (ε → (1 + 2s)ε, u′ → (1 + s)u′,
+#: docs/statistics.md §9), and the same for u′, whose fitted variance also takes up the
+#: part of the noise that grows with Δt.
+EPSILON_METHOD = 0.01
+U_PRIME_METHOD = 0.01
 RAW_S2_MIN_RATIO = 2.0
 #: Half-width of the r range of the raw S2 check, as a factor around 10η (an octave).
 RAW_S2_OCTAVES = 2.0
@@ -61,137 +76,13 @@ RAW_S2_OCTAVES = 2.0
 #: with a bootstrap error of 3-6 %, and the measured noise variance (~10⁴ particles per
 #: Δt, 1-2 %).
 C2_MARGIN = 0.05
+#: The two-sided normal quantile of :data:`FALSE_ALARM` (3.29).
+NORMAL_Z = false_alarm_z(None)
 #: Standard error of the median of n equally uncertain values, per standard error of one.
 MEDIAN_SE = float(np.sqrt(np.pi / 2))
 SUBSET_TOLERANCES = {"3 largest dt": 0.10, "smallest and largest dt": 0.05}
 #: Standard errors allowed between the sample truth and the brute-force reference.
 REFERENCE_SE = 3.0
-
-
-def float_array(values) -> np.ndarray:
-    """A JSON list of numbers (None for NaN) as a float array."""
-    return np.array([np.nan if v is None else v for v in values], dtype=float)
-
-
-def direction_moments(bins: LogBins, box_size, *, points: int = 3000, rng: int = 0) -> np.ndarray:
-    """⟨r̂_i²⟩ of the pairs of uniform points in a box, per separation bin.
-
-    Parameters
-    ----------
-    bins : LogBins
-        Separation bins.
-    box_size : sequence of 3 floats
-        The analysis box, m.
-    points : int
-        Monte Carlo points (pairs: points²/2).
-    rng : int
-        Seed.
-
-    Returns
-    -------
-    ndarray, shape (B, 3)
-        Mean squared direction cosines (rows sum to 1; NaN in empty bins).
-    """
-    x = np.random.default_rng(rng).uniform(-0.5, 0.5, (points, 3)) * np.asarray(box_size)
-    sums = np.zeros((bins.n_bins, 3))
-    count = np.zeros(bins.n_bins)
-    edges = bins.edges
-    for i in range(points - 1):
-        d = x[i + 1 :] - x[i]
-        r = np.linalg.norm(d, axis=1)
-        b = np.searchsorted(edges, r) - 1
-        ok = (b >= 0) & (b < bins.n_bins)
-        for i_comp in range(3):
-            cos2 = (d[ok, i_comp] / r[ok]) ** 2
-            sums[:, i_comp] += np.bincount(b[ok], weights=cos2, minlength=bins.n_bins)
-        count += np.bincount(b[ok], minlength=bins.n_bins)
-    with np.errstate(invalid="ignore"):
-        return sums / count[:, None]
-
-
-@dataclass(frozen=True)
-class NoisePrediction:
-    """The noise terms of the multi-Δt fit predicted from the measured displacement noise.
-
-    For two particles with independent noise, ⟨((Δb_j − Δb_i)·e)²⟩ = 2 Σ_i σ_ΔX,i²
-    ⟨e_i²⟩(r), with the direction moments ⟨e_i²⟩ of the pairs in the analysis box
-    (:func:`direction_moments`) and σ_ΔX,i²(Δt) the displacement-noise variance measured
-    against the truth. For white noise σ_ΔX² is constant and
-    c2 = 2 Σ σ_ΔX,i² ⟨e_i²⟩ (4σ² for isotropic noise). On rendered images part of the
-    detection error is common to frames a and b (mostly the light of an unresolved
-    neighbour, which moves with respect to the particle), so σ_ΔX² grows with Δt,
-    concavely in Δt²: the intercept a fit
-    finds then depends on how it weighs the Δt values, between that of the line through
-    the two smallest Δt and that of the least-squares line through all.
-
-    Where the truth gives the errors of the particles themselves, ⟨((Δb_j − Δb_i)·e)²⟩
-    is summed over their actual pairs instead (:mod:`validation.truth.pair_noise`): on
-    dense images the noisier particles (overlapped by a neighbour) and the errors shared
-    by blended neighbours are not spread evenly over the separations. The lines are then
-    fitted per bin.
-
-    Attributes
-    ----------
-    c2 : ndarray, shape (B,)
-        From the least-squares line σ_ΔX² = n0 + n1·Δt² through every Δt (or that of the
-        pair noise), m².
-    c2_low : ndarray, shape (B,)
-        From the line through the two smallest Δt (≤ ``c2``), m².
-    c1_noise : ndarray, shape (B,)
-        2 Σ n1_i ⟨e_i²⟩: the part of the noise that grows as Δt², which the fit adds to
-        c1, m²/s².
-    """
-
-    c2: np.ndarray
-    c2_low: np.ndarray
-    c1_noise: np.ndarray
-
-
-def _intercept_and_slope(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares line y = n0 + n1·x per column of y (K, 3)."""
-    design = np.stack([np.ones_like(x), x], axis=1)
-    (n0, n1), *_ = np.linalg.lstsq(design, y, rcond=None)
-    return n0, n1
-
-
-def predicted_noise(detection: dict, bins: LogBins, box_size) -> NoisePrediction:
-    """The noise terms of the fit from ``detection.json`` (:class:`NoisePrediction`).
-
-    Parameters
-    ----------
-    detection : dict
-        ``dt`` (K,), s, and either ``pair_noise_m2`` (K, B), m², the noise term over the
-        actual pairs (:mod:`validation.truth.pair_noise`), used where present, or
-        ``displacement_noise_m`` (K, 3), m, with the direction moments of uniform pairs
-        in the box.
-    bins : LogBins
-        Separation bins.
-    box_size : sequence of 3 floats
-        The analysis box, m.
-    """
-    x = np.asarray(detection["dt"], dtype=float) ** 2
-    if detection.get("pair_noise_m2") is not None:
-        per_pair = np.array([float_array(row) for row in detection["pair_noise_m2"]])
-        c2, c2_low, c1_noise = _noise_lines(x, per_pair)
-    else:
-        variance = np.asarray(detection["displacement_noise_m"], dtype=float) ** 2
-        to_bins = 2.0 * direction_moments(bins, box_size)
-        c2, c2_low, c1_noise = (to_bins @ v for v in _noise_lines(x, variance))
-    return NoisePrediction(c2, np.minimum(c2_low, c2), c1_noise)
-
-
-def _noise_lines(x: np.ndarray, noise: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Intercept, intercept of the line through the two smallest Δt, and slope of the
-    lines through each column of ``noise`` (K, M) against Δt² (``x``, K); NaN where a
-    column holds a NaN. A single Δt gives its value, twice, and slope 0."""
-    finite = np.isfinite(noise).all(axis=0)
-    filled = np.where(np.isfinite(noise), noise, 0.0)
-    if x.size < 2:
-        constant = np.where(finite, filled.mean(axis=0), np.nan)
-        return constant, constant, np.zeros_like(constant)
-    n0, n1 = _intercept_and_slope(x, filled)
-    n0_low, _ = _intercept_and_slope(x[:2], filled[:2])
-    return tuple(np.where(finite, v, np.nan) for v in (n0, n0_low, n1))
 
 
 def _in_range(r, fitted, lo, hi) -> np.ndarray:
@@ -206,6 +97,7 @@ def compare_variant(
     noise: NoisePrediction | None,
     population: dict | None = None,
     noise_free_c2: tuple[np.ndarray, np.ndarray] | None = None,
+    exact: dict | None = None,
 ) -> dict:
     """The checks (module docstring) of one variant's ``summary.json`` against truth.
 
@@ -222,10 +114,15 @@ def compare_variant(
     population : dict, optional
         ``population.json``: the sample truth over the pairs this variant's S2 used,
         the reference of c1 and the raw S2 when given (else the sample truth of every
-        particle in the analysis volume, ``truth.json``).
+        particle in the analysis volume, ``truth.json``), and the paired error of c1
+        over it.
     noise_free_c2 : (ndarray (B,), ndarray (B,)), optional
         c2 of the same fit on the exact positions (the exact rung) and its standard
         error, m²: subtracted from c2 before it is compared with the noise.
+    exact : dict, optional
+        ``summary.json`` of the exact trajectories of the same snapshots (the exact
+        rung): ε and u′ are judged against it, paired; without it, ε against the
+        estimator on the exact D_LL with the sample's own error.
 
     Returns
     -------
@@ -250,28 +147,18 @@ def compare_variant(
         "c1_over_truth": [None if not np.isfinite(v) else float(v) for v in ratio],
         "truth": "the pairs of this S2" if population is not None else "every particle",
     }
-    dev = np.abs(ratio[sel] - 1)
-    out["c1"] = {
-        "r_range_m": [lo, hi],
-        "r_used_m": [float(r[sel].min()), float(r[sel].max())] if sel.any() else None,
-        "bins": int(sel.sum()),
-        "max_abs_deviation": float(dev.max()) if dev.size else None,
-        "mean_deviation": float(np.mean(ratio[sel] - 1)) if dev.size else None,
-        "max_deviation_in_se": float(np.max(np.abs(s2[sel] - truth_s2[sel]) / se[sel]))
-        if dev.size
-        else None,
-        "tolerance": C1_TOLERANCE,
-        "passed": bool(dev.size and dev.max() <= C1_TOLERANCE),
-        "max_abs_deviation_from_every_particle": float(np.max(np.abs(ratio_all[sel] - 1)))
-        if dev.size
-        else None,
-    }
-    out["epsilon"] = _epsilon_check(summary, truth)
+    dof = snapshot_dof(summary, exact)
+    out["c1"] = _c1_check(ratio, ratio_all, s2, se, truth_s2, r, sel, population, dof)
+    out["c1"]["r_range_m"] = [lo, hi]
+    out["epsilon"] = _epsilon_check(summary, truth, exact)
+    u_prime = _u_prime_check(summary, truth, exact)
+    if u_prime is not None:
+        out["u_prime"] = u_prime
     if "s2_reference" in truth:
-        out["c1_independent"] = _c1_independent(s2, truth, sel)
-        out["epsilon_independent"] = _epsilon_independent(summary, truth)
+        out["c1_independent"] = _c1_independent(s2, truth, sel, out["c1"]["se_paired"], dof)
+        out["epsilon_independent"] = _epsilon_independent(summary, truth, dof)
     se_c2 = float_array(sf["se_noise"])
-    out["c2"] = _c2_check(c2[sel], noise, sel, noise_free_c2, se_c2[sel])
+    out["c2"] = _c2_check(c2[sel], noise, sel, noise_free_c2, se_c2[sel], dof)
     if noise is not None and sel.any():
         out["c1"]["noise_part_max"] = float(np.max(noise.c1_noise[sel] / truth_s2[sel]))
     raw_s2 = _raw_s2_check(summary, truth, r, fitted, truth_s2)
@@ -288,85 +175,232 @@ def compare_variant(
                 "truth at the smallest Δt, so the noise term is a small part of every ⟨q⟩"
             )
     out["mean_linear"] = _mean_linear_check(summary)
-    out["subsets"] = _subset_checks(summary)
+    out["subsets"] = _subset_checks(summary, dof)
     return out
 
 
-def epsilon_tolerance(plateau: dict | None) -> float:
-    """The tolerance of the ε checks: :data:`EPSILON_TOLERANCE`, or two bootstrap
-    standard errors of the plateau ε where they are larger (a sample whose ε is itself
-    uncertain by more, as a few correlated snapshots of a DNS: no check can ask more of
-    it than its own error)."""
-    if not plateau or not plateau["epsilon"] or plateau["se_epsilon"] is None:
-        return EPSILON_TOLERANCE
-    return max(EPSILON_TOLERANCE, 2 * plateau["se_epsilon"] / abs(plateau["epsilon"]))
+def _listed(values: np.ndarray) -> list:
+    return [None if not np.isfinite(v) else float(v) for v in values]
 
 
-def _epsilon_check(summary: dict, truth: dict) -> dict:
-    """The plateau ε against the same estimator on the exact D_LL."""
-    plateau = summary["epsilon"]["plateau"]
-    eps = plateau["epsilon"] if plateau else None
-    reference = truth["epsilon_exact_d_ll"]
-    tolerance = epsilon_tolerance(plateau)
+def _c1_check(ratio, ratio_all, s2, se, truth_s2, r, sel, population, dof) -> dict:
+    """c1 over the sample truth in every bin of the range: within :data:`C1_TOLERANCE`
+    plus the false-alarm quantile over the bins times the ratio's standard error, paired
+    with the truth of the same snapshot draws where ``population`` gives it (else c1's
+    own bootstrap error, which also holds the sampling both share)."""
+    paired = population is not None and population.get("se_c1_over_truth") is not None
+    with np.errstate(invalid="ignore", divide="ignore"):
+        se_ratio = (
+            float_array(population["se_c1_over_truth"]) if paired else se / truth_s2
+        )
+    n = int(sel.sum())
+    z = false_alarm_z(dof, tests=max(n, 1))
+    dev = np.abs(ratio[sel] - 1)
+    allowed = C1_TOLERANCE + z * np.nan_to_num(se_ratio[sel], nan=0.0)
     return {
+        "r_used_m": [float(r[sel].min()), float(r[sel].max())] if n else None,
+        "bins": n,
+        "max_abs_deviation": float(dev.max()) if n else None,
+        "mean_deviation": float(np.mean(ratio[sel] - 1)) if n else None,
+        "max_deviation_in_se": float(np.max(np.abs(s2[sel] - truth_s2[sel]) / se[sel]))
+        if n
+        else None,
+        "tolerance": C1_TOLERANCE,
+        "se_paired": _listed(se_ratio) if paired else None,
+        "z": z,
+        "false_alarm_rate": FALSE_ALARM,
+        "largest_allowed": float(allowed.max()) if n else None,
+        "worst_excess": float(np.max(dev - allowed)) if n else None,
+        "passed": bool(n and np.all(dev <= allowed)),
+        "max_abs_deviation_from_every_particle": float(np.max(np.abs(ratio_all[sel] - 1)))
+        if n
+        else None,
+    }
+
+
+def _plateau_of(summary: dict | None) -> tuple[float | None, float | None, list | None]:
+    """A summary's plateau ε, its standard error and its bootstrap replicates."""
+    plateau = None if summary is None else summary["epsilon"]["plateau"]
+    if not plateau or plateau["epsilon"] is None:
+        return None, None, None
+    boot = summary.get("bootstrap") or {}
+    return plateau["epsilon"], plateau["se_epsilon"], boot.get("epsilon_plateau")
+
+
+def sample_off_ensemble(summary: dict, truth: dict) -> dict | None:
+    """How far a measurement's ε lies from the estimator on the ensemble's exact D_LL,
+    in its own standard errors: on the exact trajectories, a statement about the sample
+    (which eddies its snapshots caught), not about the code."""
+    eps, se, _ = _plateau_of(summary)
+    if eps is None or not se:
+        return None
+    reference = truth["epsilon_exact_d_ll"]
+    return {
+        "relative": eps / reference - 1,
+        "in_se": (eps - reference) / se,
+        "se_relative": se / reference,
+        "effective_snapshots": (summary.get("bootstrap") or {})
+        .get("correlation", {})
+        .get("effective_snapshots"),
+    }
+
+
+def _epsilon_check(summary: dict, truth: dict, exact: dict | None) -> dict:
+    """The plateau ε against the exact trajectories of the same snapshots (paired,
+    within :data:`EPSILON_METHOD`), or, without them, against the estimator on the exact
+    D_LL within :data:`EPSILON_TOLERANCE`; both widened by the false-alarm quantile of
+    the difference's standard error."""
+    eps, se, reps = _plateau_of(summary)
+    reference = truth["epsilon_exact_d_ll"]
+    out = {
         "value": eps,
-        "se": plateau["se_epsilon"] if plateau else None,
+        "se": se,
         "estimator_on_exact_d_ll": reference,
         "relative_to_exact_d_ll": None if eps is None else eps / reference - 1,
         "estimator_on_sample_truth": truth["epsilon_sample_truth"],
         "input": truth["epsilon_input"],
         "plateau_deficit_of_estimator": reference / truth["epsilon_input"] - 1,
+        "false_alarm_rate": FALSE_ALARM,
+    }
+    eps_x, se_x, reps_x = _plateau_of(exact)
+    if eps is None:
+        return {**out, "tolerance": None, "passed": False}
+    if eps_x is None:
+        dof = snapshot_dof(summary)
+        z = false_alarm_z(dof)
+        tolerance = EPSILON_TOLERANCE + z * (se or 0.0) / reference
+        return {
+            **out,
+            "against": "the estimator on the exact D_LL",
+            "z": z,
+            "tolerance": tolerance,
+            "passed": abs(eps / reference - 1) <= tolerance,
+        }
+    paired = pairs_with(summary, exact)
+    relative, se_relative, paired = paired_ratio(
+        eps, se, reps if paired else None, eps_x, se_x, reps_x if paired else None
+    )
+    z = false_alarm_z(snapshot_dof(summary, exact))
+    tolerance = EPSILON_METHOD + z * se_relative
+    return {
+        **out,
+        "against": "the exact trajectories of the same snapshots",
+        "exact_rung": eps_x,
+        "relative_to_exact_rung": relative,
+        "se_relative": se_relative,
+        "paired": paired,
+        "method_tolerance": EPSILON_METHOD,
+        "z": z,
         "tolerance": tolerance,
-        "passed": eps is not None and abs(eps / reference - 1) <= tolerance,
+        "sample_off_ensemble": sample_off_ensemble(exact, truth),
+        "passed": abs(relative) <= tolerance,
     }
 
 
-def _c1_independent(s2: np.ndarray, truth: dict, sel: np.ndarray) -> dict:
-    """c1 and the sample truth against the brute-force reference (module docstring)."""
+def _u_prime_check(summary: dict, truth: dict, exact: dict | None) -> dict | None:
+    """u′ against the exact trajectories of the same snapshots, paired, within
+    :data:`U_PRIME_METHOD` plus the false-alarm quantile of the paired error (None
+    without the exact rung's u′, or without this measurement's)."""
+    up = summary.get("u_prime")
+    up_x = None if exact is None else exact.get("u_prime")
+    if not up or not up_x or up["value"] is None or up_x["value"] is None:
+        return None
+    boot, boot_x = summary.get("bootstrap") or {}, exact.get("bootstrap") or {}
+    paired = pairs_with(summary, exact)
+    se = up.get("se_snapshots") or up["se"]
+    se_x = up_x.get("se_snapshots") or up_x["se"]
+    relative, se_relative, paired = paired_ratio(
+        up["value"],
+        se,
+        boot.get("u_prime") if paired else None,
+        up_x["value"],
+        se_x,
+        boot_x.get("u_prime") if paired else None,
+    )
+    z = false_alarm_z(snapshot_dof(summary, exact))
+    tolerance = U_PRIME_METHOD + z * se_relative
+    sample = truth.get("u_rms_sample")
+    return {
+        "value": up["value"],
+        "exact_rung": up_x["value"],
+        "relative_to_exact_rung": relative,
+        "se_relative": se_relative,
+        "paired": paired,
+        "method_tolerance": U_PRIME_METHOD,
+        "z": z,
+        "false_alarm_rate": FALSE_ALARM,
+        "tolerance": tolerance,
+        "sample_rms": sample,
+        "exact_rung_relative_to_sample_rms": None if not sample else up_x["value"] / sample - 1,
+        "passed": abs(relative) <= tolerance,
+    }
+
+
+def _c1_independent(
+    s2: np.ndarray, truth: dict, sel: np.ndarray, se_paired: list | None, dof
+) -> dict:
+    """c1 and the sample truth against the brute-force reference (module docstring):
+    c1 within :data:`C1_TOLERANCE` plus the false-alarm quantile over the bins of the
+    reference's subsampling error and c1's paired error in quadrature; the sample truth
+    over the reference within the false-alarm quantile of its error."""
     reference = float_array(truth["s2_reference"])
     se = float_array(truth["se_s2_reference"])
     ok = sel & np.isfinite(reference) & (reference > 0)
+    pair = np.zeros_like(reference) if se_paired is None else float_array(se_paired)
+    z = false_alarm_z(dof, tests=max(int(ok.sum()), 1))
     with np.errstate(invalid="ignore", divide="ignore"):
-        excess = np.abs(s2[ok] / reference[ok] - 1) - (C1_TOLERANCE + 2 * se[ok] / reference[ok])
+        spread = np.hypot(se[ok] / reference[ok], np.nan_to_num(pair[ok], nan=0.0))
+        excess = np.abs(s2[ok] / reference[ok] - 1) - (C1_TOLERANCE + z * spread)
     ratio, se_ratio = truth["sample_over_reference"]
-    consistent = abs(ratio - 1) <= REFERENCE_SE * se_ratio
+    z_ratio = false_alarm_z(dof)
+    consistent = abs(ratio - 1) <= z_ratio * se_ratio
     return {
         "bins": int(ok.sum()),
         "max_abs_deviation": float(np.max(np.abs(s2[ok] / reference[ok] - 1)))
         if ok.any()
         else None,
         "worst_excess_over_tolerance": float(excess.max()) if ok.any() else None,
-        "tolerance": f"{C1_TOLERANCE:.0%} + 2σ of the reference per bin",
+        "tolerance": f"{C1_TOLERANCE:.0%} + {z:.3g}σ per bin",
+        "z": z,
         "sample_over_reference": ratio,
         "se_sample_over_reference": se_ratio,
+        "z_sample_over_reference": z_ratio,
+        "false_alarm_rate": FALSE_ALARM,
         "passed": bool(ok.any() and np.all(excess <= 0) and consistent),
     }
 
 
-def _epsilon_independent(summary: dict, truth: dict) -> dict:
-    """The plateau ε against the input ε times the independently computed deficit."""
-    plateau = summary["epsilon"]["plateau"]
-    eps = plateau["epsilon"] if plateau else None
+def _epsilon_independent(summary: dict, truth: dict, dof) -> dict:
+    """The plateau ε against the input ε times the independently computed deficit, within
+    :data:`EPSILON_TOLERANCE` plus the false-alarm quantile of the plateau's own error
+    (the sample's fluctuation about the ensemble is part of this comparison)."""
+    eps, se, _ = _plateau_of(summary)
     reference = truth["epsilon_reference"]
-    tolerance = epsilon_tolerance(plateau)
+    z = false_alarm_z(dof)
+    tolerance = EPSILON_TOLERANCE + z * (se or 0.0) / reference
     return {
         "value": eps,
         "reference": reference,
         "plateau_deficit": reference / truth["epsilon_input"] - 1,
         "relative_to_reference": None if eps is None else eps / reference - 1,
+        "se_relative": None if se is None else se / reference,
+        "z": z,
+        "false_alarm_rate": FALSE_ALARM,
         "tolerance": tolerance,
         "passed": eps is not None and abs(eps / reference - 1) <= tolerance,
     }
 
 
-def c2_margin(relative_se: np.ndarray) -> float:
-    """The margin of the c2 consistency check: :data:`C2_MARGIN`, or two standard errors
-    of the median ratio where they are larger.
+def c2_margin(relative_se: np.ndarray, z: float = NORMAL_Z) -> float:
+    """The margin of the c2 consistency check: :data:`C2_MARGIN`, or ``z`` standard
+    errors of the median ratio where they are larger.
 
     Parameters
     ----------
     relative_se : ndarray, shape (n,)
         Standard error of each bin's ratio (c2 − c2_exact)/prediction.
+    z : float
+        Standard errors allowed (the false-alarm quantile).
 
     The median of n values, each with standard error σ, has a standard error of about
     √(π/2)·σ/√n; σ is taken as the median of the bins' errors. Neighbouring bins share
@@ -375,7 +409,7 @@ def c2_margin(relative_se: np.ndarray) -> float:
     finite = relative_se[np.isfinite(relative_se)]
     if finite.size == 0:
         return C2_MARGIN
-    return max(C2_MARGIN, 2 * MEDIAN_SE * float(np.median(finite)) / np.sqrt(finite.size))
+    return max(C2_MARGIN, z * MEDIAN_SE * float(np.median(finite)) / np.sqrt(finite.size))
 
 
 def _c2_check(
@@ -384,18 +418,26 @@ def _c2_check(
     sel: np.ndarray,
     noise_free: tuple[np.ndarray, np.ndarray] | None,
     se_sel: np.ndarray | None = None,
+    dof: float | None = None,
 ) -> dict:
-    """The noise term c2 in the check range (``sel``): positive, and, less the c2 of the
-    exact positions (``noise_free``: their c2 and its standard error, all bins; None: not
-    known), against the noise measured against the truth when it is known; ``se_sel``,
-    the standard error of c2 in the range, widens the margin (:func:`c2_margin`)."""
+    """The noise term c2 in the check range (``sel``): no bin below zero by more than the
+    false-alarm quantile over the bins times its standard error (``se_sel``; without it,
+    every bin above zero), and, less the c2 of the exact positions (``noise_free``: their
+    c2 and its standard error, all bins; None: not known), against the noise measured
+    against the truth when it is known (:func:`c2_margin`)."""
+    n = c2_sel.size
+    z_bins = false_alarm_z(dof, tests=max(n, 1))
+    floor = np.zeros(n) if se_sel is None else -z_bins * np.nan_to_num(se_sel, nan=0.0)
     entry = {
         "bins": int(sel.sum()),
         "negative_bins": int(np.sum(c2_sel <= 0)),
-        "median_m2": float(np.median(c2_sel)) if c2_sel.size else None,
-        "passed": bool(c2_sel.size and np.all(c2_sel > 0)),
+        "significantly_negative_bins": int(np.sum(c2_sel <= floor)),
+        "median_m2": float(np.median(c2_sel)) if n else None,
+        "z": z_bins,
+        "false_alarm_rate": FALSE_ALARM,
+        "passed": bool(n and np.all(c2_sel > floor)),
     }
-    if noise is not None and c2_sel.size:
+    if noise is not None and n:
         zeros = np.zeros_like(c2_sel)
         truncation, se_truncation = (
             (zeros, zeros) if noise_free is None else (v[sel] for v in noise_free)
@@ -403,7 +445,7 @@ def _c2_check(
         se = zeros if se_sel is None else se_sel
         ratio_c2 = float(np.nanmedian((c2_sel - truncation) / noise.c2[sel]))
         low = float(np.median(noise.c2_low[sel] / noise.c2[sel]))
-        margin = c2_margin(np.hypot(se, se_truncation) / noise.c2[sel])
+        margin = c2_margin(np.hypot(se, se_truncation) / noise.c2[sel], false_alarm_z(dof))
         entry["median_over_prediction"] = ratio_c2
         entry["prediction_m2"] = [float(v) for v in noise.c2[sel]]
         if noise_free is not None:
@@ -455,7 +497,8 @@ def _raw_s2_check(
 
 
 def _mean_linear_check(summary: dict) -> dict:
-    """The mean displacement's offset at Δt = 0 against its error."""
+    """The mean displacement's offset at Δt = 0 against its error, at the false-alarm
+    rate of the stack's test (:data:`ptv.stats.mean_displacement.OFFSET_FALSE_ALARM`)."""
     md = summary["mean_displacement"]
     offset, se_offset = float_array(md["offset"]), float_array(md["se_offset_scaled"])
     test = md["offset_test"]
@@ -465,19 +508,32 @@ def _mean_linear_check(summary: dict) -> dict:
         "velocity_m_s": md["velocity"],
         "statistic": test["statistic"],
         "limit": test["limit"],
+        "false_alarm_rate": OFFSET_FALSE_ALARM,
         "passed": test["statistic"] < test["limit"],
     }
 
 
-def _subset_checks(summary: dict) -> dict:
-    """The plateau ε of each Δt subset against that of every Δt."""
+def _subset_checks(summary: dict, dof: float | None) -> dict:
+    """The plateau ε of each Δt subset against that of every Δt (refitted on the same
+    replicates): within the paper's tolerance plus the false-alarm quantile of the
+    paired error of their ratio."""
     subsets = {}
+    z = false_alarm_z(dof)
     for name, tol in SUBSET_TOLERANCES.items():
         sub = summary["subsets"].get(name)
         if sub is None or sub.get("epsilon_ratio_to_all") is None:
             continue
         change = sub["epsilon_ratio_to_all"] - 1
-        subsets[name] = {"change": change, "tolerance": tol, "passed": abs(change) < tol}
+        se = sub.get("se_epsilon_ratio_to_all") or 0.0
+        subsets[name] = {
+            "change": change,
+            "se": se,
+            "tolerance": tol,
+            "allowed": tol + z * se,
+            "z": z,
+            "false_alarm_rate": FALSE_ALARM,
+            "passed": abs(change) < tol + z * se,
+        }
     return subsets
 
 

@@ -12,7 +12,10 @@ length η and integral length L_int = u′³/ε:
   direction of the sheet's plane;
 - plateau from 40η to min(L_int / 2, 0.6 r_max): the inertial range, the same
   40η … L_int / 2 in which c1 is checked against the truth (``[checks]``), kept clear
-  of the last bins where few pairs fit in the volume.
+  of the last bins where few pairs fit in the volume. Where 40η lies beyond that end (a
+  slow flow whose η is large against the volume), the widest plateau the volume allows
+  is taken instead, from the r range's start (10η) to the same end, with a warning; the
+  report names it as starting below 40η (:func:`validation.run.verdict.plateau_row`).
 
 A DNS has no L_int before it runs, and its periodic box (half of it 22η at 64³, 45η at
 128³) leaves no 40η … L_int/2 range: a DNS scenario gives its r range and plateau
@@ -26,9 +29,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from ptv.pipeline.options import PipelineSettings
 from validation.run.scenario_fields import ScenarioError
 
-__all__ = ["DERIVED_FIELDS", "derive_ptv_ranges"]
+__all__ = ["DERIVED_FIELDS", "derive_ptv_ranges", "independent_pair_ambiguity"]
 
 log = logging.getLogger(__name__)
 
@@ -67,7 +71,8 @@ def derive_ptv_ranges(scenario, given: set[str], sheet_size, scales: dict | None
     Raises
     ------
     ScenarioError
-        A derived range that comes out empty (a flow whose 40η exceeds what the sheet holds).
+        A derived range that comes out empty (a flow whose 10η exceeds what the sheet
+        holds).
     """
     ptv = scenario.ptv
     values = {}
@@ -96,6 +101,20 @@ def derive_ptv_ranges(scenario, given: set[str], sheet_size, scales: dict | None
             "r_range": (R_MIN_ETA * eta, r_max),
             "plateau": (PLATEAU_MIN_ETA * eta, plateau_max),
         }
+        lo, hi = derived["plateau"]
+        if "plateau" in missing and not lo < hi and R_MIN_ETA * eta < hi:
+            log.warning(
+                "%s: ptv.plateau derived from the flow would start at 40η = %.3g mm, beyond "
+                "the %.3g mm the analysis volume allows; it takes the widest plateau the "
+                "volume allows, from 10η = %.3g mm (below 40η: ε(r) there is not yet "
+                "inertial; the checks compare like with like, the exact trajectories' ε over "
+                "the same range)",
+                source,
+                lo * 1e3,
+                hi * 1e3,
+                R_MIN_ETA * eta * 1e3,
+            )
+            derived["plateau"] = (R_MIN_ETA * eta, hi)
         for name in missing:
             lo, hi = derived[name]
             if not 0 < lo < hi:
@@ -111,3 +130,58 @@ def derive_ptv_ranges(scenario, given: set[str], sheet_size, scales: dict | None
         )
         log.info("%s: derived %s", source, ", ".join(shown))
     return replace(scenario, ptv=replace(ptv, **values))
+
+
+#: The link ambiguity (a second particle within the link radius) above which the links
+#: of independent frame pairs are warned about before the run (as the run warns after:
+#: :data:`ptv.pipeline.double_frame.AMBIGUITY_WARNING`).
+AMBIGUITY_LIMIT = 0.5
+
+
+def independent_pair_ambiguity(scenario, sheet_size, u_rms: float, source: str) -> np.ndarray:
+    """How ambiguous the links of independent frame pairs will be at each Δt, known
+    before the run, with a warning naming the Δt beyond the limit.
+
+    Independent pairs (``[particles] shared_first_frame = false``) are linked within
+    max_speed·Δt + 5σ_b of X(t) at every Δt, with no smaller Δt to predict from
+    (docs/ptv.md §4). With max_speed ≈ 5u′ (the measured one is |U| + 5 max_i σ_i, σ_i
+    the rms of one component's velocity, and |U| ≈ 0 here) and the tracers spread
+    uniformly through the sheet at density n, a second particle falls within the radius r
+    with probability 1 − exp(−n·(4/3)πr³).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its particle count, Δt set and position noise.
+    sheet_size : sequence of 3 float
+        The rig's sheet, m.
+    u_rms : float
+        The flow's u′, m/s.
+    source : str
+        The file, for the warning.
+
+    Returns
+    -------
+    ndarray, shape (K,)
+        The expected ambiguity at each Δt.
+    """
+    dt = np.asarray(scenario.flow.as_preset().dt, dtype=float)
+    density = scenario.particles.count / float(np.prod(sheet_size))
+    radius = 5 * u_rms * dt + 5 * PipelineSettings().position_noise
+    ambiguity = 1 - np.exp(-density * 4 / 3 * np.pi * radius**3)
+    over = np.flatnonzero(ambiguity > AMBIGUITY_LIMIT)
+    if over.size:
+        fits = dt[ambiguity <= AMBIGUITY_LIMIT]
+        log.warning(
+            "%s: independent frame pairs (shared_first_frame = false): at Δt = %s ms the link "
+            "radius (about %s mm) will reach the particles' spacing (%.3g mm) and about %s %% "
+            "of the links will have a second candidate; the largest Δt this seeding links "
+            "unambiguously is %s. Share the first frame, seed fewer particles or shorten Δt.",
+            source,
+            ", ".join(f"{v * 1e3:.3g}" for v in dt[over]),
+            ", ".join(f"{v * 1e3:.2g}" for v in radius[over]),
+            0.554 * density ** (-1 / 3) * 1e3,
+            ", ".join(f"{100 * v:.0f}" for v in ambiguity[over]),
+            f"{fits.max() * 1e3:.3g} ms" if fits.size else "below the smallest Δt",
+        )
+    return ambiguity

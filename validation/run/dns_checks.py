@@ -20,17 +20,36 @@ by the chord midpoint, beside the prediction γβ(r)/S2 of docs/statistics.md §
 β = ⟨δu_L δa_L⟩ of the field, γ of the Δt set unweighted and γ of the fit's weights. The
 check: the standard fit's bias is the weighted prediction, Σz² ≤ :data:`DT3_CHI2_LIMIT`
 over the three separations.
+
+**The flux from the tracers** (docs/dns.md §13): the tracers' Lagrangian acceleration
+fitted to their positions over the Δt set (:mod:`validation.truth.acceleration_fit`,
+which never calls the DNS's acceleration code), their pairs' ⟨δu·δa⟩ at
+:data:`FLUX_R_OVER_ETA` η (:mod:`validation.truth.pair_flux`) against the field's from
+the solver's acceleration, snapshot by snapshot (the tracers of snapshot m are seeded in
+field snapshot m: the difference is paired). The check: |tracers − field| within the
+allowance (the fit's truncation and the spline's gradient in the path's acceleration,
+each bounded by Cauchy–Schwarz, and the field's direction sampling) plus
+:func:`~validation.run.tolerances.false_alarm_z` of the effective snapshots times the
+moving-block bootstrap error of the mean difference.
 """
 
 import h5py
 import numpy as np
 
 from ptv.stats.pairs import LogBins
+from ptv.stats.resampling import autocorrelation_time, block_length, block_weights
 from simulator.dns.field_statistics import forcing_flux, modal_dll_slope
 from simulator.particles import Box
 from validation.claims.statistics import dt3_gamma
 from validation.dataset.truth_file import TruthFile
+from validation.run.tolerances import FALSE_ALARM, false_alarm_z
+from validation.truth.acceleration_fit import (
+    DEFAULT_TERMS,
+    acceleration_from_positions,
+    truncation_bound,
+)
 from validation.truth.dt3_bias import at_separation, c1_bias
+from validation.truth.pair_flux import pair_flux
 
 #: Energy budget: the stationary window's mean dissipation within this of ε.
 BUDGET_TOLERANCE = 0.02
@@ -45,6 +64,23 @@ BIAS_R_OVER_ETA = (10.0, 20.0, 40.0)
 #: The Δt³ bias against γβ/S2: Σz² over the three separations within the 99th
 #: percentile of χ² with 3 degrees of freedom (z in paired standard errors).
 DT3_CHI2_LIMIT = 11.34
+#: The flux check's separation, in η: near the peak of ⟨δu·δa⟩/(−2ε) at these R_λ.
+FLUX_R_OVER_ETA = 10.0
+#: Its pair bins: geometric, √2 apart, centred on 5, 7.1, 10, 14 and 20 η; the paired
+#: differences of all five give the snapshots' lag-one correlation, the middle one the check.
+FLUX_BIN_STEP = np.sqrt(2.0)
+FLUX_BINS = 5
+#: Moving-block bootstrap replicates of the mean paired difference.
+FLUX_REPLICATES = 2000
+#: The spline's gradient error carried by the sweeping, in units of u′(ε/ν)^½
+#: (:func:`interpolation_error`): measured 6.0·10⁻⁴ on dns-ci (rms over 5 × 3164 tracers of
+#: the path's acceleration, with ∇ of the velocity's spline, less the solver's), taken
+#: 2.5 times larger for other grids and Reynolds numbers.
+FLUX_INTERPOLATION = 1.5e-3
+#: Allowance for the field's direction sampling: its increments are averaged over 13
+#: grid directions, the pairs' over all; from three grid spacings on the 13-direction S2
+#: and S3 lie within 1–2 % of the isotropic values (docs/dns.md §11).
+FLUX_DIRECTIONS = 0.02
 
 
 def _field(folder) -> dict:
@@ -164,6 +200,225 @@ def _dt3_bias(folder, truth: TruthFile, ptv, seed: int, eta: float) -> dict | No
     }
 
 
+def flux_edges(eta: float) -> np.ndarray:
+    """The flux check's pair bins: :data:`FLUX_BINS` bins :data:`FLUX_BIN_STEP` apart in
+    r, the middle one centred (geometrically) on :data:`FLUX_R_OVER_ETA` η, shape
+    (FLUX_BINS + 1,), m."""
+    steps = np.arange(FLUX_BINS + 1) - FLUX_BINS / 2
+    return FLUX_R_OVER_ETA * eta * FLUX_BIN_STEP**steps
+
+
+def interpolation_error(u_rms: float, epsilon: float, nu: float) -> float:
+    """How far a tracer path's acceleration may lie from the field's at the same point,
+    rms per component, m/s²: :data:`FLUX_INTERPOLATION` u′(ε/ν)^½.
+
+    A tracer moves with the spline S[u] of the field, so its path accelerates at
+    S[∂u/∂t] + (S[u]·∇)S[u]; the field's acceleration (and the solver's at the tracers)
+    has the spline of the spectral gradient, S[∇u], in its place. The two gradients
+    differ by the spline's error, a small fraction of the gradient's rms (ε/ν)^½, and the
+    difference is carried by the sweeping velocity, of rms u′.
+    """
+    return FLUX_INTERPOLATION * u_rms * float(np.sqrt(epsilon / nu))
+
+
+def flux_comparison(
+    tracers: np.ndarray,
+    field: np.ndarray,
+    *,
+    du2: np.ndarray,
+    truncation_rms: float,
+    interpolation_rms: float,
+    epsilon: float,
+    seed: int,
+) -> dict:
+    """The flux check on per-snapshot pair means (module docstring, docs/dns.md §13).
+
+    Parameters
+    ----------
+    tracers : ndarray, shape (M, B)
+        ⟨δu·δa⟩ of the tracers' pairs per snapshot (in time order) and bin, m²/s³; the
+        middle bin is checked, all B give the snapshots' correlation.
+    field : ndarray, shape (M, B)
+        The field's ⟨δu·δa⟩ over the same pairs, m²/s³.
+    du2 : ndarray, shape (M, B)
+        ⟨|δu|²⟩ of the pairs, m²/s².
+    truncation_rms : float
+        rms per component of the fitted acceleration's truncation error, m/s².
+    interpolation_rms : float
+        rms per component of the difference between a tracer path's acceleration and
+        the field's interpolated at it (:func:`interpolation_error`), m/s².
+    epsilon : float
+        The injected ε (the scale of the values shown), m²/s³.
+    seed : int
+        Seeds the bootstrap.
+
+    Returns
+    -------
+    dict
+        ``tracers``, ``field`` (over −2ε), ``difference`` (tracers − field, m²/s³) and
+        ``difference_over_2eps``; ``se`` its bootstrap error (m²/s³), ``correlation``
+        (lag-one correlation, τ, effective snapshots), ``block``, ``dof``, ``z``,
+        ``allowance`` (``truncation``, ``interpolation``, ``directions``, m²/s³),
+        ``tolerance`` (m²/s³) and ``tolerance_over_2eps``, and ``passed``.
+    """
+    tracers, field, du2 = (np.asarray(v, dtype=float) for v in (tracers, field, du2))
+    m, n_bins = tracers.shape
+    centre = n_bins // 2
+    difference = tracers - field
+    correlation = autocorrelation_time(difference)
+    block = block_length(correlation)
+    weights = block_weights(FLUX_REPLICATES, m, block, np.random.default_rng([seed, 13]))
+    replicates = weights @ difference[:, centre] / m
+    se = float(np.std(replicates, ddof=1))
+    dof = correlation.effective_snapshots - 1.0
+    z = false_alarm_z(dof)
+    mean = float(np.mean(difference[:, centre]))
+    field_mean = float(np.mean(field[:, centre]))
+    # An error e of each tracer's a moves the flux by ⟨δu·δe⟩, and by Cauchy–Schwarz
+    # |⟨δu·δe⟩| ≤ ⟨|δu|²⟩^½ ⟨|δe|²⟩^½ with ⟨|δe|²⟩ ≤ 4⟨|e|²⟩ = 12 e_rms² (e_rms per
+    # component); the same bound holds for δu_L δe_L.
+    per_error = 2.0 * np.sqrt(3.0) * float(np.sqrt(np.mean(du2[:, centre])))
+    truncation = per_error * truncation_rms
+    interpolation = per_error * interpolation_rms
+    directions = FLUX_DIRECTIONS * abs(field_mean)
+    tolerance = truncation + interpolation + directions + z * se
+    finite = bool(np.isfinite([mean, se, tolerance]).all())
+    return {
+        "tracers": float(np.mean(tracers[:, centre])) / (-2 * epsilon),
+        "field": field_mean / (-2 * epsilon),
+        "difference": mean,
+        "difference_over_2eps": mean / (2 * epsilon),
+        "se": se,
+        "correlation": correlation.as_dict(),
+        "block": block,
+        "dof": dof,
+        "false_alarm": FALSE_ALARM,
+        "z": z,
+        "allowance": {
+            "truncation": truncation,
+            "interpolation": interpolation,
+            "directions": directions,
+        },
+        "tolerance": tolerance,
+        "tolerance_over_2eps": tolerance / (2 * epsilon),
+        "passed": bool(finite and abs(mean) <= tolerance),
+    }
+
+
+def tracer_flux(
+    field: dict,
+    times: np.ndarray,
+    positions: np.ndarray,
+    velocity: np.ndarray,
+    *,
+    eta: float,
+    seed: int,
+) -> dict:
+    """⟨δu·δa⟩ at :data:`FLUX_R_OVER_ETA` η from the tracers' fitted acceleration against
+    the field's from the solver's (module docstring, docs/dns.md §13).
+
+    Parameters
+    ----------
+    field : dict
+        The flow stage's statistics (:func:`field_statistics`: ``r`` (R,), ``du_da``
+        and ``dul_dal`` (M, R), ``epsilon``).
+    times : ndarray, shape (T,)
+        0 and the Δt set, s.
+    positions : ndarray, shape (M, T, P, 3)
+        The tracers of snapshot m (seeded in field snapshot m) at those times, m.
+    velocity : ndarray, shape (M, P, 3)
+        Their exact velocity at the start, m/s.
+    eta : float
+        η, m.
+    seed : int
+        Seeds the bootstrap.
+
+    Returns
+    -------
+    dict
+        :func:`flux_comparison`'s, with the pairs' mean ``r_m`` and ``r_over_eta``, the
+        bin's ``edges_m``, ``pairs_per_snapshot``, the ``longitudinal`` terms (over −2ε)
+        and the ``acceleration_fit``'s truncation (:class:`TruncationBound`).
+    """
+    if len(positions) != len(field["du_da"]):
+        raise ValueError(
+            f"{len(positions)} snapshots of tracers, the field's statistics hold "
+            f"{len(field['du_da'])}"
+        )
+    acceleration = acceleration_from_positions(times, positions, velocity)
+    bound = truncation_bound(times, positions, velocity)
+    edges = flux_edges(eta)
+    rows = [
+        pair_flux(
+            positions[m, 0],
+            velocity[m],
+            acceleration[m],
+            edges,
+            field_r=field["r"],
+            field_du_da=field["du_da"][m],
+            field_dul_dal=field["dul_dal"][m],
+        )
+        for m in range(len(positions))
+    ]
+    u_rms = float(np.sqrt(np.mean(np.asarray(velocity, dtype=float) ** 2)))
+    errors = {
+        "du2": np.array([row.du2 for row in rows]),
+        "truncation_rms": bound.error_rms,
+        "interpolation_rms": interpolation_error(u_rms, field["epsilon"], field["nu"]),
+        "epsilon": field["epsilon"],
+        "seed": seed,
+    }
+    out = flux_comparison(
+        np.array([row.du_da for row in rows]),
+        np.array([row.field_du_da for row in rows]),
+        **errors,
+    )
+    longitudinal = flux_comparison(
+        np.array([row.dul_dal for row in rows]),
+        np.array([row.field_dul_dal for row in rows]),
+        **errors,
+    )
+    centre = FLUX_BINS // 2
+    r = float(np.mean([row.r[centre] for row in rows]))
+    out.update(
+        {
+            "r_m": r,
+            "r_over_eta": r / eta,
+            "edges_m": edges[centre : centre + 2].tolist(),
+            "pairs_per_snapshot": float(np.mean([row.count[centre] for row in rows])),
+            "longitudinal": {
+                key: longitudinal[key]
+                for key in ("tracers", "field", "difference_over_2eps", "se", "tolerance_over_2eps")
+            },
+            "acceleration_fit": bound.as_dict(),
+            "u_rms": u_rms,
+        }
+    )
+    return out
+
+
+def tracer_flux_check(field: dict, truth: TruthFile, *, eta: float, seed: int) -> dict | None:
+    """:func:`tracer_flux` of a dataset's true trajectories; None without a shared first
+    frame or with fewer Δt than the truncation bound needs (DEFAULT_TERMS + 1)."""
+    if not truth.shared_first_frame or len(truth.dt) < DEFAULT_TERMS + 1:
+        return None
+    times, positions, _, velocity = _trajectories(truth)
+    return tracer_flux(field, times, positions, velocity, eta=eta, seed=seed)
+
+
+def field_statistics(folder) -> dict:
+    """The flow stage's ``statistics.h5`` (``r``, the per-snapshot moments ``s2``, ``s3``,
+    ``du_da``, ``dul_dal`` (M, R), the shell energies, the window's ``history``, and
+    ``epsilon``, ``nu``, ``box_side``), SI."""
+    return _field(folder)
+
+
+def field_checks(field: dict, eddy_time: float) -> dict:
+    """The checks of the field alone: ``energy_budget`` and ``karman_howarth``
+    (module docstring), from :func:`field_statistics` and the window's T_L (s)."""
+    return {"energy_budget": _budget(field, eddy_time), "karman_howarth": _karman_howarth(field)}
+
+
 def dns_section(folder, *, flow: dict, truth: TruthFile, ptv, seed: int) -> dict:
     """The report's ``dns`` section (module docstring).
 
@@ -182,8 +437,8 @@ def dns_section(folder, *, flow: dict, truth: TruthFile, ptv, seed: int) -> dict
     """
     field = _field(folder)
     return {
-        "energy_budget": _budget(field, flow["eddy_time"]),
-        "karman_howarth": _karman_howarth(field),
+        **field_checks(field, flow["eddy_time"]),
         "flux": _flux(field, flow["eta"]),
         "dt3_bias": _dt3_bias(folder, truth, ptv, seed, flow["eta"]),
+        "tracer_flux": tracer_flux_check(field, truth, eta=flow["eta"], seed=seed),
     }

@@ -566,9 +566,13 @@ class RungBuilder:
         """population.json: the sample truth over the pairs this measurement's S2 used
         (its X(t) brought from the calibration frame to the world by the rigid
         ``rotation`` and ``translation`` the matching score found)."""
-        population = result.statistics.population
+        statistics = result.statistics
+        population = statistics.population
         if population is None:
             return
+        replicates = None
+        if statistics.bootstrap is not None and statistics.structure.s2_boot is not None:
+            replicates = (statistics.bootstrap, statistics.structure.s2_boot)
         reference = population_truth(
             population,
             self.truth,
@@ -577,6 +581,7 @@ class RungBuilder:
             radius=self.voxel,
             rotation=rotation,
             translation=translation,
+            replicates=replicates,
         )
         _write_json(folder / "population.json", reference.as_dict())
 

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import tifffile
 
+from ptv.camera_model import on_image
 from ptv.detect import detect_particles
 from ptv.pipeline.frames import ChunkDetections, DetectedCentres, DetectorSettings, exposures
 from simulator.particles import TracerFlow, double_frame, shared_start
@@ -109,6 +110,11 @@ class ParticleJob:
     images : Path or None
         Write the particle images under this dataset folder (None: keep them in memory
         only). Workers write them, so they must see this folder.
+    centre_noise : float or None
+        Draw no image: each lit particle's exact image centre on a camera that sees it,
+        plus white Gaussian noise of this many pixels per axis, stands for its detection
+        (a points run: the stack without images, for what matching, linking and the
+        statistics do alone; :func:`point_exposure`). None renders and detects.
     """
 
     rig: Rig
@@ -122,6 +128,7 @@ class ParticleJob:
     seed: int
     detector: DetectorSettings | None = None
     images: Path | None = None
+    centre_noise: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,12 +194,17 @@ def render_chunk(snapshots: tuple[int, int], *, job: ParticleJob) -> RenderedChu
     for c, (name, camera) in enumerate(zip(names, job.rig.cameras, strict=True)):
         for k, m, frame in order:
             f = "ab".index(frame)
+            positions = runs[max(k, 0)].positions[m - m0, f]
+            rng = exposure_rng(job.seed, c, k, m, frame)
+            if job.centre_noise is not None:
+                recorded = point_exposure(camera, positions, job.lighting, job.centre_noise, rng)
+                for kk in range(len(runs)) if k < 0 else (k,):
+                    xy[kk][name][m - m0, f] = recorded.xy
+                    visible[kk][name][m - m0, f] = recorded.visible
+                found.setdefault((k, m, frame), []).append(recorded.detected)
+                continue
             recorded = record_particles(
-                camera,
-                runs[max(k, 0)].positions[m - m0, f],
-                lighting=job.lighting,
-                sensor=job.sensor,
-                rng=exposure_rng(job.seed, c, k, m, frame),
+                camera, positions, lighting=job.lighting, sensor=job.sensor, rng=rng
             )
             for kk in range(len(runs)) if k < 0 else (k,):
                 xy[kk][name][m - m0, f] = recorded.xy
@@ -217,7 +229,45 @@ def render_chunk(snapshots: tuple[int, int], *, job: ParticleJob) -> RenderedChu
         )
         for k, (dt, run) in enumerate(zip(job.dt, runs, strict=True))
     ]
-    return RenderedChunk((m0, m1), truth, found if job.detector is not None else None)
+    detected = job.detector is not None or job.centre_noise is not None
+    return RenderedChunk((m0, m1), truth, found if detected else None)
+
+
+@dataclass(frozen=True, eq=False)
+class PointExposure:
+    """One exposure of a points run (:attr:`ParticleJob.centre_noise`).
+
+    Attributes
+    ----------
+    xy : ndarray, shape (P, 2)
+        Exact image centre of every particle, px (NaN where unlit or not imaged).
+    visible : ndarray of bool, shape (P,)
+        Lit and on the sensor.
+    detected : DetectedCentres
+        The visible particles' centres plus the noise, in random order.
+    """
+
+    xy: np.ndarray
+    visible: np.ndarray
+    detected: DetectedCentres
+
+
+def point_exposure(
+    camera, positions: np.ndarray, lighting: ParticleLighting, noise: float, rng
+) -> PointExposure:
+    """The detections a perfect detector with ``noise`` px of centre noise per axis would
+    give of the lit particles at ``positions`` (P, 3), m, that ``camera`` images on its
+    sensor: their exact centres (``camera.project``) plus white Gaussian noise, shuffled
+    so that no order carries the particles' identities."""
+    lit = lighting.lit(positions[:, 2])
+    xy = np.full((len(positions), 2), np.nan)
+    if lit.any():
+        xy[lit] = camera.project(positions[lit])
+    visible = on_image(xy, camera.lens.sensor_size)
+    centres = xy[visible] + rng.normal(0.0, noise, (int(visible.sum()), 2))
+    centres = centres[rng.permutation(len(centres))]
+    flags = np.zeros(len(centres), dtype=np.uint8)
+    return PointExposure(xy, visible, DetectedCentres(centres, flags))
 
 
 def _write_exposure(folder: Path, n_dt: int, k: int, camera: str, m: int, frame: str, image):

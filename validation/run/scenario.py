@@ -49,7 +49,11 @@ from ptv.pipeline.options import PipelineSettings
 from ptv.stats.run_statistics import StatisticsSettings
 from simulator.render.sensor import Sensor
 from simulator.rigs import RigFileError, load_rig, rig_presets
-from validation.run.derived_ptv import DERIVED_FIELDS, derive_ptv_ranges
+from validation.run.derived_ptv import (
+    DERIVED_FIELDS,
+    derive_ptv_ranges,
+    independent_pair_ambiguity,
+)
 from validation.run.flow_section import (
     FlowSection,
     check_flow,
@@ -380,6 +384,9 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
             scales = {"eta": parameters.eta, "L_int": parameters.L_int}
         scenario = derive_ptv_ranges(scenario, given, loaded.sheet.size, scales, source)
         _check_separations(scenario, source)
+    if scenario.flow.kind == "ks" and not scenario.particles.shared_first_frame:
+        u_rms = scenario.flow.as_preset().parameters.u_rms
+        independent_pair_ambiguity(scenario, loaded.sheet.size, u_rms, source)
     if scenario.flow.kind == "grid":
         scenario = _checked_field_file(scenario, path, source)
     if scenario.ptv.min_cameras is not None and scenario.ptv.min_cameras > len(cameras):

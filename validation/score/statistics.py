@@ -9,9 +9,13 @@ mislinks (:func:`ptv.pipeline.double_frame.median_test_outliers`), as for synptv
 links in the analysis volume go through :func:`ptv.stats.run_statistics.compute_statistics`
 (with a shared first frame when the dataset has one and the file gives the same
 frame-a positions at every Δt). Then, as in ``synptv run`` (:mod:`validation.run.checks`):
-c1 against the sample-truth S2 of the pairs it used, the plateau ε against the same
-estimator on the exact D_LL.
+c1 against the sample-truth S2 of the pairs it used, the plateau ε and u′ against the
+statistics of the true positions of the same snapshots, each with its paired error and
+at the run's false-alarm rate, so that a few snapshots leave a wide tolerance rather
+than a false verdict.
 """
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -24,9 +28,11 @@ from ptv.stats.run_statistics import compute_statistics
 from ptv.tracking.linking import link
 from ptv.tracking.outliers import median_test_outliers
 from validation.dataset.truth_file import TruthFile
-from validation.run.checks import compare_variant, predicted_noise
+from validation.run.checks import compare_variant
+from validation.run.noise_prediction import predicted_noise
 from validation.run.particle_chunks import snapshot_chunks
 from validation.run.scenario import ChecksSection
+from validation.run.truth_rungs import in_volume, reference_run
 from validation.score.positions import Positions
 from validation.score.reference import Scored
 from validation.truth.flow import flow_truth, population_truth
@@ -138,6 +144,31 @@ def _shares_first_frame(positions: Positions, scored: Scored) -> bool:
     return True
 
 
+def _exact_summary(
+    truth: TruthFile, runs: list[RunParticles], settings: PipelineSettings, shared: bool
+) -> dict | None:
+    """The statistics of the true positions of the very snapshots the file's links came
+    from (every particle in the analysis volume), as a summary whose bootstrap pairs with
+    the file's: what ε and u′ are judged against. None where a Δt keeps fewer than two
+    snapshots."""
+    exact = []
+    for run in runs:
+        ids = run.snapshot_ids.tolist()
+        per_snapshot = []
+        for m in ids:
+            positions = truth.runs(m, m + 1)[run.k].positions[0]
+            per_snapshot.append(in_volume(positions[0], positions[1], settings))
+        exact.append(reference_run(run.k, run.dt, ids, per_snapshot, 1))
+    statistics_settings = replace(settings.statistics, trajectory_threshold=None)
+    try:
+        found = compute_statistics(exact, statistics_settings, shared_first_frame=shared)
+    except ValueError:
+        return None
+    if found.bootstrap is None:
+        return None
+    return statistics_summary(found)
+
+
 def score_statistics(
     positions: Positions,
     scored: Scored,
@@ -190,8 +221,12 @@ def score_statistics(
     reference = flow_truth(
         truth.snapshots_at_t(chunks), parameters, exact, settings.statistics
     ).as_dict()
+    exact_summary = _exact_summary(truth, runs, settings, shared)
     population = None
     if statistics.population is not None:
+        replicates = None
+        if statistics.bootstrap is not None and statistics.structure.s2_boot is not None:
+            replicates = (statistics.bootstrap, statistics.structure.s2_boot)
         population = population_truth(
             statistics.population,
             truth,
@@ -200,6 +235,7 @@ def score_statistics(
             radius=voxel,
             rotation=scored.rotation,
             translation=scored.translation,
+            replicates=replicates,
         ).as_dict()
     lower, upper = (np.asarray(v) for v in settings.statistics.analysis_volume)
     noise = None
@@ -218,10 +254,13 @@ def score_statistics(
         ),
         noise=noise,
         population=population,
+        exact=exact_summary,
     )
     compared["c1_reference"] = compared.pop("truth")
+    boot = summary.get("bootstrap") or {}
     return {
         "computed": True,
+        "effective_snapshots": (boot.get("correlation") or {}).get("effective_snapshots"),
         "linked_by": "tracks" if positions.track is not None else "synptv's linker",
         "shared_first_frame": shared,
         "links_used": {str(run.k): int(run.used.sum()) for run in runs},

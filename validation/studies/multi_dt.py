@@ -15,7 +15,7 @@ default scenario); M is the scenario's frame pairs per Δt, at most
 
 - ``dt``: k = 2, 3, 4, 5 Δt values spread over the preset's set (the smallest and the
   largest always in, e.g. indices 0, 2, 4 for k = 3) at a fixed budget of K·M frame
-  pairs, split evenly over the k values (docs/statistics.md §3.4: two Δt give the smallest
+  pairs, split evenly over the k values (docs/statistics.md §3.5: two Δt give the smallest
   Var c₁ for a fixed budget but cannot show curvature).
 - ``noise``: σ = 0, 5, 10, 15, 30 µm per component; every point measures the same
   simulated sample, so the differences are the noise's.

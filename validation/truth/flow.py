@@ -22,6 +22,7 @@ from scipy.spatial import cKDTree
 
 from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
 from ptv.stats.pairs import PairSums, pair_sums
+from ptv.stats.resampling import SnapshotBootstrap
 from ptv.stats.run_statistics import S2Population, StatisticsSettings
 from ptv.stats.snapshots import cluster_mean
 from simulator.particles import Box
@@ -167,6 +168,11 @@ class PopulationTruth:
     associated : int
         Those with a true particle within the association radius (the others, ghosts,
         are left out; two measured particles near one true particle count as one in S2).
+    se_c1_over_truth : ndarray, shape (B,), or None
+        The paired standard error of the measurement's c1 over ``s2_sample``: the spread
+        of their ratio over the bootstrap replicates of the measurement, the truth
+        refitted on the same snapshot draws, so that which eddies the snapshots caught
+        cancels (None without the measurement's replicates).
     """
 
     s2_sample: np.ndarray
@@ -176,6 +182,7 @@ class PopulationTruth:
     pair_noise: np.ndarray
     particles: int
     associated: int
+    se_c1_over_truth: np.ndarray | None = None
 
     def as_dict(self) -> dict:
         """JSON-able form (NaN → None); ``dt`` and ``displacement_noise_m`` as in
@@ -192,7 +199,42 @@ class PopulationTruth:
             "pair_noise_m2": [listed(row) for row in self.pair_noise],
             "particles": self.particles,
             "associated": self.associated,
+            "se_c1_over_truth": None
+            if self.se_c1_over_truth is None
+            else listed(self.se_c1_over_truth),
         }
+
+
+def paired_ratio_se(
+    per_snapshot: Sequence[PairSums], weights: np.ndarray, s2_boot: np.ndarray
+) -> np.ndarray:
+    """Standard error of a measured S2 over the truth of the same snapshots, paired.
+
+    Parameters
+    ----------
+    per_snapshot : sequence of M PairSums
+        The truth's pair sums of the snapshots the weights' columns name, in order.
+    weights : ndarray, shape (R, M)
+        How often each snapshot was drawn in each bootstrap replicate of the measurement.
+    s2_boot : ndarray, shape (R, B)
+        The measurement's S2 in each replicate (NaN where not fitted), m²/s².
+
+    Returns
+    -------
+    ndarray, shape (B,)
+        The standard deviation over the replicates of S2 over the truth refitted on the
+        same draws (NaN where fewer than two replicates are finite).
+    """
+    count = np.array([np.reshape(s.count, -1) for s in per_snapshot], dtype=float)
+    sum_q = np.array([s.sum_q[:, 0] for s in per_snapshot])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        truth_boot = (weights @ sum_q) / (weights @ count)
+        ratio = s2_boot / truth_boot
+    finite = np.isfinite(ratio)
+    out = np.full(ratio.shape[1], np.nan)
+    usable = finite.sum(axis=0) >= 2
+    out[usable] = [np.std(ratio[finite[:, b], b], ddof=1) for b in np.flatnonzero(usable)]
+    return out
 
 
 def population_truth(
@@ -204,10 +246,12 @@ def population_truth(
     radius: float,
     rotation: np.ndarray | None = None,
     translation: np.ndarray | None = None,
+    replicates: tuple[SnapshotBootstrap, np.ndarray] | None = None,
 ) -> PopulationTruth:
     """The truth of the particles a measurement's S2 used: the sample-truth S2 of their
     pairs (docs/statistics.md §8: the exact velocities over the actual pairs isolate the
-    method's error from the sampling) and their displacement noise.
+    method's error from the sampling), the paired error of the measurement over it, and
+    their displacement noise.
 
     Parameters
     ----------
@@ -224,6 +268,10 @@ def population_truth(
         (one voxel).
     rotation, translation : ndarray, shapes (3, 3) and (3,), optional
         Calibration frame → world, X_world = R X + t (default: the identity).
+    replicates : (SnapshotBootstrap, ndarray (R, B)), optional
+        The measurement's bootstrap (whose single stratum holds the population's
+        snapshots) and its S2 in each replicate: for the paired error of c1 over the
+        truth (:func:`paired_ratio_se`).
     """
     rotation = np.eye(3) if rotation is None else np.asarray(rotation)
     translation = np.zeros(3) if translation is None else np.asarray(translation)
@@ -262,6 +310,12 @@ def population_truth(
     k = len(truth.dt)
     error = np.concatenate(errors) if errors else np.empty((0, k, 3))
     noise = np.sqrt(np.mean(error**2, axis=0)) if len(error) else np.full((k, 3), np.nan)
+    paired = None
+    if replicates is not None:
+        bootstrap, s2_boot = replicates
+        if not bootstrap.pairs_with([population.snapshot_ids]):
+            raise ValueError("the bootstrap's snapshots are not the population's")
+        paired = paired_ratio_se(per_snapshot, bootstrap.weights, s2_boot)
     return PopulationTruth(
         s2_sample=s2,
         se_s2_sample=se,
@@ -270,6 +324,7 @@ def population_truth(
         pair_noise=pairs.mean(),
         particles=population.count,
         associated=associated,
+        se_c1_over_truth=paired,
     )
 
 

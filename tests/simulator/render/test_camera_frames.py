@@ -4,8 +4,14 @@ import numpy as np
 import pytest
 
 from simulator.optics import defocus_blur
-from simulator.render.camera_frames import ParticleLighting, local_magnification, record_particles
+from simulator.render.camera_frames import (
+    ParticleLighting,
+    local_magnification,
+    record_particles,
+    rig_lighting,
+)
 from simulator.render.sensor import Sensor
+from simulator.render.spot import LaserSheet
 from simulator.rigs import load_rig
 
 NOISELESS = Sensor(read_noise=0.0, offset=0.0, gain=1.0, bit_depth=16, full_well=60000)
@@ -85,3 +91,35 @@ def test_magnification_is_defined_up_to_the_sensor_edge(camera):
     points = np.array([[0.0, inside, 0.0], [0.0, inside - 1e-3, 0.0]])
     edge, near = local_magnification(camera, points)
     assert np.isfinite(edge) and abs(edge / near - 1) < 1e-3
+
+
+def test_a_rig_with_the_default_sheet_keeps_the_lighting_as_it_is():
+    """No profile in the rig file: the scenario's lighting itself, so every existing rig
+    renders bit-for-bit as before."""
+    lighting = ParticleLighting(particle_diameter=50e-6, electrons_at_reference=3000.0)
+    for name in ("paper-stereo", "box-4cam"):
+        rig = load_rig(name)
+        assert rig.sheet_profile == "gaussian"
+        assert rig_lighting(lighting, rig) is lighting
+
+
+def test_a_top_hat_rig_lights_its_whole_depth_uniformly_and_nothing_beyond():
+    rig = load_rig("lpt-challenge-small")
+    lighting = rig_lighting(ParticleLighting(particle_diameter=20e-6), rig)
+    half = 0.5 * rig.sheet.size[2]
+    assert lighting.sheet == LaserSheet(center=0.0, half_width=half, profile="top-hat")
+    assert lighting.particle_diameter == 20e-6 and lighting.cutoff == 2.0
+    # Across the 30 mm depth every particle gets the reference electrons; beyond it
+    # (though within the Gaussian's cutoff of 2 half-widths) none, and it is not visible.
+    z = np.array([0.0, 0.7 * half, -half, half, 1.05 * half, -1.5 * half])
+    positions = np.column_stack([np.zeros_like(z), np.zeros_like(z), z])
+    frame = record_particles(rig.cameras[0], positions, lighting=lighting, sensor=NOISELESS)
+    np.testing.assert_array_equal(frame.electrons, [6000.0] * 4 + [0.0] * 2)
+    assert frame.visible.tolist() == [True] * 4 + [False] * 2
+    assert np.isnan(frame.xy[4:]).all()
+
+
+def test_a_cutoff_inside_the_top_hat_slab_still_darkens():
+    lighting = ParticleLighting(sheet=LaserSheet(half_width=10e-3, profile="top-hat"), cutoff=0.5)
+    lit = lighting.lit(np.array([0.0, 4.9e-3, 5.1e-3, 9e-3]))
+    np.testing.assert_array_equal(lit, [True, True, False, False])

@@ -81,6 +81,22 @@ def test_laser_sheet_profile():
     )
 
 
+def test_top_hat_sheet_is_uniform_through_its_slab_and_dark_outside():
+    sheet = LaserSheet(center=0.02, half_width=15e-3, profile="top-hat")
+    z = 0.02 + np.array([0.0, 14.9e-3, -14.9e-3, 15.1e-3, -15.1e-3, -0.1])
+    np.testing.assert_array_equal(sheet.relative_intensity(z), [1, 1, 1, 0, 0, 0])
+    edges = LaserSheet(half_width=15e-3, profile="top-hat").relative_intensity([-15e-3, 15e-3])
+    np.testing.assert_array_equal(edges, [1, 1])  # the slab's faces are lit
+    ne = particle_electrons(
+        [20e-6, 10e-6, 10e-6],
+        [0.02, 0.034, 0.036],
+        sheet=sheet,
+        electrons_at_reference=1000.0,
+        reference_diameter=10e-6,
+    )
+    np.testing.assert_array_equal(ne, [4000.0, 1000.0, 0.0])
+
+
 def test_mie_scaling_and_electrons():
     np.testing.assert_allclose(mie_scale([10e-6, 20e-6], reference_diameter=10e-6), [1, 4])
     sheet = LaserSheet(half_width=5e-3)
@@ -115,6 +131,7 @@ def test_mie_scaling_and_electrons():
         (lambda: SpotOptics(magnification=M, f_number=8, pixel_pitch=0), "pixel_pitch"),
         (lambda: SpotOptics(magnification=M, f_number=8, convention="x"), "convention"),
         (lambda: LaserSheet(half_width=-1e-3), "half_width"),
+        (lambda: LaserSheet(profile="uniform"), "profile"),
         (lambda: LaserSheet().relative_intensity([0.0, np.nan]), "z"),
         (
             lambda: particle_electrons(
