@@ -16,7 +16,10 @@ source (detected from a dataset's images, or read from a detection store). For e
    threshold of docs/ptv.md §4, which also rejects mismatches with |ΔX| beyond it.
    max_speed is the largest particle speed: measured on the links of the first snapshots
    at the smallest Δt unless the settings give it (:mod:`ptv.tracking.link_speed`,
-   :func:`ptv.pipeline.resolve.resolve_settings`). Each snapshot counts its ambiguous
+   :func:`ptv.pipeline.resolve.resolve_settings`). With a shared first frame, each
+   larger Δt is linked around the particle's prediction from its link at the next
+   smaller Δt instead, within the radius measured on the predictions' misses
+   (:mod:`ptv.tracking.link_prediction`). Each snapshot counts its ambiguous
    links (a second candidate within the radius) and the spacing of its particles, and a
    Δt whose links are more than :data:`AMBIGUITY_WARNING` ambiguous is named in a
    warning;

@@ -583,7 +583,7 @@ def compute_statistics(
         plateau=_plateau(profile, settings, "all Δt"),
         subsets=refits,
         mean_displacement=sample.mean_displacement
-        if bootstrap is None
+        if bootstrap is None or bootstrap.block == 1
         else sample.mean_displacement.with_correlated_snapshots(bootstrap.correlation.tau),
         grid=grid,
         eulerian=eul,

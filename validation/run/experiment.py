@@ -478,9 +478,17 @@ class RungBuilder:
         self.store = store
         self.truth = truth
         self.truth_dict = truth_dict
+        # Every rung draws its bootstrap in the same blocks (so that the rungs' replicates
+        # pair up), as long as the correlation of the sample truth's successive snapshots
+        # asks (truth.json); the stack would otherwise measure it on each rung's own data.
+        block = truth_dict.get("snapshot_correlation", {}).get("block")
+        settings = run.settings
+        if block is not None:
+            statistics = replace(settings.statistics, snapshot_block=block)
+            settings = replace(settings, statistics=statistics)
+        self.settings = settings
         # The reference rungs have no links, so nothing for the trajectory test to catch;
         # on noise-free trajectories it would only drop the particles of largest jerk.
-        settings = run.settings
         self.unlinked = replace(
             settings, statistics=replace(settings.statistics, trajectory_threshold=None)
         )
@@ -516,7 +524,7 @@ class RungBuilder:
             result, frame_a = ptv_rung(
                 self.store,
                 ordered,
-                self.run.settings,
+                self.settings,
                 self.run.chunks,
                 executor=self.run.executor,
                 cache=cache,
@@ -528,7 +536,7 @@ class RungBuilder:
                 frame_a,
                 scored,
                 self.store.cameras,
-                self.run.settings,
+                self.settings,
                 voxel=self.voxel,
                 regions=self.regions,
             )
@@ -577,7 +585,7 @@ class RungBuilder:
             population,
             self.truth,
             self.run.chunks,
-            self.run.settings.statistics,
+            self.settings.statistics,
             radius=self.voxel,
             rotation=rotation,
             translation=translation,

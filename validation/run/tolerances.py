@@ -17,6 +17,8 @@ from scipy.stats import norm, t
 #: tolerance is the method's allowance plus the Student quantile of this rate times the
 #: check's standard error (:func:`false_alarm_z`).
 FALSE_ALARM = 1e-3
+
+
 def float_array(values) -> np.ndarray:
     """A JSON list of numbers (None for NaN) as a float array."""
     return np.array([np.nan if v is None else v for v in values], dtype=float)
@@ -71,6 +73,15 @@ def paired_ratio(
     """value/base − 1 and its standard error: the spread of the ratio over replicates
     drawn alike (paired), else the two errors in quadrature (unpaired, larger where the
     two share their sample).
+
+    Parameters
+    ----------
+    value, se : float
+        The measurement and its standard error.
+    reps : list of float or None
+        Its bootstrap replicates (None: unpaired).
+    base, se_base, base_reps :
+        The same of the reference.
 
     Returns
     -------

@@ -216,6 +216,7 @@ def rung_checks(comparison: dict, matching: dict) -> list[dict]:
             f"≤ {GHOST_MAX:.2f}",
             matching["ghost_fraction"] <= GHOST_MAX,
         ),
+        *_linking_rows(c),
         _row(
             "stats.c1_matches_truth",
             c["c1"]["max_abs_deviation"],
@@ -296,6 +297,22 @@ def rung_checks(comparison: dict, matching: dict) -> list[dict]:
             )
         )
     return rows
+
+
+def _linking_rows(comparison: dict) -> list[dict]:
+    """The ambiguity of the links (none where they were not made by distance)."""
+    linking = comparison.get("linking")
+    if linking is None:
+        return []
+    return [
+        _row(
+            "linking.ambiguity",
+            linking["worst"],
+            f"≤ {linking['limit']:g} of the links with a second candidate at every Δt "
+            f"(worst at {linking['worst_dt'] * 1e3:.3g} ms)",
+            linking["passed"],
+        )
+    ]
 
 
 def _epsilon_row(eps: dict) -> dict:

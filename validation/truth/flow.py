@@ -22,7 +22,7 @@ from scipy.spatial import cKDTree
 
 from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
 from ptv.stats.pairs import PairSums, pair_sums
-from ptv.stats.resampling import SnapshotBootstrap
+from ptv.stats.resampling import SnapshotBootstrap, autocorrelation_time, block_length
 from ptv.stats.run_statistics import S2Population, StatisticsSettings
 from ptv.stats.snapshots import cluster_mean
 from simulator.particles import Box
@@ -80,6 +80,12 @@ class FlowTruth:
         The input ε times the plateau deficit from an independent quadrature of the
         spectrum, the plateau of (D_LL/C2)^{3/2}/r taken as the run takes it at
         ``r_reference``, m²/s³.
+    snapshot_correlation : dict
+        How correlated the sample-truth S2 of successive snapshots is
+        (:meth:`ptv.stats.resampling.SnapshotCorrelation.as_dict`) and the ``block`` of
+        snapshots every rung's bootstrap draws together for it
+        (:func:`ptv.stats.resampling.block_length`), one for the whole run so that the
+        rungs' replicates pair up.
     """
 
     r: np.ndarray
@@ -96,6 +102,7 @@ class FlowTruth:
     se_s2_reference: np.ndarray
     sample_over_reference: tuple[float, float]
     epsilon_reference: float
+    snapshot_correlation: dict
 
     def as_dict(self) -> dict:
         """JSON-able form (NaN → None)."""
@@ -119,6 +126,7 @@ class FlowTruth:
             "se_s2_reference": listed(self.se_s2_reference),
             "sample_over_reference": list(self.sample_over_reference),
             "epsilon_reference": self.epsilon_reference,
+            "snapshot_correlation": self.snapshot_correlation,
         }
 
 
@@ -378,6 +386,7 @@ def flow_truth(
     s2_exact[ok] = exact.dll(r[ok])
     velocities = np.concatenate(inside)
     reference = collect(edges, parts)
+    correlation = autocorrelation_time(np.array([sums.mean[:, 0] for sums in per_snapshot]))
     return FlowTruth(
         r=r,
         s2_sample=s2,
@@ -399,4 +408,5 @@ def flow_truth(
             method=settings.plateau_method,
             kolmogorov_c2=settings.kolmogorov_c2,
         ),
+        snapshot_correlation={**correlation.as_dict(), "block": block_length(correlation)},
     )
