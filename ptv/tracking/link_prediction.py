@@ -15,7 +15,8 @@ max_speed·Δt_k would reach the spacing of the particles and take strangers
 - :func:`measure_prediction`: the radius of every Δt from the misses of the predictions
   on a few snapshots: |mean miss| + :data:`MISS_SIGMAS` σ, σ the largest per-component
   spread of the misses (from their median absolute deviation), as max_speed is
-  measured (:mod:`ptv.tracking.link_speed`).
+  measured (:mod:`ptv.tracking.link_speed`), with twice its 5σ for the misses' heavier
+  tails.
 """
 
 import logging
@@ -31,8 +32,12 @@ __all__ = ["MISS_SIGMAS", "LinkPrediction", "chained_link", "measure_prediction"
 
 log = logging.getLogger(__name__)
 
-#: The radius around a prediction: the mean miss plus this many spreads of the misses.
-MISS_SIGMAS = 5.0
+#: The radius around a prediction: the mean miss plus this many robust spreads of the
+#: misses. The misses are heavier-tailed than a Gaussian (the dim particles of the sheet's
+#: wings and the blended ones are noisier than the median particle): 5 spreads dropped
+#: 0.25 % of the particles and took 0.15 % off u′ and 0.2 % off ε (`ci`, through the true
+#: cameras); 10 keep them, and still leave 10⁻⁴ of the links a second candidate.
+MISS_SIGMAS = 10.0
 #: Fewest misses a Δt's radius is measured on.
 MIN_MISSES = 20
 
