@@ -36,6 +36,8 @@ def test_tracks_and_their_fit_are_read(tmp_path):
         ("1,0,0,nan,0\n", r"line 2, column y: nan \(every coordinate must be a finite"),
         ("1,0,0,inf,0\n", r"line 2, column y"),
         ("1,0.5,0,0,0\n", r"line 2, column frame: '0.5' is not an integer"),
+        ("-1,0,0,0,0\n", r"line 2, column track: track id -1 is negative"),
+        ("2.5,0,0,0,0\n", r"line 2, column track: '2.5' is not an integer"),
         ("1,0,0,0\n", r"line 2: 4 values for the 5 columns"),
         ("", r"no tracks"),
     ],
@@ -52,3 +54,14 @@ def test_a_missing_column_and_a_missing_file(tmp_path):
         read_tracks(_write(tmp_path, "track,x,y,z\n1,0,0,0\n"))
     with pytest.raises(ValueError, match="no such file"):
         read_tracks(tmp_path / "absent.csv")
+
+
+def test_track_ids_beyond_double_precision_stay_apart(tmp_path):
+    """Ids of 2⁶⁰ and 2⁶⁰ + 1 are two tracks: read through float64 they would merge."""
+    big = 2**60
+    path = _write(
+        tmp_path, f"track,frame,x,y,z\n{big},0,0,0,0\n{big + 1},0,0.001,0,0\n{big},1,0,0,0\n"
+    )
+    tracks = read_tracks(path)
+    np.testing.assert_array_equal(tracks.track, [big, big + 1, big])
+    np.testing.assert_allclose(tracks.position[1], [0.001, 0, 0])

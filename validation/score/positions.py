@@ -112,6 +112,17 @@ def parse_integer(text: str, where: str) -> int:
         raise ValueError(f"{where}: {text!r} is not an integer") from None
 
 
+def parse_track_id(text: str, where: str) -> int:
+    """``text`` as a track id, an integer ≥ 0 (the scorer keeps −1 for "no track"); a
+    ValueError naming ``where`` otherwise."""
+    value = parse_integer(text, where)
+    if value < 0:
+        raise ValueError(
+            f"{where}: track id {value} is negative (track ids must be integers ≥ 0)"
+        )
+    return value
+
+
 def parse_coordinate(text: str, where: str) -> float:
     """``text`` as a finite number; a ValueError naming ``where`` if it is not one."""
     try:
@@ -195,7 +206,7 @@ def _read_csv(path: Path, columns: tuple[str, ...]) -> Positions:
         "dt": parse_integer,
         "snapshot": parse_integer,
         "frame": _frame,
-        "track": parse_integer,
+        "track": parse_track_id,
     }
     _, rows, lines = read_csv_rows(path, columns, parse)
     table = np.array(rows, dtype=object).reshape(-1, len(columns))
@@ -232,6 +243,12 @@ def _hdf5_column(group: h5py.Group, name: str, path: Path) -> np.ndarray:
     if name in ("dt", "snapshot", "track"):
         if kind not in "iu":
             raise ValueError(f"{where}: must hold integers, holds {values.dtype}")
+        if name == "track" and values.size and values.min() < 0:
+            bad = int(np.argmin(values))
+            raise ValueError(
+                f"{path} row {bad}, column track: track id {values[bad]} is negative (track "
+                "ids must be integers ≥ 0)"
+            )
         return values.astype(np.int64)
     if kind not in "iuf":
         raise ValueError(f"{where}: must hold numbers, holds {values.dtype}")

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from validation.score.positions import parse_integer, read_csv_rows
+from validation.score.positions import parse_integer, parse_track_id, read_csv_rows
 from validation.score.trajectories import TrackPoints
 
 #: The columns every tracks file needs.
@@ -52,21 +52,24 @@ def read_tracks(path: str | Path) -> TrackPoints:
         raise ValueError(f"--tracks {path}: no such file")
     try:
         names, rows, lines = read_csv_rows(
-            path, COLUMNS, {"track": parse_integer, "frame": parse_integer}, OPTIONAL
+            path, COLUMNS, {"track": parse_track_id, "frame": parse_integer}, OPTIONAL
         )
     except csv.Error as err:
         raise ValueError(f"{path}: unreadable ({err})") from None
     if not rows:
         raise ValueError(f"{path}: no tracks (a header and no row)")
-    table = np.array(rows, dtype=np.float64)
-    track, frame = table[:, 0].astype(np.int64), table[:, 1].astype(np.int64)
+    # Ids and frames as the integers they were read as: through float64, ids above 2⁵³
+    # would merge.
+    track = np.array([row[0] for row in rows], dtype=np.int64)
+    frame = np.array([row[1] for row in rows], dtype=np.int64)
+    table = np.array([row[2:] for row in rows], dtype=np.float64)
     _check_order(track, frame, np.asarray(lines), path)
     extra = [group for group in OPTIONAL if group[0] in names]
-    columns = {group: table[:, 5 + 3 * i : 8 + 3 * i] for i, group in enumerate(extra)}
+    columns = {group: table[:, 3 + 3 * i : 6 + 3 * i] for i, group in enumerate(extra)}
     return TrackPoints(
         track=track,
         frame=frame,
-        position=table[:, 2:5],
+        position=table[:, 0:3],
         velocity=columns.get(OPTIONAL[0]),
         acceleration=columns.get(OPTIONAL[1]),
     )
