@@ -25,7 +25,7 @@ Two parts (docs/calibration.md §11):
 OpenPTV's estimator is its ``targ_rec``: the 4-connected region above the grey
 threshold ``t`` grown from a local maximum, centre = Σ(g − t)·x / Σ(g − t) + 0.5 (its
 origin is the top-left pixel's corner). With ``optv`` installed (``pip install
-synptv[peers]``) its ``target_recognition`` is run; without it, the same formula in
+".[peers]"`` in the clone) its ``target_recognition`` is run; without it, the same formula in
 NumPy (``_openptv_numpy``), and the JSON says which. The grey threshold is the
 dataset's (10 DN above a background of 0) and, on grey plates, also half the contrast.
 

@@ -45,8 +45,8 @@ from pathlib import Path
 
 from scipy.stats import binom
 
-#: The false-alarm rate every statistical check is set for.
-RATE = 1e-3
+from validation.run.tolerances import FALSE_ALARM as RATE
+
 #: The binomial limit: the most failures N honest seeds may show where the rate holds,
 #: exceeded with probability below this.
 LIMIT_PROBABILITY = 0.01

@@ -13,7 +13,7 @@ triangulated from all four cameras, mean 3-D distance to its nominal position.
   pixels (its pixel convention), ``point_positions`` with its multimedia model.
 
 Run: ``python -m benchmarks.bench_openptv_multiplane`` (needs ``pip install
-synptv[peers]``); prints one JSON object and a markdown table.
+".[peers]"`` in the clone); prints one JSON object and a markdown table.
 """
 
 import contextlib

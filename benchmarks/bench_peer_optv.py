@@ -28,7 +28,7 @@ calibration, mean 3-D distance to its nominal position (what the calibration was
 fitted to) and to its true centre.
 
 Run: ``python -m benchmarks.bench_peer_optv [--quick]`` prints one JSON object and a
-markdown table; needs ``optv`` (``pip install synptv[peers]``).
+markdown table; needs ``optv`` (``pip install ".[peers]"`` in the clone).
 """
 
 import contextlib

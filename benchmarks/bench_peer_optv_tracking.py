@@ -25,7 +25,7 @@ pairs within one object pixel, after one rigid alignment), side by side in one r
   :func:`~ptv.tracking.recording.track_points`.
 
 Run: ``python -m benchmarks.bench_peer_optv_tracking [--quick]`` prints one JSON object and
-a markdown table; needs ``optv`` (``pip install synptv[peers]``).
+a markdown table; needs ``optv`` (``pip install ".[peers]"`` in the clone).
 """
 
 import contextlib

@@ -25,7 +25,7 @@ Diagnostics that separate the calibration from detection and matching:
 - MyPTV: the target points each camera used, against MyPTV's own count
   (``myptv/cam*_cal_points``);
 - test-cavity: each camera's centre against OpenPTV's ``openptv/cal/cam*.tif.ori``;
-  with ``optv`` installed (``pip install synptv[peers]``), OpenPTV's particles of frame
+  with ``optv`` installed (``pip install ".[peers]"`` in the clone), OpenPTV's particles of frame
   10001 taken apart: the particle images they cite, how tightly its rays meet, and its
   correspondences triangulated by synptv's calibration (:func:`openptv_check`).
 
@@ -163,7 +163,7 @@ _OPENPTV_HIGHPASS = 25
 
 def openptv_check(folder: Path, calibration: str, frame: int = 10001) -> dict | None:
     """OpenPTV's particles of ``frame`` taken apart with ``optv`` (``pip install
-    synptv[peers]``).
+    ".[peers]"`` in the clone).
 
     ``rt_is`` names, per camera, the index of the particle image each particle used in
     OpenPTV's target list, which is not shipped. It is rebuilt as OpenPTV builds it:

@@ -55,6 +55,25 @@ def closest_points(
     Returns
     -------
     Triangulation
+
+    Examples
+    --------
+    Public as :func:`ptv.triangulate_rays`. Two points (N = 2) seen by two cameras
+    (C = 2): the first point's rays, along X at Z = 0 and along Y at Z = 2 mm, pass
+    1 mm from their least-squares point, the midpoint of their common perpendicular; the
+    second point has one ray only (NaN), so no point.
+
+    >>> import numpy as np
+    >>> import ptv
+    >>> nan = [np.nan] * 3
+    >>> origins = np.array([[[0, 0, 0], [0, 0, 0]], [[0, 0, 2e-3], nan]])  # (C, N, 3), m
+    >>> directions = np.array([[[1, 0, 0], [1, 0, 0]], [[0, 1, 0], nan]])
+    >>> found = ptv.triangulate_rays(origins, directions)
+    >>> found.points  # m
+    array([[0.   , 0.   , 0.001],
+           [  nan,   nan,   nan]])
+    >>> found.ray_distances[:, 0]  # each ray's distance from the first point, m
+    array([0.001, 0.001])
     """
     o = np.asarray(origins, dtype=float)
     v = np.asarray(directions, dtype=float)
@@ -90,11 +109,35 @@ def triangulate(cameras: Sequence[CameraModel], pixels: Sequence[np.ndarray]) ->
     cameras : sequence of C CameraModel
         Calibrations offering ``pixel_to_ray``.
     pixels : sequence of C ndarray, shape (N, 2)
-        Row n of every array is the image of the same point; NaN rows are missing.
+        Row n of every array is the image of the same point, px; NaN rows are missing.
 
     Returns
     -------
     Triangulation
+
+    Examples
+    --------
+    Public as :func:`ptv.triangulate_pixels`. Two Tsai cameras 0.5 m away, turned ±20°
+    about Y, see three points; their pixels give the points back, and a point one
+    camera missed (NaN) is NaN:
+
+    >>> import numpy as np
+    >>> import ptv
+    >>> from scipy.spatial.transform import Rotation
+    >>> def camera(angle):  # 0.5 m from the origin, turned ``angle`` degrees about Y
+    ...     turn = Rotation.from_euler("y", angle, degrees=True).as_matrix()
+    ...     return ptv.TsaiCalibration(turn, [0, 0, 0.5], focal_length=0.05, kappa1=0.0,
+    ...                                sx=1.0, principal_point=(319.5, 239.5),
+    ...                                pixel_size=(1e-5, 1e-5))
+    >>> cameras = [camera(-20), camera(20)]
+    >>> points = np.array([[0.0, 0.0, 0.0], [2e-3, -1e-3, 1e-3], [-3e-3, 2e-3, -1e-3]])
+    >>> pixels = [camera.project(points) for camera in cameras]
+    >>> pixels[1][2] = np.nan  # the second camera missed the third point
+    >>> found = ptv.triangulate_pixels(cameras, pixels)
+    >>> bool(np.allclose(found.points[:2], points[:2], rtol=0, atol=1e-12))  # m
+    True
+    >>> bool(np.isnan(found.points[2]).all())
+    True
     """
     if len(cameras) != len(pixels) or len(cameras) < 2:
         raise ValueError(

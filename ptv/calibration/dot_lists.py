@@ -137,6 +137,26 @@ def read_csv_dots(
         A missing column, a malformed row (naming its line), a repeated grid node, a
         node off the plate's extent, a pixel off the image, or fewer than
         :data:`~ptv.calibration.blobs.MIN_BLOBS` dots.
+
+    Examples
+    --------
+    A list of 4 × 4 dots 20 px apart, read, then made the observation a calibration
+    takes (plate coordinates (X, Y) = pitch·(i, j)):
+
+    >>> import pathlib, tempfile
+    >>> import ptv
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = pathlib.Path(tmp.name) / "cam1_z0.csv"
+    >>> rows = [f"{i},{j},{100 + 20 * i},{80 + 20 * j}" for i in range(4) for j in range(4)]
+    >>> _ = path.write_text("\\n".join(["i,j,x,y", *rows]))
+    >>> plate = ptv.PlateDescription(pitch=5e-3, dot_diameter=1e-3)
+    >>> indices, pixels = ptv.read_csv_dots(path, plate, (640, 480))
+    >>> indices[5], pixels[5]
+    (array([1, 1]), array([120., 100.]))
+    >>> plane = ptv.PlaneObservation(z=0.0, pixels=pixels, world_xy=indices * plate.pitch)
+    >>> plane.world_xy[5]
+    array([0.005, 0.005])
+    >>> tmp.cleanup()
     """
     if not path.is_file():
         raise FileNotFoundError(f"{path}: dot list missing")
@@ -230,6 +250,26 @@ def read_openptv_dots(
         A malformed line or a repeated point number in either file, a .crd point number
         the .fix file lacks, a .fix point off the grid or at another Z, a pixel off the
         image, or too few dots (each message names the file and the line).
+
+    Examples
+    --------
+    OpenPTV's files of 4 × 4 dots 5 mm apart at Z = 2 mm; the .crd pixels are taken half a
+    pixel down to synptv's origin:
+
+    >>> import pathlib, tempfile
+    >>> import ptv
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> crd, fix = pathlib.Path(tmp.name) / "cam1.crd", pathlib.Path(tmp.name) / "plate.fix"
+    >>> nodes = [(i, j) for i in range(4) for j in range(4)]
+    >>> lines = [f"{n} {100.5 + 20 * i} {80.5 + 20 * j}" for n, (i, j) in enumerate(nodes)]
+    >>> _ = crd.write_text("\\n".join(lines))
+    >>> lines = [f"{n} {5.0 * i} {5.0 * j} 2.0" for n, (i, j) in enumerate(nodes)]
+    >>> _ = fix.write_text("\\n".join(lines))
+    >>> plate = ptv.PlateDescription(pitch=5e-3, dot_diameter=1e-3)
+    >>> indices, pixels = ptv.read_openptv_dots(crd, fix, plate, 2e-3, (640, 480))
+    >>> indices[5], pixels[5]
+    (array([1, 1]), array([120., 100.]))
+    >>> tmp.cleanup()
     """
     points = _openptv_lines(fix, 4, "number X Y Z")
     found = _openptv_lines(crd, 3, "number x y")

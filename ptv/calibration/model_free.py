@@ -248,6 +248,36 @@ def calibrate_model_free(
     Returns
     -------
     ModelFreeCalibration
+
+    Examples
+    --------
+    The dots of a known camera (a Tsai camera turned 20° about Y) on three planes:
+
+    >>> import numpy as np
+    >>> import ptv
+    >>> from scipy.spatial.transform import Rotation
+    >>> turn = Rotation.from_euler("y", 20, degrees=True).as_matrix()
+    >>> truth = ptv.TsaiCalibration(turn, [0, 0, 0.5], focal_length=0.05, kappa1=0.0,
+    ...                             sx=1.0, principal_point=(319.5, 239.5),
+    ...                             pixel_size=(1e-5, 1e-5))
+    >>> ij = np.stack(np.meshgrid(np.arange(-4, 5), np.arange(-4, 5)), axis=-1).reshape(-1, 2)
+    >>> xy = 4e-3 * ij  # a 9 × 9 dot plate, 4 mm pitch
+    >>> planes = [
+    ...     ptv.PlaneObservation(z, truth.project(np.column_stack([xy, np.full(81, z)])), xy)
+    ...     for z in (-2e-3, 0.0, 2e-3)
+    ... ]
+    >>> calibration = ptv.calibrate_model_free(planes, (640, 480))
+    >>> point = np.array([[3e-3, -2e-3, 1e-3]])  # m, between the planes
+    >>> pixel = truth.project(point)
+    >>> bool(np.abs(calibration.project(point) - pixel).max() < 1e-4)  # px
+    True
+    >>> ray = calibration.pixel_to_ray(pixel)  # passes through the point
+    >>> offset = point - ray.origins
+    >>> miss = offset - (offset @ ray.directions.T) * ray.directions
+    >>> bool(np.linalg.norm(miss) < 1e-8)  # m
+    True
+    >>> calibration.pixel_to_ray(np.array([[5.0, 5.0]])).valid  # no dot near: no ray
+    array([False])
     """
     if len(observations) < 2:
         raise ValueError(f"need at least two calibration planes, got {len(observations)}")

@@ -18,6 +18,27 @@ class PlaneObservation:
         Dot centres in the image, px.
     world_xy : ndarray, shape (N, 2)
         Their nominal (X, Y) on the plate, m.
+
+    Examples
+    --------
+    A 9 × 9 dot plate of 4 mm pitch at three traverse positions, imaged by a known
+    camera (a Tsai camera 0.5 m away, turned 20° about Y):
+
+    >>> import numpy as np
+    >>> import ptv
+    >>> from scipy.spatial.transform import Rotation
+    >>> turn = Rotation.from_euler("y", 20, degrees=True).as_matrix()
+    >>> camera = ptv.TsaiCalibration(turn, [0, 0, 0.5], focal_length=0.05, kappa1=0.0,
+    ...                              sx=1.0, principal_point=(319.5, 239.5),
+    ...                              pixel_size=(1e-5, 1e-5))
+    >>> ij = np.stack(np.meshgrid(np.arange(-4, 5), np.arange(-4, 5)), axis=-1).reshape(-1, 2)
+    >>> xy = 4e-3 * ij
+    >>> planes = [
+    ...     ptv.PlaneObservation(z, camera.project(np.column_stack([xy, np.full(81, z)])), xy)
+    ...     for z in (-2e-3, 0.0, 2e-3)
+    ... ]
+    >>> planes[1].pixels[40]  # the plate's centre dot, on the optical axis
+    array([319.5, 239.5])
     """
 
     z: float

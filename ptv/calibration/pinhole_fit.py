@@ -239,6 +239,31 @@ def calibrate_pinhole(
     -------
     PinholeCalibration
         The best of the polished starts (lowest reprojection RMS).
+
+    Examples
+    --------
+    The dots of a known camera (a Tsai camera turned 20° about Y, no distortion) on
+    three planes:
+
+    >>> import numpy as np
+    >>> import ptv
+    >>> from scipy.spatial.transform import Rotation
+    >>> turn = Rotation.from_euler("y", 20, degrees=True).as_matrix()
+    >>> truth = ptv.TsaiCalibration(turn, [0, 0, 0.5], focal_length=0.05, kappa1=0.0,
+    ...                             sx=1.0, principal_point=(319.5, 239.5),
+    ...                             pixel_size=(1e-5, 1e-5))
+    >>> ij = np.stack(np.meshgrid(np.arange(-4, 5), np.arange(-4, 5)), axis=-1).reshape(-1, 2)
+    >>> xy = 4e-3 * ij  # a 9 × 9 dot plate, 4 mm pitch
+    >>> planes = [
+    ...     ptv.PlaneObservation(z, truth.project(np.column_stack([xy, np.full(81, z)])), xy)
+    ...     for z in (-2e-3, 0.0, 2e-3)
+    ... ]
+    >>> fit = ptv.calibrate_pinhole(planes, (640, 480), focal_px=5000.0)
+    >>> bool(fit.rms < 1e-6)  # px
+    True
+    >>> k = fit.camera_matrix
+    >>> k[[0, 1, 0, 1], [0, 1, 2, 2]].round(6)  # f_x, f_y and the principal point, px
+    array([5000. , 5000. ,  319.5,  239.5])
     """
     model = PinholeModel() if model is None else model
     if not observations:

@@ -42,6 +42,23 @@ class PlateDescription:
         With a single mark: the image directions of +i and +j, one of "right" and
         "left" and one of "up" and "down" (e.g. ``("right", "up")``: i grows to the
         right, j upwards), each within 40° of the grid's own directions on the images.
+
+    Examples
+    --------
+    A plate of 9 × 7 dots 5 mm apart, with three marks twice the dots' diameter:
+
+    >>> import ptv
+    >>> plate = ptv.PlateDescription(
+    ...     pitch=5e-3,
+    ...     dot_diameter=1e-3,
+    ...     mark_diameter=2e-3,
+    ...     marks={"origin": (0, 0), "x_axis": (2, 0), "y_axis": (0, 3)},
+    ...     extent=((-4, 4), (-3, 3)),
+    ... )
+    >>> plate.mark_area_ratio  # what tells a mark from a dot on the images
+    4.0
+    >>> plate.in_extent([[0, 0], [4, 3], [5, 0]])
+    array([ True,  True, False])
     """
 
     pitch: float

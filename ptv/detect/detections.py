@@ -29,6 +29,16 @@ class DetectionFlag(enum.IntFlag):
         The chosen Gaussian estimator was ill-posed (a value <= background, a flat or
         non-concave profile, the border) and a simpler one was used: the 3-point
         Gaussian for ``"gauss"``, the centroid for ``"gauss3"`` (on the axis concerned).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import ptv
+    >>> flags = np.array([0, 1, 12], dtype=np.uint8)  # Detections.flags of three particles
+    >>> (flags & ptv.DetectionFlag.EDGE) != 0
+    array([False, False,  True])
+    >>> [flag.name for flag in ptv.DetectionFlag if flag & flags[2]]
+    ['SATURATED', 'EDGE']
     """
 
     OVERLAP = 1
@@ -60,6 +70,25 @@ class Detections:
         Bitwise OR of :class:`DetectionFlag` values; 0 for a clean detection.
     shape : (H, W)
         Rows and columns of the image.
+
+    Examples
+    --------
+    Detections from another program, made the stack's: a clean one and one cut by the
+    image border.
+
+    >>> import ptv
+    >>> found = ptv.Detections(
+    ...     xy=[[10.2, 5.1], [3.0, 0.4]],
+    ...     intensity=[900.0, 300.0],
+    ...     peak=[400.0, 150.0],
+    ...     size=[9, 4],
+    ...     flags=[0, ptv.DetectionFlag.EDGE],
+    ...     shape=(32, 32),
+    ... )
+    >>> len(found), found.clean
+    (2, array([ True, False]))
+    >>> found.select(found.clean).xy  # px
+    array([[10.2,  5.1]])
     """
 
     xy: np.ndarray

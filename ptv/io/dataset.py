@@ -341,6 +341,30 @@ def open_dataset(folder: str | Path, *, check_files: bool = True) -> Dataset:
         count per Δt that does not match, a bad pattern.
     ImageError
         A mask that cannot be read, of the wrong size, or 0 everywhere.
+
+    Examples
+    --------
+    A folder with its experiment.json only: the description is read, and the images
+    it names are checked for (``check_files=False`` skips that):
+
+    >>> import json, pathlib, tempfile
+    >>> import ptv
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> folder = pathlib.Path(tmp.name)
+    >>> spec = {"cameras": {"c1": {"image_size": [48, 32]}, "c2": {"image_size": [48, 32]}},
+    ...         "dt": [1e-3, 2e-3], "frames_per_dt": 1, "bit_depth": 12,
+    ...         "particle_images": "{camera}_{k}_{m}_{a|b}.tif"}
+    >>> _ = (folder / "experiment.json").write_text(json.dumps(spec))
+    >>> dataset = ptv.open_dataset(folder, check_files=False)
+    >>> dataset.cameras, dataset.dt, dataset.frames, dataset.saturation
+    (('c1', 'c2'), array([0.001, 0.002]), (1, 1), 4095.0)
+    >>> dataset.frame_path(1, "c2", 0, "b").name  # Δt_1, camera c2, snapshot 0, frame b
+    'c2_1_0_b.tif'
+    >>> ptv.open_dataset(folder)
+    Traceback (most recent call last):
+    ...
+    FileNotFoundError: particle image .../c1_0_0_a.tif is missing (and 7 more)
+    >>> tmp.cleanup()
     """
     folder = Path(folder)
     if not folder.is_dir():

@@ -210,12 +210,46 @@ def _listed_images_problems(spec: dict) -> list[tuple[list, str]]:
 def read_experiment(folder: str | Path, needs: Iterable[str] = ()) -> dict:
     """Read ``folder``/experiment.json and check it against the schema and ``needs``.
 
+    Parameters
+    ----------
+    folder : path-like
+        The dataset folder.
+    needs : iterable of {"particles", "calibration"}
+        What the description must allow beyond the schema (:data:`NEEDS`): processing
+        particle images, calibrating.
+
+    Returns
+    -------
+    dict
+        The description as parsed from JSON.
+
     Raises
     ------
     FileNotFoundError
         No experiment.json.
     DescriptionError
         Not JSON, or one or more problems: all of them in one line, naming the file.
+
+    Examples
+    --------
+    A description of two cameras recording one frame pair at each of two Δt: enough to
+    process particle images, not to calibrate.
+
+    >>> import json, pathlib, tempfile
+    >>> import ptv
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> folder = pathlib.Path(tmp.name)
+    >>> spec = {"cameras": {"c1": {"image_size": [48, 32]}, "c2": {"image_size": [48, 32]}},
+    ...         "dt": [1e-3, 2e-3], "frames_per_dt": 1, "bit_depth": 12,
+    ...         "particle_images": "{camera}_{k}_{m}_{a|b}.tif"}
+    >>> _ = (folder / "experiment.json").write_text(json.dumps(spec))
+    >>> ptv.read_experiment(folder, needs=("particles",))["dt"]  # s
+    [0.001, 0.002]
+    >>> ptv.read_experiment(folder, needs=("calibration",))
+    Traceback (most recent call last):
+    ...
+    ptv.io.experiment.DescriptionError: ...: 7 problems: ... target: required to calibrate; ...
+    >>> tmp.cleanup()
     """
     path = Path(folder) / "experiment.json"
     if not path.is_file():

@@ -26,12 +26,36 @@ class ImageError(DatasetError):
 def read_image(path: str | Path) -> np.ndarray:
     """A grey image, shape (H, W), as stored (DN).
 
+    Parameters
+    ----------
+    path : path-like
+        A ``.tif``, ``.tiff`` or ``.png`` file.
+
+    Returns
+    -------
+    ndarray, shape (H, W)
+        Grey levels, DN, in the file's type (8- or 16-bit integers, or reals for TIFF).
+
     Raises
     ------
     FileNotFoundError
         No such file.
     ImageError
         An unknown suffix, an unreadable file, or not a 2-D grey image.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import numpy as np
+    >>> import tifffile
+    >>> import ptv
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = pathlib.Path(tmp.name) / "frame.tif"
+    >>> tifffile.imwrite(path, np.arange(12, dtype=np.uint16).reshape(3, 4))
+    >>> image = ptv.read_image(path)
+    >>> image.shape, image.dtype, int(image[2, 3])  # (H, W), as stored, DN
+    ((3, 4), dtype('uint16'), 11)
+    >>> tmp.cleanup()
     """
     path = Path(path)
     if not path.is_file():

@@ -120,6 +120,21 @@ class DetectorSettings:
         about 3 px. From 6 px the detector works at the particles' scale
         (:func:`ptv.detect.detect_particles`), so that a large particle is one
         detection.
+
+    Examples
+    --------
+    Back-lit particles (shadows) on an unevenly lit background, 15 px across:
+
+    >>> import ptv
+    >>> settings = ptv.DetectorSettings(
+    ...     particles="dark", background="tophat", tophat_radius=8, diameter=15.0
+    ... )
+    >>> settings.raw, ptv.DetectorSettings().raw  # images prepared, or detected as recorded
+    (False, True)
+    >>> ptv.DetectorSettings(background="tophat", diameter=15.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: diameter 15.0 px is wider than the top-hat's disc ... set tophat_radius >= 8
     """
 
     threshold_sigmas: float = 6.0
@@ -302,6 +317,36 @@ class ImageDetector:
     warnings : list of str
         What the detection found wrong with the images, per camera: a temporal median
         that kept the particles (slow particles, :data:`STILL_FRACTION`).
+
+    Examples
+    --------
+    A dataset of two cameras with 12-bit images, of which only frame a of the first
+    snapshot at Δt_0 is written here: one particle on each camera's image, at
+    x = 20.3 and 30.6 px, y = 12 px.
+
+    >>> import json, pathlib, tempfile
+    >>> import numpy as np
+    >>> import tifffile
+    >>> import ptv
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> folder = pathlib.Path(tmp.name)
+    >>> spec = {"cameras": {"c1": {"image_size": [48, 32]}, "c2": {"image_size": [48, 32]}},
+    ...         "dt": [1e-3, 2e-3], "frames_per_dt": 1, "bit_depth": 12,
+    ...         "particle_images": "{camera}_{k}_{m}_{a|b}.tif"}
+    >>> _ = (folder / "experiment.json").write_text(json.dumps(spec))
+    >>> rows, cols = np.mgrid[:32, :48]
+    >>> noise = np.random.default_rng(0).normal(0, 2, rows.shape)
+    >>> for name, x in (("c1", 20.3), ("c2", 30.6)):
+    ...     spot = 1000 * np.exp(-((cols - x) ** 2 + (rows - 12) ** 2) / 2)
+    ...     image = (100 + spot + noise).astype(np.uint16)
+    ...     tifffile.imwrite(folder / f"{name}_0_0_a.tif", image)
+    >>> dataset = ptv.open_dataset(folder, check_files=False)
+    >>> detector = ptv.ImageDetector(dataset, ptv.DetectorSettings(min_peak=50))
+    >>> detector.settings.saturation  # the dataset's bit depth, DN
+    4095.0
+    >>> [found.xy.round(2) for found in detector.detect(0, 0, "a")]  # per camera, px
+    [array([[20.3, 12. ]]), array([[30.6, 12. ]])]
+    >>> tmp.cleanup()
     """
 
     def __init__(self, dataset: Dataset, settings: DetectorSettings = DetectorSettings()) -> None:

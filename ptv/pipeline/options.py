@@ -67,6 +67,22 @@ class PipelineSettings:
         Process only the first N snapshots of every Δt (None: all).
     statistics : StatisticsSettings
         Analysis volume, bins, plateau, C2, bootstrap (:mod:`ptv.stats.run_statistics`).
+
+    Examples
+    --------
+    A 100 × 100 × 10 mm sheet, particles no faster than 0.5 m/s, the first 10 snapshots
+    of every Δt; the tolerance is left to be measured on the data:
+
+    >>> import ptv
+    >>> settings = ptv.PipelineSettings(
+    ...     volume=((-0.05, -0.05, -0.005), (0.05, 0.05, 0.005)), max_speed=0.5, snapshots=10
+    ... )
+    >>> settings.snapshot_count(100), settings.tolerance
+    (10, None)
+    >>> ptv.PipelineSettings(min_cameras=1)
+    Traceback (most recent call last):
+    ...
+    ValueError: min_cameras must be an integer >= 2, got 1
     """
 
     volume: Box = MEASUREMENT_VOLUME
@@ -159,8 +175,21 @@ def link_radius(dt: float, settings: PipelineSettings) -> float:
 
 
 def predicted_radius(k: int, settings: PipelineSettings) -> float | None:
-    """The radius around the predicted links at Δt_k (None where Δt_k is linked around
-    X(t): the smallest Δt, or settings without predicted radii), m."""
+    """The radius around the predicted links at Δt_k.
+
+    Parameters
+    ----------
+    k : int
+        Index of Δt_k in the dataset's Δt order.
+    settings : PipelineSettings
+        Their ``predicted_radii``.
+
+    Returns
+    -------
+    float or None
+        The radius, m; None where Δt_k is linked around X(t) (the smallest Δt, or
+        settings without predicted radii).
+    """
     radii = settings.predicted_radii
     if radii is None or k >= len(radii) or math.isnan(radii[k]):
         return None
@@ -168,8 +197,22 @@ def predicted_radius(k: int, settings: PipelineSettings) -> float | None:
 
 
 def radius_at(k: int, dt: float, settings: PipelineSettings) -> float:
-    """The radius the links of Δt_k are searched within, m: around their prediction
-    (:func:`predicted_radius`) where the settings have one, else around X(t)
-    (:func:`link_radius`)."""
+    """The radius the links of Δt_k are searched within.
+
+    Parameters
+    ----------
+    k : int
+        Index of Δt_k in the dataset's Δt order.
+    dt : float
+        Δt_k, s.
+    settings : PipelineSettings
+        Their ``predicted_radii``, ``max_speed`` and ``position_noise``.
+
+    Returns
+    -------
+    float
+        Around the link's prediction (:func:`predicted_radius`) where the settings have
+        one, else around X(t) (:func:`link_radius`), m.
+    """
     predicted = predicted_radius(k, settings)
     return link_radius(dt, settings) if predicted is None else predicted

@@ -5,8 +5,8 @@ Sections and the dataclass fields they fill (SI units: m, s, m/s, m/s²)::
     [detection]    DetectorSettings: threshold_sigmas, saturation, particles, background,
                    tophat_radius, median_frames, min_peak, min_size, diameter
     [matching]     PipelineSettings: volume, tolerance, min_cameras
-    [linking]      PipelineSettings: max_speed, position_noise, max_acceleration, track_gap,
-                   outlier_threshold, outlier_neighbours
+    [linking]      PipelineSettings: max_speed, predicted_radii, position_noise,
+                   max_acceleration, track_gap, outlier_threshold, outlier_neighbours
     [statistics]   StatisticsSettings: analysis_volume, r_min, r_max, n_bins, binning, plateau,
                    plateau_method, kolmogorov_c2, n_boot, eulerian_cells,
                    min_cell_count, trajectory_threshold, snapshot_block, seed
@@ -16,7 +16,8 @@ Sections and the dataclass fields they fill (SI units: m, s, m/s, m/s²)::
 A missing section or field keeps its default. Boxes are ``[[x0, y0, z0], [x1, y1, z1]]``
 (lower and upper corners). TOML has no null: a field whose default is "none"
 (``saturation``: the image type's maximum; ``diameter``: spots of about 3 px;
-``snapshots``: all; ``max_speed``: measured on the data; ``min_cameras``: from the
+``snapshots``: all; ``max_speed`` and ``predicted_radii``: measured on the data
+(``nan`` at the smallest Δt, TOML's float); ``min_cameras``: from the
 camera count; ``fit_window``: chosen from the data; ``snapshot_block``: from the
 correlation of successive snapshots) is left out for that default, and
 ``outlier_threshold`` or ``trajectory_threshold`` = false turns that test off. Unknown
@@ -44,6 +45,7 @@ SECTIONS = {
         PipelineSettings,
         (
             "max_speed",
+            "predicted_radii",
             "position_noise",
             "max_acceleration",
             "track_gap",
@@ -67,6 +69,7 @@ _NONE_WHEN_ABSENT = (
     "snapshots",
     "tolerance",
     "max_speed",
+    "predicted_radii",
     "min_cameras",
     "fit_window",
     "snapshot_block",
@@ -89,6 +92,8 @@ _COMMENTS = {
     "min_cameras": "fewest cameras a match must use (left out: all but one of 4 or more, else 2)",
     "max_speed": "largest particle speed, m/s: link radius max_speed·Δt + 5·position_noise "
     "(left out: measured on the links of the smallest Δt)",
+    "predicted_radii": "with a shared first frame, the radius around each link's prediction "
+    "from the next smaller Δt, m, in Δt order, nan for the smallest (left out: measured)",
     "position_noise": "expected position noise, one component, m",
     "max_acceleration": "largest particle acceleration, m/s², for --tracks: radius "
     "max_acceleration·τ² + 5√6·position_noise",
@@ -133,6 +138,19 @@ class PtvSettings:
         Matching, linking, the snapshots processed and the statistics.
     tracks : TrackFitSettings
         How ``--tracks`` fits the tracks.
+
+    Examples
+    --------
+    The defaults, and the same with only the first 5 snapshots processed:
+
+    >>> import dataclasses
+    >>> import ptv
+    >>> settings = ptv.PtvSettings()
+    >>> settings.detection.threshold_sigmas, settings.pipeline.statistics.n_boot
+    (6.0, 200)
+    >>> pipeline = dataclasses.replace(settings.pipeline, snapshots=5)
+    >>> dataclasses.replace(settings, pipeline=pipeline).pipeline.snapshots
+    5
     """
 
     detection: DetectorSettings = dataclasses.field(default_factory=DetectorSettings)
@@ -191,10 +209,43 @@ def settings_from_dict(spec: dict, *, source: str = "<settings>") -> PtvSettings
 def load_settings(path: str | Path) -> PtvSettings:
     """The settings in a TOML file (module docstring).
 
+    Parameters
+    ----------
+    path : path-like
+        The file: sections ``[detection]``, ``[matching]``, ``[linking]``,
+        ``[statistics]``, ``[run]``, ``[tracks]``, each optional (SI units).
+
+    Returns
+    -------
+    PtvSettings
+        The file's values, the defaults for what it leaves out.
+
     Raises
     ------
     SettingsError
         Missing, unreadable or invalid file; the message names file, section and field.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import ptv
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = pathlib.Path(tmp.name) / "ptv.toml"
+    >>> _ = path.write_text('''
+    ... [detection]
+    ... threshold_sigmas = 8.0
+    ... [linking]
+    ... max_speed = 0.5
+    ... ''')
+    >>> settings = ptv.load_settings(path)
+    >>> settings.detection.threshold_sigmas, settings.pipeline.max_speed  # σ, m/s
+    (8.0, 0.5)
+    >>> _ = path.write_text("[linking]\\nmax_sped = 0.5")
+    >>> ptv.load_settings(path)
+    Traceback (most recent call last):
+    ...
+    ptv.pipeline.settings.SettingsError: ...: [linking] unknown field 'max_sped'; known: ...
+    >>> tmp.cleanup()
     """
     path = Path(path)
     if not path.is_file():

@@ -386,8 +386,20 @@ class CellSums:
 
 
 def cell_sums(snapshots: Sequence[tuple[np.ndarray, np.ndarray]], grid: Grid) -> CellSums:
-    """:class:`CellSums` of the (positions, displacements) of each snapshot, shapes
-    (N_m, 3) in m; points outside the grid are left out."""
+    """The per-snapshot sums of the displacements in each cell of the grid.
+
+    Parameters
+    ----------
+    snapshots : sequence of M (ndarray (N_m, 3), ndarray (N_m, 3))
+        Per snapshot, the positions X(t) and displacements ΔX of its links, m.
+    grid : Grid
+        The cells; points outside the grid are left out.
+
+    Returns
+    -------
+    CellSums
+        Counts, shape (M, G), and the sums of ΔX and ΔX², shape (M, G, 3), in m and m².
+    """
     g = grid.n_cells
     m = len(snapshots)
     count = np.zeros((m, g), dtype=np.int64)

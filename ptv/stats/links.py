@@ -54,6 +54,33 @@ class RunParticles:
     spacing : ndarray, shape (S,) or None
         Median nearest-neighbour distance of the matched particles of frame a per
         processed snapshot, m (None as ``ambiguous``).
+
+    Examples
+    --------
+    The links of one Δt = 1 ms from another source (here: two snapshots of three
+    particles; no cameras), the last one flagged an outlier:
+
+    >>> import numpy as np
+    >>> import ptv
+    >>> positions = np.arange(18.0).reshape(6, 3) * 1e-3  # X(t), m
+    >>> run = ptv.RunParticles(
+    ...     k=0,
+    ...     dt=1e-3,
+    ...     positions=positions,
+    ...     displacements=np.full((6, 3), 1e-4),  # ΔX, m
+    ...     offsets=np.array([0, 3, 6]),  # snapshot i: rows offsets[i]:offsets[i + 1]
+    ...     snapshot_ids=np.array([0, 1]),
+    ...     detections=np.full((2, 2, 0), 3),  # per snapshot, frame and camera (none)
+    ...     matches=np.full((2, 2), 3),
+    ...     links=np.array([3, 3]),
+    ...     processed=np.array([0, 1]),
+    ...     in_analysis=np.ones(6, dtype=bool),
+    ...     outlier=np.array([False] * 5 + [True]),
+    ... )
+    >>> run.used  # what the statistics take
+    array([ True,  True,  True,  True,  True, False])
+    >>> [len(x) for x, _ in run.snapshot_arrays()]  # used links per snapshot
+    [3, 2]
     """
 
     k: int

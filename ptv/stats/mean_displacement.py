@@ -74,17 +74,33 @@ class MeanDisplacement:
         return self.fit.se_c2 * np.sqrt(np.maximum(chi2, 1.0))
 
     def with_correlated_snapshots(self, tau: float) -> "MeanDisplacement":
-        """The same line with the covariance of the shared means scaled for snapshots
-        whose integrated autocorrelation time is ``tau`` (≥ 1, in snapshots): the variance
-        of a mean of correlated snapshots is τ times that of independent ones, and the
-        covariance is worth M/τ snapshots (:mod:`ptv.stats.resampling`)."""
-        if self.offset_covariance is None or tau <= 1.0:
+        """The same line with its errors scaled for snapshots whose integrated
+        autocorrelation time is ``tau`` (≥ 1, in snapshots): the variance of a mean of
+        correlated snapshots is τ times that of independent ones
+        (:mod:`ptv.stats.resampling`).
+
+        Shared means: their covariance is scaled by τ and is worth M/τ snapshots.
+        Independent means per Δt: the per-Δt errors and the intercept's are scaled by √τ
+        and the fit's χ²/dof by 1/τ, so that :attr:`se_offset_scaled` counts the
+        correlation once, whether it shows in the scatter about the line or not.
+        """
+        if tau <= 1.0:
             return self
-        return replace(
-            self,
-            offset_covariance=self.offset_covariance * tau,
-            snapshots=max(4, int(self.snapshots / tau)),
+        if self.offset_covariance is not None:
+            return replace(
+                self,
+                offset_covariance=self.offset_covariance * tau,
+                snapshots=max(4, int(self.snapshots / tau)),
+            )
+        grow = np.sqrt(tau)
+        fit = replace(
+            self.fit,
+            se_c1=self.fit.se_c1 * grow,
+            se_c2=self.fit.se_c2 * grow,
+            cov_c1c2=self.fit.cov_c1c2 * tau,
+            chi2_dof=self.fit.chi2_dof / tau,
         )
+        return replace(self, se=self.se * grow, fit=fit)
 
     def offset_test(self, false_alarm: float = OFFSET_FALSE_ALARM) -> tuple[float, float]:
         """β0ᵀ C⁻¹ β0 and the limit it stays below when β0 = 0, but for ``false_alarm``.

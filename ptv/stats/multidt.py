@@ -355,6 +355,21 @@ def fit_multi_dt(
     -------
     LineFit
         c1 in units of y/s² (m²/s²), c2 in units of y.
+
+    Examples
+    --------
+    One bin whose second moment is y = S2·Δt² + N with S2 = 0.5 m²/s² and a noise term
+    N = 10⁻¹⁰ m²:
+
+    >>> import numpy as np
+    >>> import ptv
+    >>> dt = np.array([1e-3, 2e-3, 4e-3])  # s
+    >>> y = 0.5 * dt**2 + 1e-10  # m²
+    >>> fit = ptv.fit_multi_dt(dt, y[None], sigma=np.full((1, 3), 1e-11))
+    >>> fit.c1.round(9), (fit.c2 * 1e10).round(6)  # m²/s², 1e-10 m²
+    (array([0.5]), array([1.]))
+    >>> fit.se_c1 < 1e-5  # m²/s², from σ = 10⁻¹¹ m² on each y
+    array([ True])
     """
     dt = _check_dt(dt)
     idx = select_dt(use, dt)

@@ -30,6 +30,15 @@ class LogBins:
         Outer edges, m, 0 < r_min < r_max.
     n_bins : int
         Number of bins ≥ 1.
+
+    Examples
+    --------
+    >>> import ptv
+    >>> bins = ptv.LogBins(r_min=1e-3, r_max=16e-3, n_bins=4)
+    >>> bins.edges  # m
+    array([0.001, 0.002, 0.004, 0.008, 0.016])
+    >>> bins.centres.round(6)  # geometric, m
+    array([0.001414, 0.002828, 0.005657, 0.011314])
     """
 
     r_min: float

@@ -207,7 +207,22 @@ class SnapshotSums:
         Snapshots are drawn with replacement within their stratum, as many as the
         stratum holds: one at a time (``block`` 1, independent snapshots), or in blocks
         of ``block`` consecutive snapshots of the stratum where successive snapshots are
-        correlated (:func:`ptv.stats.resampling.block_weights`).
+        correlated (:func:`ptv.stats.resampling.block_weights`), at most a quarter of the
+        stratum (one at a time below 8 snapshots).
+
+        Parameters
+        ----------
+        n_boot : int
+            Number R of replicates, ≥ 2.
+        rng : numpy.random.Generator, int or None
+            Source of randomness.
+        block : int
+            Consecutive snapshots per block, ≥ 1.
+
+        Returns
+        -------
+        ndarray, shape (R, M)
+            Draws of each snapshot per replicate; each stratum's row sums to its size.
         """
         if not isinstance(n_boot, int | np.integer) or n_boot < 2:
             raise ValueError(f"n_boot must be an integer >= 2, got {n_boot!r}")
@@ -222,8 +237,11 @@ class SnapshotSums:
                     f"stratum {s} has {members.size} snapshot: the bootstrap over "
                     "snapshots needs at least 2 per stratum"
                 )
-            if block > 1:
-                w[:, members] = block_weights(n_boot, members.size, min(block, members.size), gen)
+            # A block of more than a quarter of the stratum would leave too few blocks
+            # to vary (a block of the whole stratum draws every replicate alike).
+            length = min(block, max(1, members.size // 4))
+            if length > 1:
+                w[:, members] = block_weights(n_boot, members.size, length, gen)
                 continue
             p = np.full(members.size, 1.0 / members.size)
             w[:, members] = gen.multinomial(members.size, p, size=n_boot)
@@ -285,10 +303,15 @@ class SnapshotSums:
         return out.reshape(len(w), b, k)
 
     def correlation(self) -> SnapshotCorrelation:
-        """How correlated successive snapshots of each stratum are: the lag-one
-        autocorrelation of the snapshots' ⟨q⟩ in every bin and column that each snapshot
-        fills, pooled over them and over the strata
-        (:func:`ptv.stats.resampling.autocorrelation_time`)."""
+        """How correlated successive snapshots of each stratum are.
+
+        Returns
+        -------
+        SnapshotCorrelation
+            The lag-one autocorrelation of the snapshots' ⟨q⟩ in every bin and column
+            that each snapshot fills, pooled over them and over the strata
+            (:func:`ptv.stats.resampling.autocorrelation_time`).
+        """
         with np.errstate(invalid="ignore", divide="ignore"):
             means = self.sum_q / self.count
         found = []

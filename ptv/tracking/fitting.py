@@ -321,6 +321,27 @@ def fit_tracks(
     -------
     FittedTracks
         Rows in the given order (module docstring).
+
+    Examples
+    --------
+    One track of 9 points at 1 kHz under a constant acceleration of 20 m/s² along X:
+    the cubic fit over 5 points is exact, and the standard errors for 1 µm of noise
+    grow at the track's ends, where the window is shifted inwards.
+
+    >>> import numpy as np
+    >>> import ptv
+    >>> rate = 1000.0  # Hz
+    >>> t = np.arange(9) / rate
+    >>> position = np.zeros((9, 3))
+    >>> position[:, 0] = 0.1 * t + 10.0 * t**2  # m
+    >>> fit = ptv.fit_tracks(np.zeros(9, dtype=int), np.arange(9), position, rate,
+    ...                      window=5, noise=1e-6)
+    >>> bool(np.allclose(fit.velocity[:, 0], 0.1 + 20.0 * t))  # m/s
+    True
+    >>> bool(np.allclose(fit.acceleration, [20.0, 0.0, 0.0]))  # m/s²
+    True
+    >>> fit.acceleration_error.round(3)  # m/s²
+    array([3.207, 1.669, 0.535, 0.535, 0.535, 0.535, 0.535, 1.669, 3.207])
     """
     if not isinstance(degree, int | np.integer) or degree < 2:
         raise ValueError(f"degree must be an integer >= 2, got {degree!r}")

@@ -13,7 +13,7 @@ max_speed·Δt_k would reach the spacing of the particles and take strangers
 - :func:`chained_link`: the link of frame a's particles that were linked at Δt_j to
   frame b at Δt_k, around their predictions.
 - :func:`measure_prediction`: the radius of every Δt from the misses of the predictions
-  on a few snapshots: |mean miss| + :data:`MISS_SIGMAS` σ, σ the largest per-component
+  on a few snapshots: |median miss| + :data:`MISS_SIGMAS` σ, σ the largest per-component
   spread of the misses (from their median absolute deviation), as max_speed is
   measured (:mod:`ptv.tracking.link_speed`), with twice its 5σ for the misses' heavier
   tails.
@@ -32,7 +32,7 @@ __all__ = ["MISS_SIGMAS", "LinkPrediction", "chained_link", "measure_prediction"
 
 log = logging.getLogger(__name__)
 
-#: The radius around a prediction: the mean miss plus this many robust spreads of the
+#: The radius around a prediction: the median miss plus this many robust spreads of the
 #: misses. The misses are heavier-tailed than a Gaussian (the dim particles of the sheet's
 #: wings and the blended ones are noisier than the median particle): 5 spreads dropped
 #: 0.25 % of the particles and took 0.15 % off u′ and 0.2 % off ε (`ci`, through the true
@@ -97,7 +97,8 @@ class LinkPrediction:
         Search radius around the prediction at each Δt, m (NaN at the smallest Δt, which
         is linked around X(t) with max_speed).
     mean_miss : ndarray, shape (K, 3)
-        Mean miss of the predictions (found − predicted), m (NaN at the smallest Δt).
+        Median miss of the predictions (found − predicted), per component, m (NaN at
+        the smallest Δt; the field keeps its first name in summary.json).
     sigma_miss : ndarray, shape (K, 3)
         Per-component spread of the misses, from their median absolute deviation, m.
     misses : ndarray of int, shape (K,)

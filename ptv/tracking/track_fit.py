@@ -48,6 +48,16 @@ class TrackFitSettings:
         Points per fit, odd, ≥ 5 (None: chosen from the noise and the tracks).
     min_points : int
         Fewest points of a track that is fitted, ≥ 5.
+
+    Examples
+    --------
+    >>> import ptv
+    >>> ptv.TrackFitSettings(fit_window=7)
+    TrackFitSettings(fit_window=7, min_points=5)
+    >>> ptv.TrackFitSettings(fit_window=6)
+    Traceback (most recent call last):
+    ...
+    ValueError: fit_window must be an odd integer >= 5, got 6
     """
 
     fit_window: int | None = None
@@ -157,6 +167,28 @@ def fit_recording(
     ------
     ValueError
         No track long enough to fit.
+
+    Examples
+    --------
+    Twenty tracks of 40 frames at 1 kHz, each at a constant acceleration, measured with
+    2 µm of noise: the noise is measured on the tracks themselves, and the fitted
+    accelerations are within a few of their standard errors of the true ones.
+
+    >>> import numpy as np
+    >>> import ptv
+    >>> rng = np.random.default_rng(0)
+    >>> rate = 1000.0  # Hz
+    >>> t = np.arange(40)[:, None] / rate
+    >>> x0, v, a = (rng.normal(0, scale, (20, 1, 3)) for scale in (5e-3, 0.1, 5.0))
+    >>> paths = x0 + v * t + a / 2 * t**2  # (tracks, frames, 3), m
+    >>> measured = paths + rng.normal(0, 2e-6, paths.shape)
+    >>> track, frame = np.repeat(np.arange(20), 40), np.tile(np.arange(40), 20)
+    >>> result = ptv.fit_recording(track, frame, measured.reshape(-1, 3), rate)
+    >>> bool(np.all(np.abs(result.noise - 2e-6) < 0.2e-6))  # per component, m
+    True
+    >>> error = result.fitted.acceleration - np.repeat(a[:, 0], 40, axis=0)  # m/s²
+    >>> bool(np.all(np.abs(error) < 5 * result.fitted.acceleration_error[:, None]))
+    True
     """
     settings = TrackFitSettings() if settings is None else settings
     track, frame = np.asarray(track), np.asarray(frame)

@@ -1,6 +1,7 @@
 """The settings file of ``synptv ptv``: printed defaults read back, any settings survive
 write ∘ read, and every refusal names the file, the section and the field."""
 
+import math
 import tomllib
 
 import pytest
@@ -122,3 +123,13 @@ def test_min_cameras_tolerance_and_max_speed_left_out_follow_the_cameras_and_the
     for name in ("max_speed", "min_cameras", "tolerance"):
         assert f"# {name} = ...  # " in text
     assert settings_from_dict(tomllib.loads(text)).pipeline == defaults
+
+
+def test_predicted_radii_are_read_and_written_with_nan_at_the_smallest_dt():
+    spec = tomllib.loads("[linking]\npredicted_radii = [nan, 1.7e-4, 1.3e-4]\n")
+    read = settings_from_dict(spec)
+    radii = read.pipeline.predicted_radii
+    assert math.isnan(radii[0]) and radii[1:] == (1.7e-4, 1.3e-4)
+    again = settings_from_dict(tomllib.loads(settings_toml(read)))
+    assert math.isnan(again.pipeline.predicted_radii[0])
+    assert again.pipeline.predicted_radii[1:] == radii[1:]

@@ -115,6 +115,14 @@ def test_the_four_files_of_a_rung_carry_its_label(result, tmp_path):
     assert all(p.is_file() and p.stat().st_mode & 0o777 == 0o644 for p in paths.values())
 
 
+def test_fig5b_without_a_fitted_separation_draws_no_legend_and_warns_nothing(result):
+    # Warnings are errors in the tests: matplotlib's "No artists with labels" would fail.
+    nothing = np.zeros(result.statistics.structure.r.size, dtype=bool)
+    figure = q_versus_dt2_figure(result, separations=nothing)
+    assert figure.axes[0].get_legend() is None
+    plt.close(figure)
+
+
 def test_fig5b_prints_c2_at_the_precision_of_its_error_and_draws_the_intercepts_on_top(result):
     figure = q_versus_dt2_figure(result)
     ax, zoom = figure.axes

@@ -246,6 +246,10 @@ def test_a_relative_deviation_prints_in_percent_over_the_bins_actually_used():
     assert "9 fitted bins at 7.5–33.1 mm" in line and "7.1–62.5 mm asked" in line
     # a ratio stays a ratio
     assert any("1.23" in p for p in summary_lines_with_raw(1.23))
+    # and report.html shows the value as the terminal does, beside the same tolerance
+    page = "\n".join(_checks_section({"checks": checks}, None))
+    c1_row = next(r for r in page.split("<tr>") if r.startswith("<td>stats.c1_matches_truth"))
+    assert '<td class="fail">FAIL 614 %</td>' in c1_row
 
 
 def summary_lines_with_raw(raw: float) -> list[str]:

@@ -75,9 +75,16 @@ def _run_u_prime(claim: Claim, ctx: ClaimContext) -> ClaimResult:
     """The default run statistics' u′ of the noisy links against that of the exact
     positions of the same snapshots, paired (module docstring)."""
     noisy = compute_statistics(ctx.multi_dt.links, StatisticsSettings())
-    exact = compute_statistics(ctx.multi_dt_exact.links, StatisticsSettings())
-    if noisy.u_prime is None or exact.u_prime is None:
+    if noisy.u_prime is None or noisy.bootstrap is None:
         return result(claim, np.nan, "no u′: no Eulerian cell could be fitted", False)
+    # The exact positions draw in the noisy links' blocks, so that the replicates pair.
+    same_blocks = StatisticsSettings(snapshot_block=noisy.bootstrap.block)
+    exact = compute_statistics(ctx.multi_dt_exact.links, same_blocks)
+    drew_alike = exact.bootstrap is not None and exact.bootstrap.block == noisy.bootstrap.block
+    if exact.u_prime is None or not (
+        drew_alike and noisy.bootstrap.pairs_with(exact.bootstrap.snapshot_ids)
+    ):
+        return result(claim, np.nan, "no paired u′: the exact positions drew otherwise", False)
     value = noisy.u_prime.value / exact.u_prime.value
     se = float(np.std(noisy.u_prime.replicates / exact.u_prime.replicates, ddof=1))
     effective = min(s.bootstrap.correlation.effective_snapshots for s in (noisy, exact))

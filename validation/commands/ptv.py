@@ -405,7 +405,10 @@ def add_ptv_parser(sub) -> None:
         "options below over it) and exit",
     )
     ptv.add_argument(
-        "--max-speed", type=float, help="largest particle speed, m/s (link radius; default 1.5)"
+        "--max-speed",
+        type=float,
+        help="largest particle speed, m/s (the link radius; default: measured on the links "
+        "of the first snapshots, docs/ptv.md §4)",
     )
     ptv.add_argument("--snapshots", type=COUNT, help="process the first N snapshots per dt")
     ptv.add_argument(

@@ -101,7 +101,7 @@ def run_experiment(args: argparse.Namespace) -> int:
     for line in summary_lines(results):
         print(line)
     print(f"report written to {html_path}")
-    print(f"every figure in {json_path}")
+    print(f"every number in {json_path}")
     return 0 if all(check["passed"] for check in results["must_hold"]) else 1
 
 
@@ -135,7 +135,7 @@ def run_recorded(args: argparse.Namespace, scenario, out) -> int:
     for line in summary_lines(results):
         print(line)
     print(f"report written to {html_path}")
-    print(f"every figure in {json_path}")
+    print(f"every number in {json_path}")
     return 0 if all(check["passed"] for check in results["must_hold"]) else 1
 
 

@@ -208,7 +208,7 @@ def _statistics_lines(statistics: dict, snapshots: int) -> list[str]:
             f"too few snapshots for a verdict with power: {snapshots} per dt "
             f"({effective:.3g} effective), so each check allows {c1['z']:.3g} standard errors "
             f"per bin at 0.1 % false alarms; score at least {MIN_SNAPSHOTS_FOR_VERDICT} "
-            "(docs/score.md §5)"
+            "(docs/score.md §6)"
         )
     return lines
 

@@ -285,7 +285,10 @@ def q_versus_dt2_figure(
         ax.set_ylim(top=q_limit)
     ax.set_ylabel("⟨(δΔX·e)²⟩  (µm²)")
     ax.set_title(f"⟨q⟩ = c1 Δt² + c2 at {len(bins)} separations (Fig. 5b)", fontsize=10)
-    ax.legend(fontsize=7.5, loc="upper left", title="intercept c2 ± 1 s.e.", title_fontsize=7.5)
+    if len(bins):  # no bin, no labelled artist: a legend would only warn
+        ax.legend(
+            fontsize=7.5, loc="upper left", title="intercept c2 ± 1 s.e.", title_fontsize=7.5
+        )
     # Zoom on the intercepts: they fill the lower half of the y axis, whatever the size
     # of the noise; the points of the smallest Δt above it are marked on its edge.
     x_zoom = 1.25 * np.min(x_ms2)

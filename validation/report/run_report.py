@@ -36,6 +36,7 @@ from validation.run.verdict import (
     run_checks,
     rung_checks,
     sample_row,
+    shown_value,
     verdict,
     verdict_line,
 )
@@ -259,7 +260,7 @@ def _verdict_cell(check: dict | None) -> str:
     if check is None:
         return "<td>–</td>"
     mark, css = ("PASS", "pass") if check["passed"] else ("FAIL", "fail")
-    return f'<td class="{css}">{mark} {html.escape(number(check["value"]))}</td>'
+    return f'<td class="{css}">{mark} {html.escape(shown_value(check))}</td>'
 
 
 def _rungtable(checks: dict) -> str:

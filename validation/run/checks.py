@@ -263,7 +263,22 @@ def _plateau_of(summary: dict | None) -> tuple[float | None, float | None, list 
 def sample_off_ensemble(summary: dict, truth: dict) -> dict | None:
     """How far a measurement's ε lies from the estimator on the ensemble's exact D_LL,
     in its own standard errors: on the exact trajectories, a statement about the sample
-    (which eddies its snapshots caught), not about the code."""
+    (which eddies its snapshots caught), not about the code.
+
+    Parameters
+    ----------
+    summary : dict
+        summary.json of the measurement (its plateau ε, error and bootstrap).
+    truth : dict
+        truth.json (``epsilon_exact_d_ll``, m²/s³).
+
+    Returns
+    -------
+    dict or None
+        ``relative`` (ε over the reference, less 1), ``in_se`` (the difference in the
+        measurement's standard errors), ``se_relative`` and ``effective_snapshots``
+        (None without a bootstrap); None where the summary has no ε or no error.
+    """
     eps, se, _ = _plateau_of(summary)
     if eps is None or not se:
         return None

@@ -29,6 +29,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ptv.pipeline.double_frame import AMBIGUITY_WARNING
 from ptv.pipeline.options import PipelineSettings
 from validation.run.scenario_fields import ScenarioError
 
@@ -133,9 +134,9 @@ def derive_ptv_ranges(scenario, given: set[str], sheet_size, scales: dict | None
 
 
 #: The link ambiguity (a second particle within the link radius) above which the links
-#: of independent frame pairs are warned about before the run (as the run warns after:
-#: :data:`ptv.pipeline.double_frame.AMBIGUITY_WARNING`).
-AMBIGUITY_LIMIT = 0.5
+#: of independent frame pairs are warned about before the run: the run's own limit,
+#: which it warns about after.
+AMBIGUITY_LIMIT = AMBIGUITY_WARNING
 
 
 def independent_pair_ambiguity(scenario, sheet_size, u_rms: float, source: str) -> np.ndarray:

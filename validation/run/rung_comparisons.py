@@ -69,6 +69,13 @@ def compare_rungs(
         The detection rung's ``detection.json``.
     folders : dict of str to Path
         Every rung's folder, ``exact`` and ``detection`` among them.
+
+    Returns
+    -------
+    RungComparisons
+        Per rung: its summary, its comparison with the truth
+        (:func:`validation.run.checks.compare_variant`), its matching against the
+        truth-paired matches and its population.json where it has one.
     """
     settings = pipeline_settings(scenario).statistics
     p = truth["parameters"]

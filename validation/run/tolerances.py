@@ -38,6 +38,12 @@ def false_alarm_z(dof: float | None, *, tests: int = 1, rate: float = FALSE_ALAR
         Values that must all hold (the bins of a profile).
     rate : float
         The check's false-alarm rate.
+
+    Returns
+    -------
+    float
+        z, in standard errors: the Student quantile with ``dof`` degrees of freedom, or
+        the normal one.
     """
     p = 1.0 - rate / (2 * max(int(tests), 1))
     if dof is None or not np.isfinite(dof):
@@ -46,9 +52,20 @@ def false_alarm_z(dof: float | None, *, tests: int = 1, rate: float = FALSE_ALAR
 
 
 def snapshot_dof(*summaries: dict | None) -> float | None:
-    """Degrees of freedom of a standard error from the bootstrap over snapshots: the
-    fewest effective independent snapshots of the summaries' bootstraps, less one (None
-    where no summary has a bootstrap)."""
+    """Degrees of freedom of a standard error from the bootstrap over snapshots.
+
+    Parameters
+    ----------
+    *summaries : dict or None
+        summary.json contents (``bootstrap.correlation.effective_snapshots``); None or
+        a summary without a bootstrap is passed over.
+
+    Returns
+    -------
+    float or None
+        The fewest effective independent snapshots of their bootstraps, less one; None
+        where no summary has a bootstrap.
+    """
     found = [
         s["bootstrap"]["correlation"]["effective_snapshots"]
         for s in summaries
@@ -58,8 +75,19 @@ def snapshot_dof(*summaries: dict | None) -> float | None:
 
 
 def pairs_with(summary: dict, other: dict | None) -> bool:
-    """Whether two summaries' bootstrap replicates drew the same snapshots: the same
-    replicate count, seed, block and snapshots in every stratum."""
+    """Whether two summaries' bootstrap replicates drew the same snapshots.
+
+    Parameters
+    ----------
+    summary, other : dict, dict or None
+        summary.json contents (their ``bootstrap`` sections).
+
+    Returns
+    -------
+    bool
+        True where both have a bootstrap with the same replicate count, seed, block and
+        snapshots in every stratum.
+    """
     a = summary.get("bootstrap")
     b = None if other is None else other.get("bootstrap")
     if not a or not b:

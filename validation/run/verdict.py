@@ -336,18 +336,31 @@ def _epsilon_row(eps: dict) -> dict:
 
 
 def sample_row(comparison: dict) -> dict | None:
-    """An informative row: how far the exact trajectories' ε lies from the ensemble's, in
-    its standard errors (a statement about the sample, not a verdict on the code; None
-    where the run has no exact rung)."""
+    """An informative row: how far the exact trajectories' ε lies from the ensemble's.
+
+    Parameters
+    ----------
+    comparison : dict
+        A rung's comparison (:func:`validation.run.checks.compare_variant`), whose
+        ``epsilon.sample_off_ensemble`` (:func:`validation.run.checks.sample_off_ensemble`)
+        is read.
+
+    Returns
+    -------
+    dict or None
+        The row, in the exact trajectories' standard errors (a statement about the
+        sample, not a verdict on the code); None where the run has no exact rung.
+    """
     off = comparison["epsilon"].get("sample_off_ensemble")
     if off is None:
         return None
+    effective = off["effective_snapshots"]
+    snapshots = "" if effective is None else f" ({effective:.3g} effective snapshots)"
     return _row(
         "stats.sample_off_ensemble",
         off["relative"],
         f"the exact trajectories' ε against the estimator on the exact D_LL: "
-        f"{off['in_se']:+.2g} standard errors ({off['effective_snapshots']:.3g} effective "
-        "snapshots)",
+        f"{off['in_se']:+.2g} standard errors{snapshots}",
         True,
         "a statement about the sample (which eddies its snapshots caught), not about the code",
     )
@@ -468,20 +481,24 @@ def verdict_line(checks: dict) -> str:
     return line
 
 
+def shown_value(check: dict) -> str:
+    """A check's value as the terminal and the report show it: in per cent where its
+    tolerance is one (a relative deviation), else to four digits; empty where it has none."""
+    value = check["value"]
+    if value is None:
+        return ""
+    if check["id"].split(" (")[0].split(":")[0] in PERCENT_CHECKS:
+        return f"{100 * value:.3g} %"
+    return f"{value:.4g}"
+
+
 def summary_lines(results: dict) -> list[str]:
     """What ``synptv run`` prints of its checks: the required ones, then each baseline's,
     then the verdict (:func:`verdict_line`)."""
 
     def line(check: dict, name: str) -> str:
         mark = "PASS" if check["passed"] else "FAIL"
-        value = check["value"]
-        if value is None:
-            shown = ""
-        elif check["id"].split(" (")[0].split(":")[0] in PERCENT_CHECKS:
-            shown = f"{100 * value:.3g} %"
-        else:
-            shown = f"{value:.4g}"
-        return f"{mark}  {name:48s} {shown:>10s}   {check['tolerance']}"
+        return f"{mark}  {name:48s} {shown_value(check):>10s}   {check['tolerance']}"
 
     lines = [line(c, c["id"]) for c in results["must_hold"]]
     checks = results["checks"]

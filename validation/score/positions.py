@@ -113,8 +113,26 @@ def parse_integer(text: str, where: str) -> int:
 
 
 def parse_track_id(text: str, where: str) -> int:
-    """``text`` as a track id, an integer ≥ 0 (the scorer keeps −1 for "no track"); a
-    ValueError naming ``where`` otherwise."""
+    """A track id read from a file.
+
+    Parameters
+    ----------
+    text : str
+        The field as written.
+    where : str
+        File and line, for the message.
+
+    Returns
+    -------
+    int
+        The id, ≥ 0 (the scorer keeps −1 for "no track"); a Python int, so that ids
+        beyond 2⁵³ stay apart.
+
+    Raises
+    ------
+    ValueError
+        Not an integer, or negative; the message names ``where``.
+    """
     value = parse_integer(text, where)
     if value < 0:
         raise ValueError(

@@ -212,15 +212,19 @@ def score_statistics(
             "frames a and b at any Δt",
         }
     shared = truth.shared_first_frame and _shares_first_frame(positions, scored)
-    try:
-        statistics = compute_statistics(runs, settings.statistics, shared_first_frame=shared)
-    except ValueError as err:
-        return {"computed": False, "reason": f"no statistics: {err}"}
     chunks = snapshot_chunks(truth.frames)
     parameters, exact = truth.flow()
     reference = flow_truth(
         truth.snapshots_at_t(chunks), parameters, exact, settings.statistics
     ).as_dict()
+    # The file's statistics and the true positions' draw in the blocks the sample
+    # truth's snapshots ask, so that their replicates always pair (as synptv run's rungs).
+    block = reference["snapshot_correlation"]["block"]
+    settings = replace(settings, statistics=replace(settings.statistics, snapshot_block=block))
+    try:
+        statistics = compute_statistics(runs, settings.statistics, shared_first_frame=shared)
+    except ValueError as err:
+        return {"computed": False, "reason": f"no statistics: {err}"}
     exact_summary = _exact_summary(truth, runs, settings, shared)
     population = None
     if statistics.population is not None:

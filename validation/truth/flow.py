@@ -194,7 +194,8 @@ class PopulationTruth:
 
     def as_dict(self) -> dict:
         """JSON-able form (NaN → None); ``dt`` and ``displacement_noise_m`` as in
-        ``detection.json``, so either feeds :func:`validation.run.checks.predicted_noise`."""
+        ``detection.json``, so either feeds
+        :func:`validation.run.noise_prediction.predicted_noise`."""
 
         def listed(a):
             return [None if not np.isfinite(v) else float(v) for v in a]

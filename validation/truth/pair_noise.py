@@ -3,8 +3,8 @@
 The multi-Δt fit's intercept c2(r) is the mean over the pairs of a separation bin of
 q = [(δ_j − δ_i)·e]², δ the error of a measured displacement ΔX against the true one
 and e = r/|r|. Predicting it from one displacement-noise variance per component
-(:class:`validation.run.checks.NoisePrediction`) assumes every particle equally noisy
-and errors independent between particles. On dense images neither holds exactly: two
+(:class:`validation.run.noise_prediction.NoisePrediction`) assumes every particle
+equally noisy and errors independent between particles. On dense images neither holds exactly: two
 particles close in space are close on every image, so they are more often blended and
 their fitted centres share an error (a joint fit trades light between the two spots).
 Summing q over the actual pairs with the actual errors needs neither assumption.

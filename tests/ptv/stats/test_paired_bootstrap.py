@@ -123,6 +123,16 @@ def test_correlated_snapshots_are_resampled_in_blocks():
     assert st.plateau.se_epsilon > 1.5 * alone.plateau.se_epsilon
 
 
+def test_a_block_is_never_more_than_a_quarter_of_the_snapshots():
+    """A block forced beyond a quarter of the 48 snapshots draws as one of 12: a block of
+    all 48 would draw every replicate alike and report no error at all."""
+    runs = _shared_runs(sigma=20e-6, snapshots=48, repeat=4)
+    forced = _statistics(runs, StatisticsSettings(**{**SETTINGS.__dict__, "snapshot_block": 48}))
+    quarter = _statistics(runs, StatisticsSettings(**{**SETTINGS.__dict__, "snapshot_block": 12}))
+    assert forced.plateau.se_epsilon > 0
+    assert forced.plateau.se_epsilon == quarter.plateau.se_epsilon
+
+
 def test_independent_snapshots_are_drawn_one_at_a_time():
     st = _statistics(_shared_runs(sigma=20e-6))
     assert st.bootstrap.block == 1

@@ -100,3 +100,9 @@ def test_bad_blocks_are_refused():
         block_weights(10, 5, 6, np.random.default_rng(0))
     with pytest.raises(ValueError, match="series"):
         autocorrelation_time(np.zeros((2, 2, 2)))
+
+
+def test_too_few_correlated_snapshots_are_drawn_one_at_a_time_with_a_warning(caplog):
+    with caplog.at_level("WARNING", logger="ptv.stats.resampling"):
+        assert block_length(SnapshotCorrelation(0.8, 7, 10)) == 1
+    assert "too few to draw in blocks" in caplog.text
