@@ -44,6 +44,22 @@ class Box:
         Edge lengths along X, Y, Z, m.
     centre : tuple of 3 floats
         Centre, m.
+
+    Examples
+    --------
+    A 20 × 20 × 2 mm slab centred on the origin:
+
+    >>> import numpy as np
+    >>> import simulator
+    >>> slab = simulator.Box((0.02, 0.02, 0.002))  # m
+    >>> round(slab.volume * 1e9)  # mm³
+    800
+    >>> slab.contains(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.002]]))
+    array([ True, False])
+    >>> slab.padded(1e-3).size  # 1 mm more on every side, m
+    (0.022, 0.022, 0.004)
+    >>> slab.sample(5, np.random.default_rng(0)).shape  # uniform points, m
+    (5, 3)
     """
 
     size: tuple[float, float, float]
@@ -210,6 +226,23 @@ class KSFlow:
         KS modes.
     unsteadiness : float
         λ of the KS frequencies (:func:`simulator.flow.draw_ks_field`).
+
+    Examples
+    --------
+    The 10 Hz condition's Pope spectrum on 50 modes: a :class:`TracerFlow` that draws a
+    fresh realization for every snapshot it follows.
+
+    >>> import numpy as np
+    >>> import simulator
+    >>> preset = simulator.flow_preset("lem-10hz")
+    >>> flow = simulator.KSFlow(simulator.PopeSpectrum(preset.parameters), n_modes=50)
+    >>> flow.u_rms  # m/s
+    0.19
+    >>> seed_box = simulator.Box((0.02, 0.02, 0.002))  # m
+    >>> times = np.array([0.0, 1e-3])  # s
+    >>> x, u, a = flow.follow_snapshot(0, np.random.default_rng(0), seed_box, 3, times)
+    >>> x.shape, u.shape, a.shape  # (T, P, 3): m, m/s, m/s²
+    ((2, 3, 3), (2, 3, 3), (2, 3, 3))
     """
 
     spectrum: Spectrum
@@ -296,6 +329,23 @@ def follow_snapshots(
     -------
     ParticleSnapshots
         The ``count`` snapshots followed.
+
+    Examples
+    --------
+    Two independent snapshots of about 100 tracers in a 20 × 20 × 2 mm slab, followed
+    over 2 ms: the seeding box is padded by 6u′ × 2 ms on every side, so about 5 times
+    more tracers are followed than the slab holds.
+
+    >>> import simulator
+    >>> preset = simulator.flow_preset("lem-10hz")
+    >>> flow = simulator.KSFlow(simulator.PopeSpectrum(preset.parameters), n_modes=50)
+    >>> slab = simulator.Box((0.02, 0.02, 0.002))  # m
+    >>> sample = simulator.follow_snapshots(flow, [0.0, 1e-3, 2e-3], particles=100,
+    ...                                     snapshots=2, region=slab, rng=0)
+    >>> sample.positions.shape  # (M, T, P, 3), m
+    (2, 3, 495, 3)
+    >>> slab.contains(sample.positions[:, 0]).sum(axis=1)  # in the slab at t = 0
+    array([ 94, 106])
     """
     times = np.asarray(times, dtype=float)
     if times.ndim != 1 or times[0] != 0 or np.any(np.diff(times) <= 0):
@@ -351,6 +401,22 @@ def double_frame(
     Returns
     -------
     DoubleFrameSample
+
+    Examples
+    --------
+    Three frame pairs at each of the 10 Hz condition's two shortest Δt, each Δt an
+    experiment of its own (its own flows and tracers):
+
+    >>> import simulator
+    >>> preset = simulator.flow_preset("lem-10hz")
+    >>> flow = simulator.KSFlow(simulator.PopeSpectrum(preset.parameters), n_modes=50)
+    >>> slab = simulator.Box((0.02, 0.02, 0.002))  # m
+    >>> sample = simulator.double_frame(flow, preset.dt[:2], particles=100, snapshots=3,
+    ...                                 region=slab, rng=0)
+    >>> [run.positions.shape for run in sample.runs]  # (M, 2, P, 3): frames a and b, m
+    [(3, 2, 114, 3), (3, 2, 128, 3)]
+    >>> sample.shared_first_frame
+    False
     """
     dt = _check_positive("dt", dt)
     children = np.random.default_rng(rng).spawn(len(dt))
@@ -407,6 +473,26 @@ def shared_start(
     -------
     DoubleFrameSample
         With ``shared_first_frame`` True.
+
+    Examples
+    --------
+    Three snapshots seen at the 10 Hz condition's two shortest Δt: frame a is the same
+    at both.
+
+    >>> import numpy as np
+    >>> import simulator
+    >>> preset = simulator.flow_preset("lem-10hz")
+    >>> flow = simulator.KSFlow(simulator.PopeSpectrum(preset.parameters), n_modes=50)
+    >>> slab = simulator.Box((0.02, 0.02, 0.002))  # m
+    >>> sample = simulator.shared_start(flow, preset.dt[:2], particles=100, snapshots=3,
+    ...                                 region=slab, rng=0)
+    >>> [run.positions.shape for run in sample.runs]  # (M, 2, P, 3), m
+    [(3, 2, 128, 3), (3, 2, 128, 3)]
+    >>> first, second = sample.runs
+    >>> np.array_equal(first.positions[:, 0], second.positions[:, 0])  # frame a
+    True
+    >>> (second.times * 1e3).round(3)  # frames a and b of Δt_1, ms
+    array([0.   , 0.194])
     """
     dt = _check_positive("dt", dt)
     if np.any(np.diff(dt) <= 0):

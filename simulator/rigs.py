@@ -157,6 +157,23 @@ class Rig:
         ``"gaussian"`` (the particle lighting's own Gaussian sheet) or ``"top-hat"``
         (uniform over the sheet's thickness,
         :func:`simulator.render.camera_frames.rig_lighting`).
+
+    Examples
+    --------
+    The paper's stereo rig: two cameras 1 m from the sheet centre, ±35° about Y, behind
+    the windows of an icosahedral tank.
+
+    >>> import simulator
+    >>> rig = simulator.load_rig("paper-stereo")
+    >>> rig.camera_names, rig.tank.kind, rig.sheet.size  # the sheet in m
+    (('cam1', 'cam2'), 'icosahedron', (0.1, 0.1, 0.01))
+    >>> first = rig.cameras[0]
+    >>> first.center.round(3), first.lens.sensor_size  # pupil (m), (W, H) px
+    (array([-0.577,  0.   ,  0.817]), (2048, 1088))
+    >>> centre_and_along_x = [[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]]  # m
+    >>> first.project(centre_and_along_x).round(2)  # px
+    array([[1023.5 ,  543.5 ],
+           [1103.54,  542.1 ]])
     """
 
     name: str
@@ -461,7 +478,46 @@ def check_sees_sheet(name: str, camera: Camera, sheet: Box, where: str) -> None:
 
 
 def rig_from_dict(spec: dict, *, source: str = "<rig>") -> Rig:
-    """Build a rig from a parsed description (see the module docstring for the fields)."""
+    """Build a rig from a parsed description (see the module docstring for the fields).
+
+    Parameters
+    ----------
+    spec : dict
+        A rig file's table, as ``tomllib`` reads it (docs/rigs.md).
+    source : str
+        What the messages call it (the file's name).
+
+    Returns
+    -------
+    Rig
+
+    Raises
+    ------
+    RigFileError
+        A missing, unknown or invalid field, or a rig that cannot work (a camera that
+        sees none of the sheet, a sheet outside the tank): one line naming ``source``
+        and the field.
+
+    Examples
+    --------
+    One camera 0.5 m in front of a 5 × 5 cm sheet, no tank:
+
+    >>> import simulator
+    >>> camera = {"name": "front", "azimuth_deg": 0.0, "distance": 0.5,
+    ...           "focal_length": 0.05, "f_number": 8.0, "pixel_pitch": 10e-6,
+    ...           "sensor_size": [640, 480], "scheimpflug": False}
+    >>> spec = {"name": "one-camera", "tank": {"kind": "free"}, "cameras": [camera],
+    ...         "sheet": {"width": 0.05, "height": 0.05, "thickness": 0.002}}
+    >>> rig = simulator.rig_from_dict(spec)
+    >>> rig.camera_names, rig.cameras[0].center  # pupil centre, m
+    (('front',), array([0. , 0. , 0.5]))
+    >>> camera["focal_length"] = 50.0  # mm where m are asked for
+    >>> try:
+    ...     simulator.rig_from_dict(spec, source="my-rig.toml")
+    ... except ValueError as error:
+    ...     print(error)
+    my-rig.toml: cameras[0].focal_length: must be from 0.001 to 2 m, got 50.0
+    """
     _check_fields(spec, _TOP, source)
     s = _check_fields(spec["sheet"], _SHEET, f"{source}: sheet")
     sheet = Box(tuple(_number(s, k, f"{source}: sheet") for k in ("width", "height", "thickness")))
@@ -499,7 +555,20 @@ def rig_from_dict(spec: dict, *, source: str = "<rig>") -> Rig:
 
 
 def rig_presets() -> list[str]:
-    """Names of the rigs shipped with synptv."""
+    """Names of the rigs shipped with synptv.
+
+    Returns
+    -------
+    list of str
+        Sorted; each loads with :func:`load_rig` (docs/optics.md §5 compares them).
+
+    Examples
+    --------
+    >>> import simulator
+    >>> simulator.rig_presets()
+    ['box-3cam', 'box-4cam', 'box-4cam-unequal', 'conventional', 'lpt-challenge',
+     'lpt-challenge-small', 'paper-stereo']
+    """
     folder = resources.files("simulator") / "rig_presets"
     return sorted(
         p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml")
@@ -509,10 +578,33 @@ def rig_presets() -> list[str]:
 def load_rig(name_or_path: str | Path) -> Rig:
     """A preset rig by name, or a rig file by path.
 
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A name of :func:`rig_presets`, or a rig TOML file (docs/rigs.md).
+
+    Returns
+    -------
+    Rig
+
     Raises
     ------
     ValueError
         Unknown preset, unreadable or invalid file (the message names the file and field).
+
+    Examples
+    --------
+    The CI-size crop of the LPT-Challenge rig: four cameras around a 20 × 25 × 30 mm
+    volume lit through its depth.
+
+    >>> import simulator
+    >>> rig = simulator.load_rig("lpt-challenge-small")
+    >>> rig.camera_names, rig.sheet.size, rig.sheet_profile  # the sheet in m
+    (('cam1', 'cam2', 'cam3', 'cam4'), (0.02, 0.025, 0.03), 'top-hat')
+    >>> simulator.load_rig("my-rig.toml")
+    Traceback (most recent call last):
+    ...
+    simulator.rigs.RigFileError: rig file 'my-rig.toml' does not exist
     """
     path = Path(name_or_path)
     if path.suffix == ".toml" or path.exists():

@@ -49,6 +49,21 @@ class PopeSpectrum:
     ----------
     c_L, c_eta : float
         The solved shape constants (6.78 and 0.40 at high Reynolds number).
+
+    Examples
+    --------
+    Fitted to the 10 Hz condition, it holds the energy (3/2)u′² and dissipates ε
+    (docs/flow.md §2.1):
+
+    >>> import simulator
+    >>> flow = simulator.flow_preset("lem-10hz").parameters
+    >>> spectrum = simulator.PopeSpectrum(flow)
+    >>> round(spectrum.c_L, 3), round(spectrum.c_eta, 3)
+    (6.221, 0.403)
+    >>> round(spectrum.kinetic_energy(), 5), round(1.5 * flow.u_rms**2, 5)  # m²/s²
+    (0.05415, 0.05415)
+    >>> round(spectrum.dissipation(), 5)  # m²/s³
+    0.17
     """
 
     parameters: TurbulenceParameters
@@ -150,6 +165,19 @@ class KolmogorovBandSpectrum:
     ----------
     parameters : TurbulenceParameters
         Prescribed u', ε, ν.
+
+    Examples
+    --------
+    The band that holds (3/2)u′² and dissipates ε ends at k_N η ≈ 0.54 (docs/flow.md
+    §2.2):
+
+    >>> import simulator
+    >>> flow = simulator.flow_preset("lem-10hz").parameters
+    >>> band = simulator.KolmogorovBandSpectrum(flow)
+    >>> round(band.k_max * flow.eta, 3)
+    0.545
+    >>> round(band.kinetic_energy(), 5), round(band.dissipation(), 5)  # m²/s², m²/s³
+    (0.05415, 0.17)
     """
 
     parameters: TurbulenceParameters

@@ -51,6 +51,22 @@ def longitudinal_structure_function(
     -------
     ndarray
         D_LL(r), same shape as r.
+
+    Examples
+    --------
+    D_LL of Pope's spectrum for the 10 Hz condition: it tends to ε r²/(15ν) at small r
+    and to 2u′² at large r (docs/flow.md §3.1).
+
+    >>> import simulator
+    >>> flow = simulator.flow_preset("lem-10hz").parameters
+    >>> spectrum = simulator.PopeSpectrum(flow)
+    >>> simulator.exact_dll(spectrum, [1e-3, 1e-2]).round(5)  # m²/s²
+    array([0.00393, 0.02447])
+    >>> r = 1e-6  # m
+    >>> round(float(simulator.exact_dll(spectrum, r) / (flow.epsilon * r**2 / (15 * flow.nu))), 4)
+    1.0
+    >>> round(float(simulator.exact_dll(spectrum, 100.0) / (2 * flow.u_rms**2)), 4)
+    1.0
     """
     r = np.asarray(r, dtype=float)
     if np.any(~np.isfinite(r)) or np.any(r < 0):

@@ -19,6 +19,17 @@ class TurbulenceParameters:
         Mean dissipation rate ε, m²/s³.
     nu : float
         Kinematic viscosity ν, m²/s.
+
+    Examples
+    --------
+    The paper's 10 Hz condition (docs/flow.md §4): η ≈ 49 µm, τ_η ≈ 2.4 ms, R_λ ≈ 339.
+
+    >>> import simulator
+    >>> flow = simulator.TurbulenceParameters(u_rms=0.19, epsilon=0.17)  # m/s, m²/s³
+    >>> round(flow.eta * 1e6, 1), round(flow.tau_eta * 1e3, 3)  # µm, ms
+    (49.2, 2.425)
+    >>> round(flow.R_lambda, 1), round(flow.L_int * 1e2, 2)  # –, cm
+    (339.1, 4.03)
     """
 
     u_rms: float

@@ -1,4 +1,4 @@
-"""Validation of camera images handed to the detector (private)."""
+"""Validation of the images and options handed to the detector (private)."""
 
 import numpy as np
 
@@ -59,3 +59,33 @@ def default_saturation(dtype: np.dtype) -> float:
     if np.issubdtype(dtype, np.integer):
         return float(np.iinfo(dtype).max)
     return float("inf")
+
+
+def check_number(name: str, value: object, *, low: float, strict: bool = False) -> float:
+    """``value`` as a float, if a finite number ≥ ``low`` (> where ``strict``), else a
+    ValueError naming ``name``."""
+    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
+    if ok and np.isfinite(value) and (value > low or (not strict and value == low)):
+        return float(value)
+    bound = f"> {low:g}" if strict else f">= {low:g}"
+    raise ValueError(f"{name} must be a finite number {bound}, got {value!r}")
+
+
+def check_integer(name: str, value: object, *, low: int) -> int:
+    """``value`` as an int, if an integer ≥ ``low``, else a ValueError naming ``name``."""
+    if isinstance(value, int | np.integer) and not isinstance(value, bool) and value >= low:
+        return int(value)
+    raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+
+
+def saturation_level(saturation: float | None, dtype: np.dtype) -> float:
+    """The level of a saturated pixel: ``saturation``, or the dtype's default."""
+    if saturation is None:
+        return default_saturation(dtype)
+    if (
+        isinstance(saturation, int | float | np.integer | np.floating)
+        and not isinstance(saturation, bool)
+        and not np.isnan(saturation)
+    ):
+        return float(saturation)
+    raise ValueError(f"saturation must be a number or None, got {saturation!r}")

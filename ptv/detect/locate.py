@@ -147,7 +147,7 @@ from ptv.detect import _blocks, _kernels
 from ptv.detect import _refine as _refine_kernels
 from ptv.detect import _split as _split_kernels
 from ptv.detect._groups import GROUP_DISTANCE_PX, MAX_GROUP, Groups, fit_groups
-from ptv.detect._image import check_image, default_saturation
+from ptv.detect._image import check_image, check_integer, check_number, saturation_level
 from ptv.detect.background import BackgroundEstimate, estimate_background
 from ptv.detect.detections import DetectionFlag, Detections
 
@@ -467,33 +467,6 @@ def _tree(xy: np.ndarray) -> cKDTree:
     return cKDTree(xy, balanced_tree=False, compact_nodes=False)
 
 
-def _number(name: str, value: object, *, low: float, strict: bool = False) -> float:
-    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
-    if ok and np.isfinite(value) and (value > low or (not strict and value == low)):
-        return float(value)
-    bound = f"> {low:g}" if strict else f">= {low:g}"
-    raise ValueError(f"{name} must be a finite number {bound}, got {value!r}")
-
-
-def _integer(name: str, value: object, *, low: int) -> int:
-    if isinstance(value, int | np.integer) and not isinstance(value, bool) and value >= low:
-        return int(value)
-    raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-
-
-def _saturation_level(saturation: float | None, dtype: np.dtype) -> float:
-    """The level of a saturated pixel: ``saturation``, or the dtype's default."""
-    if saturation is None:
-        return default_saturation(dtype)
-    if (
-        isinstance(saturation, int | float | np.integer | np.floating)
-        and not isinstance(saturation, bool)
-        and not np.isnan(saturation)
-    ):
-        return float(saturation)
-    raise ValueError(f"saturation must be a number or None, got {saturation!r}")
-
-
 def _image_background(
     background: BackgroundEstimate | None, img: np.ndarray, tiles: tuple[int, int]
 ) -> BackgroundEstimate:
@@ -657,18 +630,18 @@ def detect_particles(
     """
     t0 = time.perf_counter()
     img = check_image(image)
-    threshold_sigmas = _number("threshold_sigmas", threshold_sigmas, low=0.0, strict=True)
+    threshold_sigmas = check_number("threshold_sigmas", threshold_sigmas, low=0.0, strict=True)
     if estimator not in _ESTIMATORS:
         raise ValueError(f"estimator must be one of {sorted(_ESTIMATORS)}, got {estimator!r}")
-    radius = _integer("radius", radius, low=1)
-    min_dip = _number("min_dip", min_dip, low=0.0)
-    dip_sigmas = _number("dip_sigmas", dip_sigmas, low=0.0)
-    max_elongation = _number("max_elongation", max_elongation, low=1.0)
-    min_size = _integer("min_size", min_size, low=1)
-    sat = _saturation_level(saturation, np.asarray(image).dtype)
+    radius = check_integer("radius", radius, low=1)
+    min_dip = check_number("min_dip", min_dip, low=0.0)
+    dip_sigmas = check_number("dip_sigmas", dip_sigmas, low=0.0)
+    max_elongation = check_number("max_elongation", max_elongation, low=1.0)
+    min_size = check_integer("min_size", min_size, low=1)
+    sat = saturation_level(saturation, np.asarray(image).dtype)
     block = 1
     if diameter is not None:
-        diameter = _number("diameter", diameter, low=0.0, strict=True)
+        diameter = check_number("diameter", diameter, low=0.0, strict=True)
         block = _blocks.block_size(diameter, img.shape)
     if block > 1:
         given = _image_background(background, img, tiles)

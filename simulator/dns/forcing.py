@@ -28,6 +28,18 @@ class ConstantPowerForcing:
         Injection rate ε, m²/s³.
     band : float
         k_f/(2π/L): modes with 0 < |k| ≤ k_f are forced (default 2: 32 modes).
+
+    Examples
+    --------
+    Whatever the state, the forcing puts in ε (docs/dns.md §2):
+
+    >>> import simulator
+    >>> setup = simulator.dns_setup(1e-6, 0.1, 32)
+    >>> forcing = simulator.ConstantPowerForcing(0.1)  # ε, m²/s³
+    >>> solver = simulator.NavierStokesSolver(setup.grid, nu=1e-6, forcing=forcing)
+    >>> state = simulator.initial_state(solver, rng=3)
+    >>> round(solver.injection(state), 12)  # ⟨u·f⟩, m²/s³
+    0.1
     """
 
     epsilon: float

@@ -232,6 +232,22 @@ def dns_setup(
     ------
     ValueError
         A bad input, or a memory estimate above the machine's available memory.
+
+    Examples
+    --------
+    Water (ν = 10⁻⁶ m²/s) at ε = 0.1 m²/s³ on 32³ points: η = 56 µm, and k_max η = 1.5
+    makes the box 2.5 mm wide (docs/dns.md §1).
+
+    >>> import simulator
+    >>> setup = simulator.dns_setup(1e-6, 0.1, 32)  # ν (m²/s), ε (m²/s³), N
+    >>> round(setup.eta * 1e6, 1), round(setup.grid.box_side * 1e3, 3)  # µm, mm
+    (56.2, 2.513)
+    >>> round(setup.grid.kmax * setup.eta, 3)
+    1.5
+    >>> simulator.dns_setup(1e-6, 0.1, 33)
+    Traceback (most recent call last):
+    ...
+    ValueError: n must be even, got 33
     """
     nu = _positive("nu", nu)
     epsilon = _positive("epsilon", epsilon)

@@ -38,6 +38,35 @@ class Camera:
     interfaces : FlatInterfaces or None
         Refractive planes between the camera and the measurement volume; None for a
         camera in the same medium as the points.
+
+    Examples
+    --------
+    A camera 0.5 m up the Z axis looking toward −Z (image x along +X, rows along −Y),
+    in air, then behind a 10 mm PMMA window whose wet face is at Z = 0.09 m:
+
+    >>> import numpy as np
+    >>> import simulator
+    >>> lens = simulator.Lens(focal_length=0.05, pixel_pitch=10e-6, sensor_size=(640, 480))
+    >>> facing = np.diag([1.0, -1.0, -1.0])  # rows: the camera's x, y, z in the world
+    >>> in_air = simulator.Camera([0.0, 0.0, 0.5], facing, lens)
+    >>> window = simulator.flat_window([0.0, 0.0, -1.0], -0.1, 0.01)  # normal toward the water
+    >>> behind_glass = simulator.Camera([0.0, 0.0, 0.5], facing, lens, window)
+    >>> point = np.array([[1e-3, 1e-3, 0.0]])  # m
+    >>> in_air.project(point), behind_glass.project(point).round(3)  # px
+    (array([[329.5, 229.5]]), array([[330.043, 228.957]]))
+
+    The ray of that pixel, in the water, passes through the point:
+
+    >>> ray = behind_glass.pixel_to_ray(behind_glass.project(point))
+    >>> ray.origins.round(5)  # where it leaves the glass, m
+    array([[0.00086, 0.00086, 0.09   ]])
+    >>> bool(np.linalg.norm(np.cross(point - ray.origins, ray.directions)) < 1e-12)
+    True
+
+    A point on the camera's side of the window is not imaged:
+
+    >>> behind_glass.project([[0.0, 0.0, 0.2]])
+    array([[nan, nan]])
     """
 
     center: np.ndarray

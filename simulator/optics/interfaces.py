@@ -130,6 +130,18 @@ def flat_window(
     -------
     FlatInterfaces
         Planes at ``distance`` and ``distance + thickness``.
+
+    Examples
+    --------
+    A 10 mm PMMA window across Z = 0.1 m seen from +Z, water beyond it: the normal
+    points toward −Z, so its faces are at n̂·X = −0.1 and −0.09 m.
+
+    >>> import simulator
+    >>> window = simulator.flat_window([0.0, 0.0, -1.0], -0.1, 0.01)
+    >>> window.offsets, window.indices  # m; air, PMMA, water
+    (array([-0.1 , -0.09]), array([1.   , 1.49 , 1.333]))
+    >>> window.camera_height([0.0, 0.0, 0.5])  # a camera at Z = 0.5 m: 0.4 m of air, m
+    0.4
     """
     if not np.isfinite(thickness) or thickness < 0:
         raise ValueError(f"glass thickness must be finite and >= 0 m; got {thickness!r}")

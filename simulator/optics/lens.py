@@ -200,6 +200,28 @@ class Lens:
         has image_distance = f s_o/(s_o − f) (see ``simulator.optics.scheimpflug``).
     f_number : float
         Aperture f-number N (aperture diameter f/N); used only for defocus blur.
+
+    Examples
+    --------
+    A 50 mm lens on a 640 × 480 sensor of 10 µm pixels, focused at infinity: 5000 px
+    of principal distance, the principal point at the sensor's centre.
+
+    >>> import simulator
+    >>> lens = simulator.Lens(focal_length=0.05, pixel_pitch=10e-6, sensor_size=(640, 480))
+    >>> lens.fx, lens.principal_point  # px
+    (5000.0, (319.5, 239.5))
+
+    With barrel distortion (OpenCV's k1 < 0) a direction near the sensor's edge images
+    closer to the centre:
+
+    >>> import numpy as np
+    >>> barrel = simulator.Lens(focal_length=0.05, pixel_pitch=10e-6, sensor_size=(640, 480),
+    ...                         k1=-0.1)
+    >>> direction = np.array([[0.06, 0.0]])  # normalised camera coordinates X_c/Z_c, Y_c/Z_c
+    >>> xy, valid = lens.normalized_to_pixel(direction)
+    >>> xy_barrel, _ = barrel.normalized_to_pixel(direction)
+    >>> xy.round(2), xy_barrel.round(2)  # px
+    (array([[619.5, 239.5]]), array([[619.39, 239.5 ]]))
     """
 
     focal_length: float

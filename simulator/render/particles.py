@@ -213,6 +213,22 @@ def render_particles(
     -------
     ParticleImage
         The (H, W) float64 image and the per-particle truth.
+
+    Examples
+    --------
+    Two spots of σ = 0.8 px on an 8 × 16 sensor, the second one near its lower edge,
+    and a particle not imaged (NaN):
+
+    >>> import numpy as np
+    >>> import simulator
+    >>> xy = [[4.0, 3.0], [10.3, 5.6], [np.nan, np.nan]]  # (x, y), px
+    >>> spots = simulator.render_particles(xy, 0.8, [1000.0, 500.0, 1000.0], shape=(8, 16))
+    >>> spots.image[3, 2:7].round(1)  # the row through the first centre, e⁻
+    array([ 13.8, 110.3, 219.1, 110.3,  13.8])
+    >>> spots.visible, spots.fraction_on_sensor.round(3)
+    (array([ True,  True, False]), array([1.   , 0.991, 0.   ]))
+    >>> round(float(spots.image.sum()), 1)  # 1000 + 0.991 × 500 e⁻
+    1495.6
     """
     rows, cols = image_shape(shape)
     roi_sigmas = positive_float("roi_sigmas", roi_sigmas)

@@ -105,6 +105,20 @@ class Sensor:
     background : float
         Dark current plus stray light, expected e⁻ per pixel per exposure, >= 0.
         Shot noise applies to it as to the signal.
+
+    Examples
+    --------
+    A spot of 1000 e⁻ recorded at 0.4 DN/e⁻ above a black level of 10 DN, without
+    noise and with it:
+
+    >>> import simulator
+    >>> spot = simulator.render_particles([[2.0, 2.0]], 0.8, 1000.0, shape=(5, 5)).image  # e⁻
+    >>> sensor = simulator.Sensor(gain=0.4, read_noise=8.0, offset=10.0, bit_depth=12)
+    >>> sensor.record(spot, noise=False)[2]  # the middle row, DN
+    array([16, 54, 98, 54, 16], dtype=uint16)
+    >>> frame = sensor.record(spot, rng=0)  # shot and read noise
+    >>> frame.shape, frame.dtype, sensor.max_dn
+    ((5, 5), dtype('uint16'), 4095)
     """
 
     gain: float = 0.4

@@ -1,6 +1,6 @@
 """Why a run is too thin to measure: the warnings of the run summary."""
 
-from ptv.pipeline.results import thin_data_warnings
+from ptv.pipeline.summary import thin_data_warnings
 
 
 def _counts(det_a, det_b, matches, links_used=500):

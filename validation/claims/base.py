@@ -10,7 +10,33 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class ClaimResult:
-    """The outcome of one claim."""
+    """The outcome of one claim.
+
+    Attributes
+    ----------
+    id, source, statement : str
+        The claim: its id, where the paper makes it, what it states.
+    value : float
+        What the check measured (its unit in ``tolerance``).
+    tolerance : str
+        The tolerance in words, and where it comes from.
+    passed : bool
+        Whether the value is within the tolerance.
+    limit : float or None
+        The one number the value is compared with, where there is one.
+
+    Examples
+    --------
+    >>> import validation
+    >>> ctx = validation.ClaimContext("quick")
+    >>> result = validation.run_claims(ctx, ids=["optics.snell"])[0]
+    >>> result.id, result.source, result.passed
+    ('optics.snell', "§2 (the tank's windows; docs/optics.md §4)", True)
+    >>> result.statement
+    "the simulated cameras refract by Snell's law with the indices the rig states"
+    >>> sorted(result.as_dict())  # as synptv claims --json prints it
+    ['id', 'limit', 'passed', 'source', 'statement', 'tolerance', 'value']
+    """
 
     id: str
     source: str

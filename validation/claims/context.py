@@ -117,6 +117,23 @@ class ClaimContext:
         dissipation-matched "k41-band", has no 2/3 range and must fail #10).
     dt3_coefficient : float
         β/ε of the Δt³ term injected for claim #23 (docs/statistics.md §4: β ≈ −(2/3)ε).
+
+    Examples
+    --------
+    Nothing runs until a claim asks for it: making the context is free, and the two
+    arithmetic claims below need none of its runs.
+
+    >>> import validation
+    >>> ctx = validation.ClaimContext("quick", seed=0)
+    >>> ctx.sizes.particles, ctx.sizes.snapshots  # of the KS multi-Δt experiments
+    (1000, 100)
+    >>> [r.passed for r in validation.run_claims(ctx, ids=["table3.arithmetic",
+    ...                                                    "flow.pope_spectrum"])]
+    [True, True]
+    >>> validation.ClaimContext("medium")
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown claims size 'medium'; known: quick, full
     """
 
     def __init__(

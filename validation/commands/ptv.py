@@ -149,8 +149,9 @@ def run_ptv(args: argparse.Namespace) -> int:
     from ptv.io.dataset import cameras_in_order, open_dataset
     from ptv.pipeline.double_frame import run_pipeline
     from ptv.pipeline.frames import ImageDetector
-    from ptv.pipeline.results import save_results, summary
+    from ptv.pipeline.results import save_results
     from ptv.pipeline.settings import settings_toml
+    from ptv.pipeline.summary import summary
     from ptv.pipeline.track_csv import save_fitted_tracks_csv, save_tracks_csv
     from ptv.tracking.recording import run_recording
     from validation.report.overlay import save_overlays

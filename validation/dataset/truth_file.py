@@ -218,17 +218,68 @@ class TruthWriter:
 
 
 class TruthFile:
-    """Reads a truth.h5 (format version 2) a range of snapshots at a time.
+    """Reads a truth.h5 (:data:`FORMAT_VERSION`) a range of snapshots at a time.
 
     Parameters
     ----------
     path : path-like
         The file, or the dataset folder holding it.
 
+    Attributes
+    ----------
+    path : Path
+        The file.
+    rig : Rig
+        The cameras and sheet the dataset was rendered with.
+    frames : int
+        Snapshots M per Δt.
+    shared_first_frame : bool
+        Frame a of snapshot m shared by every Δt.
+    dt : ndarray, shape (K,)
+        The Δt, s.
+
     Raises
     ------
     ValueError
         No truth.h5, or one of another format version.
+
+    Examples
+    --------
+    The particles' truth of a dataset, written here as ``synptv render`` writes it (which
+    adds the plate's and the images): 4 snapshots of KS tracers in the paper-stereo
+    rig's sheet at the 10 Hz condition's three shortest Δt.
+
+    >>> import json, pathlib, tempfile
+    >>> import numpy as np
+    >>> import simulator, validation
+    >>> from validation.dataset.truth_file import TruthRun, TruthWriter
+    >>> rig, preset = simulator.load_rig("paper-stereo"), simulator.flow_preset("lem-10hz")
+    >>> flow = simulator.KSFlow(simulator.PopeSpectrum(preset.parameters), n_modes=50)
+    >>> sample = simulator.shared_start(flow, preset.dt[:3], particles=300, snapshots=4,
+    ...                                 region=rig.sheet, rng=0)
+    >>> def truth_run(run):  # one Δt: positions (M, 2, P, 3), m, and their images
+    ...     x, xy, visible = run.positions, {}, {}
+    ...     for name, camera in zip(rig.camera_names, rig.cameras):
+    ...         pixels, seen = camera.project_visible(x.reshape(-1, 3))
+    ...         xy[name] = pixels.reshape(*x.shape[:3], 2)
+    ...         visible[name] = seen.reshape(x.shape[:3])
+    ...     return TruthRun(run.times[1], x, run.velocity[:, 0], xy, visible)
+    >>> def header(f):  # the rig and the flow, as synptv render writes them
+    ...     f.attrs["rig"] = json.dumps(rig.spec)
+    ...     f.create_group("flow").attrs.update(preset.parameters.as_dict(), spectrum="pope")
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> folder = pathlib.Path(tmp.name)
+    >>> writer = TruthWriter(folder / "truth.h5", header=header, cameras=rig.camera_names,
+    ...                      planes=0, chunks=[(0, 4)], frames=4, shared_first_frame=True)
+    >>> writer.write_chunk(0, [truth_run(run) for run in sample.runs])
+    >>> writer.finish()
+    >>> truth = validation.TruthFile(folder)
+    >>> truth.rig.camera_names, truth.frames, (truth.dt * 1e3).round(3)  # Δt in ms
+    (('cam1', 'cam2'), 4, array([0.097, 0.194, 0.291]))
+    >>> first = truth.runs(0, 2)[0]  # snapshots 0 and 1 at Δt_0
+    >>> first.positions.shape, first.xy["cam1"].shape  # (n, 2, P, 3) m, (n, 2, P, 2) px
+    ((2, 2, 324, 3), (2, 2, 324, 2))
+    >>> tmp.cleanup()
     """
 
     def __init__(self, path) -> None:

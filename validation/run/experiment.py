@@ -621,6 +621,20 @@ def run_stages(
     Returns
     -------
     ExperimentStages
+        The stage folders (``ptv``: variant → its folder), the time each took and the
+        flow's scales; ``synptv run`` then writes its report from them
+        (:func:`validation.report.run_report.write_report`). A scenario with
+        ``[recording]`` runs through :mod:`validation.run.recording_run` instead.
+
+    Examples
+    --------
+    ``stages = validation.run_scenario(validation.load_scenario("ci"), "synptv-ci")``
+    runs every stage in minutes on two cores (run again: every stage ``reused``):
+
+    >>> import validation
+    >>> scenario = validation.load_scenario("ci")
+    >>> scenario.recording is None, scenario.ptv.methods  # frame pairs; PTV calibrations
+    (True, ('model-free',))
     """
     executor = InProcess() if executor is None else executor
     run = ExperimentRun(scenario, out, executor, progress, keep_images)

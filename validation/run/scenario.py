@@ -153,7 +153,27 @@ class OutputSection:
 
 @dataclass(frozen=True)
 class Scenario:
-    """One virtual experiment (module docstring for the file format)."""
+    """One virtual experiment (module docstring for the file format).
+
+    Examples
+    --------
+    The CI scenario: the paper-stereo rig in the 10 Hz flow, 2000 tracers, 40 frame
+    pairs per Δt, 7 calibration planes:
+
+    >>> import validation
+    >>> scenario = validation.load_scenario("ci")
+    >>> scenario.rig.name, scenario.flow.label, scenario.seed
+    ('paper-stereo', 'lem-10hz', 0)
+    >>> scenario.particles.count, scenario.particles.frames, scenario.calibration.planes
+    (2000, 40, 7)
+    >>> scenario.ptv.methods, scenario.ptv.analysis_volume  # calibrations the PTV uses; m
+    (('model-free',), (0.07, 0.07, 0.008))
+    >>> scenario.with_seed(3).seed  # the same experiment, other random draws
+    3
+    >>> sorted(scenario.as_dict())  # its tables, as a scenario file holds them
+    ['calibration', 'checks', 'description', 'flow', 'name', 'output', 'particles', 'ptv',
+     'rig', 'seed', 'sensor']
+    """
 
     name: str
     description: str = ""
@@ -320,7 +340,20 @@ def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
 
 
 def scenario_presets() -> list[str]:
-    """Names of the scenario presets shipped with synptv."""
+    """Names of the scenario presets shipped with synptv.
+
+    Returns
+    -------
+    list of str
+        Sorted; each loads with :func:`load_scenario` (docs/run.md §2).
+
+    Examples
+    --------
+    >>> import validation
+    >>> validation.scenario_presets()
+    ['box-3cam', 'ci', 'default', 'dns', 'dns-ci', 'paper-10hz', 'paper-12hz', 'paper-8hz',
+     'slow-4cam', 'slow-dense', 'slow-unequal', 'tr', 'tr-ci', 'tr-dns']
+    """
     folder = resources.files("validation") / "scenarios"
     return sorted(
         p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml")
@@ -331,12 +364,50 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     """A preset scenario by name, or a scenario file by path.
 
     A rig given as a relative ``.toml`` path in a scenario file is taken relative to
-    that file.
+    that file. The PTV ranges a file leaves out (``[ptv]`` analysis_volume, r_range,
+    plateau) follow its rig and flow (:mod:`validation.run.derived_ptv`).
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A name of :func:`scenario_presets`, or a scenario TOML file.
+
+    Returns
+    -------
+    Scenario
 
     Raises
     ------
     ScenarioError
         Unknown preset, missing or invalid file.
+
+    Examples
+    --------
+    A scenario file of one's own: the box-3cam rig, 500 tracers, 4 frame pairs per Δt;
+    the rest takes its defaults and the ranges of the analysis follow the flow:
+
+    >>> import pathlib, tempfile
+    >>> import validation
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = pathlib.Path(tmp.name) / "small.toml"
+    >>> _ = path.write_text('''
+    ... name = "small"
+    ... [rig]
+    ... name = "box-3cam"
+    ... [particles]
+    ... count = 500
+    ... frames = 4
+    ... ''')
+    >>> scenario = validation.load_scenario(path)
+    >>> scenario.rig.name, scenario.particles.count, scenario.flow.label
+    ('box-3cam', 500, 'lem-10hz')
+    >>> [round(r * 1e3, 2) for r in scenario.ptv.r_range]  # separations of the bins, mm
+    [0.49, 35.0]
+    >>> validation.load_scenario("fast")
+    Traceback (most recent call last):
+    ...
+    validation.run.scenario_fields.ScenarioError: unknown scenario 'fast'; presets: ...
+    >>> tmp.cleanup()
     """
     path = Path(name_or_path)
     if path.suffix == ".toml" or path.exists():

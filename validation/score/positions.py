@@ -90,6 +90,32 @@ def read_positions(path: str | Path, *, tracks: bool = False) -> Positions:
         No such file, a missing column, a value that is not a number, an integer, ``a``
         or ``b``, a NaN or infinite coordinate, or no row at all: one line naming the
         file, the line or row and the column.
+
+    Examples
+    --------
+    Two positions of one particle, frames a and b of snapshot 0 at Δt_0, then a file
+    whose coordinate is not a number:
+
+    >>> import pathlib, tempfile
+    >>> import validation
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = pathlib.Path(tmp.name) / "positions.csv"
+    >>> _ = path.write_text('''dt,snapshot,frame,x,y,z,track
+    ... 0,0,a,0.001,0.002,0.0,7
+    ... 0,0,b,0.0011,0.002,0.0,7
+    ... ''')
+    >>> positions = validation.read_positions(path, tracks=True)
+    >>> positions.frame, positions.xyz, positions.track  # 0: a, 1: b; m
+    (array([0, 1]), array([[0.001 , 0.002 , 0.    ],
+           [0.0011, 0.002 , 0.    ]]), array([7, 7]))
+    >>> _ = path.write_text('''dt,snapshot,frame,x,y,z
+    ... 0,0,a,1 mm,0,0
+    ... ''')
+    >>> validation.read_positions(path)
+    Traceback (most recent call last):
+    ...
+    ValueError: .../positions.csv line 2, column x: '1 mm' is not a number
+    >>> tmp.cleanup()
     """
     path = Path(path)
     if not path.is_file():
@@ -329,6 +355,27 @@ def check_positions(positions: Positions, *, n_dt: int, snapshots: int, sheet: B
         metres (none lies in the laser sheet and their median distance from its centre
         is over :data:`UNIT_SLIP` times its half-size), or a track id given twice in one
         frame; one line naming the file, the row and the column.
+
+    Examples
+    --------
+    Positions in mm where m are asked for lie nowhere near the sheet:
+
+    >>> import pathlib, tempfile
+    >>> import simulator, validation
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = pathlib.Path(tmp.name) / "positions.csv"
+    >>> _ = path.write_text('''dt,snapshot,frame,x,y,z
+    ... 0,0,a,10.0,20.0,1.0
+    ... 0,0,b,11.0,20.0,1.0
+    ... ''')
+    >>> positions = validation.read_positions(path)
+    >>> sheet = simulator.Box((0.1, 0.1, 0.01))  # the dataset's laser sheet, m
+    >>> validation.check_positions(positions, n_dt=5, snapshots=40, sheet=sheet)
+    Traceback (most recent call last):
+    ...
+    ValueError: .../positions.csv line 2, column x, y, z: no position lies in the 100 × 100
+    × 10 mm laser sheet ... positions must be in metres (are these in mm?)
+    >>> tmp.cleanup()
     """
     for column, values, count, what in (
         ("dt", positions.k, n_dt, "Δt"),

@@ -22,7 +22,7 @@ import numpy as np
 from ptv.pipeline.double_frame import SnapshotMeasurement, run_particles
 from ptv.pipeline.options import PipelineSettings, link_radius
 from ptv.pipeline.resolve import LINK_SPEED_SNAPSHOTS, settings_with_measured_speed
-from ptv.pipeline.results import statistics_summary
+from ptv.pipeline.summary import statistics_summary
 from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import compute_statistics
 from ptv.tracking.linking import link
@@ -202,7 +202,59 @@ def score_statistics(
         ``raw_s2``, ``mean_linear``, ``subsets``, ``c1_over_truth``; ``c1_reference``:
         which sample truth c1 is compared with), ``sample_truth`` (the sample truth and
         exact D_LL, :class:`validation.truth.flow.FlowTruth`), ``population`` and
-        ``summary`` (:func:`ptv.pipeline.results.statistics_summary`).
+        ``summary`` (:func:`ptv.pipeline.summary.statistics_summary`).
+
+    Examples
+    --------
+    The particles' truth of a dataset, written here as ``synptv render`` writes it (4
+    snapshots of KS tracers in the paper-stereo rig's sheet at three Δt), and another
+    code's positions: the true ones with 10 µm of noise, a track id each.
+
+    >>> import json, pathlib, tempfile
+    >>> import numpy as np
+    >>> import simulator, validation
+    >>> from validation.dataset.truth_file import TruthRun, TruthWriter
+    >>> rig, preset = simulator.load_rig("paper-stereo"), simulator.flow_preset("lem-10hz")
+    >>> flow = simulator.KSFlow(simulator.PopeSpectrum(preset.parameters), n_modes=50)
+    >>> sample = simulator.shared_start(flow, preset.dt[:3], particles=300, snapshots=4,
+    ...                                 region=rig.sheet, rng=0)
+    >>> def truth_run(run):  # one Δt: positions (M, 2, P, 3), m, and their images
+    ...     x, xy, visible = run.positions, {}, {}
+    ...     for name, camera in zip(rig.camera_names, rig.cameras):
+    ...         pixels, seen = camera.project_visible(x.reshape(-1, 3))
+    ...         xy[name] = pixels.reshape(*x.shape[:3], 2)
+    ...         visible[name] = seen.reshape(x.shape[:3])
+    ...     return TruthRun(run.times[1], x, run.velocity[:, 0], xy, visible)
+    >>> def header(f):  # the rig and the flow, as synptv render writes them
+    ...     f.attrs["rig"] = json.dumps(rig.spec)
+    ...     f.create_group("flow").attrs.update(preset.parameters.as_dict(), spectrum="pope")
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> folder = pathlib.Path(tmp.name)
+    >>> writer = TruthWriter(folder / "truth.h5", header=header, cameras=rig.camera_names,
+    ...                      planes=0, chunks=[(0, 4)], frames=4, shared_first_frame=True)
+    >>> writer.write_chunk(0, [truth_run(run) for run in sample.runs])
+    >>> writer.finish()
+    >>> rng = np.random.default_rng(1)
+    >>> with open(folder / "positions.csv", "w") as f:  # the truth with 10 µm of noise
+    ...     print("dt,snapshot,frame,x,y,z,track", file=f)
+    ...     for k, run in enumerate(sample.runs):
+    ...         for m, frame, p in np.ndindex(run.positions.shape[:3]):
+    ...             x, y, z = run.positions[m, frame, p] + rng.normal(0.0, 10e-6, 3)
+    ...             print(f"{k},{m},{'ab'[frame]},{x:.9f},{y:.9f},{z:.9f},{p}", file=f)
+    >>> truth = validation.TruthFile(folder)
+    >>> positions = validation.read_positions(folder / "positions.csv", tracks=True)
+    >>> box = ((-0.035, -0.035, -0.004), (0.035, 0.035, 0.004))  # analysis volume, m
+    >>> scored = validation.score_positions(positions, truth, voxel=1e-4, min_cameras=2,
+    ...                                     box=box)
+    >>> import ptv
+    >>> settings = ptv.PipelineSettings(statistics=ptv.StatisticsSettings(analysis_volume=box))
+    >>> result = validation.score_statistics(positions, scored, truth, settings, voxel=1e-4)
+    >>> result["computed"], result["linked_by"]
+    (True, 'tracks')
+    >>> epsilon = result["epsilon"]  # the plateau ε against the truth of the same snapshots
+    >>> epsilon["passed"], bool(abs(epsilon["relative_to_exact_rung"]) < epsilon["tolerance"])
+    (True, True)
+    >>> tmp.cleanup()
     """
     runs = link_runs(positions, scored, truth.dt, settings)
     if not runs:

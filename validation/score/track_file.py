@@ -46,6 +46,34 @@ def read_tracks(path: str | Path) -> TrackPoints:
         No such file, a missing column, a value that is not an integer or a finite
         number, a (track, frame) given twice, a track whose frames do not increase, or no
         row: one line naming the file and the line.
+
+    Examples
+    --------
+    Two tracks, the first with the velocity of a track fit, then a file whose track
+    goes back in time:
+
+    >>> import pathlib, tempfile
+    >>> import validation
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = pathlib.Path(tmp.name) / "tracks.csv"
+    >>> _ = path.write_text('''track,frame,x,y,z,vx,vy,vz
+    ... 0,0,0.0010,0.0,0.0,0.2,0.0,0.0
+    ... 0,1,0.0011,0.0,0.0,0.2,0.0,0.0
+    ... 3,1,0.0050,0.0,0.0,0.0,-0.1,0.0
+    ... ''')
+    >>> tracks = validation.read_tracks(path)
+    >>> tracks.track, tracks.frame, tracks.velocity[:, 0]  # ids, frames, m/s
+    (array([0, 0, 3]), array([0, 1, 1]), array([0.2, 0.2, 0. ]))
+    >>> _ = path.write_text('''track,frame,x,y,z
+    ... 0,1,0.0010,0.0,0.0
+    ... 0,0,0.0011,0.0,0.0
+    ... ''')
+    >>> validation.read_tracks(path)
+    Traceback (most recent call last):
+    ...
+    ValueError: .../tracks.csv line 3: track 0 frame 0 after frame 1 (each track's frames must
+    increase, one row per track and frame)
+    >>> tmp.cleanup()
     """
     path = Path(path)
     if not path.is_file():

@@ -71,6 +71,16 @@ class StudySettings:
     snapshots : int or None
         Snapshots per Δt of the multi-Δt studies (None: the scenario's frame pairs, at
         most :data:`validation.studies.multi_dt.MAX_SNAPSHOTS`).
+
+    Examples
+    --------
+    ``synptv study``'s defaults, and a noisier calibration study:
+
+    >>> import validation
+    >>> validation.StudySettings()
+    StudySettings(dot_noise_px=0.05, position_noise_um=15.0, snapshots=None)
+    >>> validation.StudySettings(dot_noise_px=0.1).dot_noise_px  # px
+    0.1
     """
 
     dot_noise_px: float = 0.05
@@ -486,6 +496,26 @@ def run_study(
     ValueError
         Unknown study, chain or scenario, bad options or values, an unreachable
         scheduler: before any work starts.
+
+    Examples
+    --------
+    The calibration planes study of the CI scenario on the fast chain (exact dot
+    projections plus noise, no images)::
+
+        files = validation.run_study("planes", "ci", "synptv-study", chain="ideal")
+        files.table  # synptv-study/planes/study.json, also study.csv and study.png
+
+    The options are checked before any work starts; an unknown study names the known
+    ones:
+
+    >>> import pathlib, tempfile
+    >>> import validation
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> validation.run_study("speed", "ci", pathlib.Path(tmp.name))
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown study 'speed'; known: planes, obliquity, dt, noise, seeding
+    >>> tmp.cleanup()
     """
     check_parallel_options(workers, scheduler)
     scenario, chain = _checked_study(study, scenario, chain, seeds, values, settings)
