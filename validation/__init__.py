@@ -18,6 +18,8 @@ Scenarios and runs (docs/run.md)
 
 Scoring against the truth (docs/score.md)
     TruthFile             a rendered dataset's truth.h5, read a range of snapshots at a time
+    write_sample_truth    the truth.h5 of a simulated sample as a rig's cameras see it
+                          (no images): a dataset to score positions against
     read_positions        another code's 3-D positions from a CSV or HDF5 file
     check_positions       those rows checked against the dataset: indices, units, tracks
     score_positions       the positions aligned with the truth and paired, frame by frame
@@ -71,6 +73,7 @@ _EXPORTS = {
     "run_scenario": ("validation.run.experiment", "run_stages"),
     # scoring against the truth
     "TruthFile": ("validation.dataset.truth_file", "TruthFile"),
+    "write_sample_truth": ("validation.dataset.truth_file", "write_sample_truth"),
     "read_positions": ("validation.score.positions", "read_positions"),
     "check_positions": ("validation.score.positions", "check_positions"),
     "score_positions": ("validation.score.reference", "score_positions"),

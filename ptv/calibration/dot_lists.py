@@ -108,13 +108,13 @@ def _checked_dots(
 
 
 def read_csv_dots(
-    path: Path, plate: PlateDescription, image_size: tuple[int, int]
+    path: str | Path, plate: PlateDescription, image_size: tuple[int, int]
 ) -> tuple[np.ndarray, np.ndarray]:
     """One plate position's dots from a CSV file with the header ``i,j,x,y``.
 
     Parameters
     ----------
-    path : Path
+    path : str or Path
         The file: a header naming at least the columns i, j (grid indices, integers) and
         x, y (pixel, px; (0, 0) the centre of the top-left pixel), then one row per dot.
     plate : PlateDescription
@@ -158,6 +158,7 @@ def read_csv_dots(
     array([0.005, 0.005])
     >>> tmp.cleanup()
     """
+    path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: dot list missing")
     with path.open(newline="") as f:
@@ -188,6 +189,7 @@ def _openptv_lines(path: Path, fields: int, names: str) -> dict[int, tuple[int, 
     DotListError
         A line without ``fields`` numbers, or a point number listed twice.
     """
+    path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: dot list missing")
     points: dict[int, tuple[int, list[float]]] = {}
@@ -214,18 +216,18 @@ def _openptv_lines(path: Path, fields: int, names: str) -> dict[int, tuple[int, 
 
 
 def read_openptv_dots(
-    crd: Path, fix: Path, plate: PlateDescription, z: float, image_size: tuple[int, int]
+    crd: str | Path, fix: str | Path, plate: PlateDescription, z: float, image_size: tuple[int, int]
 ) -> tuple[np.ndarray, np.ndarray]:
     """One plate position's dots from OpenPTV's sorted targets (``.crd``) and the plate
     points they are sorted on (``.fix``).
 
     Parameters
     ----------
-    crd : Path
+    crd : str or Path
         Lines ``number x y``: the dots found on the image, px, OpenPTV's pixel origin
         (the top-left pixel's corner). A line with a negative number or with x, y at
         −999 (OpenPTV's mark of a point it did not find) is skipped.
-    fix : Path
+    fix : str or Path
         Lines ``number X Y Z``: the plate points, mm, on the plate's grid
         (X, Y) = pitch·(i, j), Z the traverse reading.
     plate : PlateDescription

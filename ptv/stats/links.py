@@ -98,6 +98,57 @@ class RunParticles:
     ambiguous: np.ndarray | None = None
     spacing: np.ndarray | None = None
 
+    @classmethod
+    def from_links(
+        cls,
+        k: int,
+        dt: float,
+        snapshots: Sequence[tuple[np.ndarray, np.ndarray]],
+    ) -> "RunParticles":
+        """The links of one Δt from another source: every link used, no cameras.
+
+        Parameters
+        ----------
+        k : int
+            Δt index.
+        dt : float
+            Δt, s.
+        snapshots : sequence of M (ndarray (N_m, 3), ndarray (N_m, 3))
+            Per snapshot, X(t) and ΔX of its links, m (the snapshots numbered 0 … M − 1).
+
+        Returns
+        -------
+        RunParticles
+            Every link in the analysis volume and none an outlier; the detections,
+            matches and links of each snapshot counted as its N_m.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import ptv
+        >>> x = np.zeros((4, 3))  # X(t) of four particles, m
+        >>> run = ptv.RunParticles.from_links(0, 1e-3, [(x, x + 1e-4), (x[:2], x[:2])])
+        >>> run.links, run.used.sum()
+        (array([4, 2]), np.int64(6))
+        """
+        counts = np.array([len(x) for x, _ in snapshots], dtype=np.int64)
+        numbers = np.arange(len(snapshots), dtype=np.int64)
+        total = int(counts.sum())
+        return cls(
+            k=k,
+            dt=float(dt),
+            positions=np.concatenate([x for x, _ in snapshots]).reshape(-1, 3),
+            displacements=np.concatenate([d for _, d in snapshots]).reshape(-1, 3),
+            offsets=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+            snapshot_ids=numbers,
+            detections=np.broadcast_to(counts[:, None, None], (len(counts), 2, 0)).copy(),
+            matches=np.repeat(counts[:, None], 2, axis=1),
+            links=counts,
+            processed=numbers,
+            in_analysis=np.ones(total, dtype=bool),
+            outlier=np.zeros(total, dtype=bool),
+        )
+
     @property
     def used(self) -> np.ndarray:
         """(N,) bool: links the statistics use (in the analysis volume, not outliers)."""

@@ -23,6 +23,7 @@ from scipy.spatial.distance import pdist
 
 from ptv.detect.store import DetectionStore, write_index
 from ptv.io.dataset import open_dataset
+from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import StatisticsSettings, compute_statistics
 from simulator.particles import ANALYSIS_VOLUME
 from simulator.rigs import load_rig
@@ -31,7 +32,6 @@ from validation.claims.base import Claim, ClaimResult, result
 from validation.claims.context import BINS, ClaimContext
 from validation.dataset.render import RenderSettings, build_dataset
 from validation.dataset.truth_file import TruthFile
-from validation.studies.multi_dt_experiment import run_particles
 from validation.truth.independent import exact_dll, log_edges
 
 #: The largest error a bin's r convention may put into a comparison of S2 with a model
@@ -92,7 +92,9 @@ def _bin_separation(claim: Claim, ctx: ClaimContext) -> ClaimResult:
     p = ctx.preset.parameters
     snapshots = _exact_snapshots(ctx)
     dt = np.asarray(ctx.preset.dt, dtype=float)
-    runs = [run_particles(k, d, [(x, u * d) for x, u in snapshots]) for k, d in enumerate(dt)]
+    runs = [
+        RunParticles.from_links(k, d, [(x, u * d) for x, u in snapshots]) for k, d in enumerate(dt)
+    ]
     settings = StatisticsSettings(r_min=10 * p.eta, r_max=p.L_int / 2, n_bins=BINS, n_boot=20)
     stats = compute_statistics(runs, settings)
     edges = log_edges(10 * p.eta, p.L_int / 2, BINS)

@@ -40,6 +40,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from simulator.particles import DoubleFrameSample
 from simulator.rigs import Rig, rig_from_dict
 from simulator.spectra import SPECTRA
 from simulator.turbulence import TurbulenceParameters
@@ -252,27 +253,13 @@ class TruthFile:
     >>> import json, pathlib, tempfile
     >>> import numpy as np
     >>> import simulator, validation
-    >>> from validation.dataset.truth_file import TruthRun, TruthWriter
     >>> rig, preset = simulator.load_rig("paper-stereo"), simulator.flow_preset("lem-10hz")
     >>> flow = simulator.KSFlow(simulator.PopeSpectrum(preset.parameters), n_modes=50)
     >>> sample = simulator.shared_start(flow, preset.dt[:3], particles=300, snapshots=4,
     ...                                 region=rig.sheet, rng=0)
-    >>> def truth_run(run):  # one Δt: positions (M, 2, P, 3), m, and their images
-    ...     x, xy, visible = run.positions, {}, {}
-    ...     for name, camera in zip(rig.camera_names, rig.cameras):
-    ...         pixels, seen = camera.project_visible(x.reshape(-1, 3))
-    ...         xy[name] = pixels.reshape(*x.shape[:3], 2)
-    ...         visible[name] = seen.reshape(x.shape[:3])
-    ...     return TruthRun(run.times[1], x, run.velocity[:, 0], xy, visible)
-    >>> def header(f):  # the rig and the flow, as synptv render writes them
-    ...     f.attrs["rig"] = json.dumps(rig.spec)
-    ...     f.create_group("flow").attrs.update(preset.parameters.as_dict(), spectrum="pope")
     >>> tmp = tempfile.TemporaryDirectory()
     >>> folder = pathlib.Path(tmp.name)
-    >>> writer = TruthWriter(folder / "truth.h5", header=header, cameras=rig.camera_names,
-    ...                      planes=0, chunks=[(0, 4)], frames=4, shared_first_frame=True)
-    >>> writer.write_chunk(0, [truth_run(run) for run in sample.runs])
-    >>> writer.finish()
+    >>> _ = validation.write_sample_truth(folder, rig, sample, preset.parameters)
     >>> truth = validation.TruthFile(folder)
     >>> truth.rig.camera_names, truth.frames, (truth.dt * 1e3).round(3)  # Δt in ms
     (('cam1', 'cam2'), 4, array([0.097, 0.194, 0.291]))
@@ -363,3 +350,82 @@ class TruthFile:
                 if progress is not None:
                     progress(k * len(chunks) + i + 1, total)
                 yield from zip(x, u, strict=True)
+
+
+def write_sample_truth(
+    folder: str | Path,
+    rig: Rig,
+    sample: DoubleFrameSample,
+    parameters: TurbulenceParameters,
+    *,
+    spectrum: str = "pope",
+) -> Path:
+    """The truth.h5 of a simulated sample as a rig's cameras see it, without images: what
+    ``synptv score`` reads of a dataset, for positions a code computed some other way.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The dataset folder (created if needed); ``truth.h5`` is written into it.
+    rig : Rig
+        Its cameras image every particle (the exact pixel and whether it is seen); its
+        specification is written for the scorer.
+    sample : DoubleFrameSample
+        K runs of M snapshots (:func:`simulator.shared_start` or
+        :func:`simulator.double_frame`).
+    parameters : TurbulenceParameters
+        The flow the sample was drawn in (u′, ε, ν), for the statistics' truth.
+    spectrum : str
+        The flow's spectrum, a name of :data:`simulator.spectra.SPECTRA`.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import simulator, validation
+    >>> rig, preset = simulator.load_rig("paper-stereo"), simulator.flow_preset("lem-10hz")
+    >>> flow = simulator.KSFlow(simulator.PopeSpectrum(preset.parameters), n_modes=50)
+    >>> sample = simulator.shared_start(flow, preset.dt[:3], particles=300, snapshots=4,
+    ...                                 region=rig.sheet, rng=0)
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> path = validation.write_sample_truth(tmp.name, rig, sample, preset.parameters)
+    >>> truth = validation.TruthFile(path)
+    >>> truth.frames, truth.shared_first_frame, truth.runs()[0].positions.shape
+    (4, True, (4, 2, 324, 3))
+    >>> tmp.cleanup()
+    """
+    if spectrum not in SPECTRA:
+        raise ValueError(f"spectrum must be one of {sorted(SPECTRA)}, got {spectrum!r}")
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    snapshots = len(sample.runs[0].positions)
+    runs = []
+    for dt, run in zip(sample.dt, sample.runs, strict=True):
+        x = run.positions[:, :2]  # (M, 2, P, 3): X(t) and X(t + Δt), m
+        xy, visible = {}, {}
+        for name, camera in zip(rig.camera_names, rig.cameras, strict=True):
+            pixels, seen = camera.project_visible(x.reshape(-1, 3))
+            xy[name] = pixels.reshape(*x.shape[:3], 2)
+            visible[name] = seen.reshape(x.shape[:3])
+        runs.append(TruthRun(float(dt), x, run.velocity[:, 0], xy, visible))
+
+    def header(f: h5py.File) -> None:
+        f.attrs["rig"] = json.dumps(rig.spec)
+        f.create_group("flow").attrs.update(parameters.as_dict(), spectrum=spectrum)
+
+    writer = TruthWriter(
+        folder / "truth.h5",
+        header=header,
+        cameras=rig.camera_names,
+        planes=0,
+        chunks=[(0, snapshots)],
+        frames=snapshots,
+        shared_first_frame=sample.shared_first_frame,
+    )
+    writer.write_chunk(0, runs)
+    writer.finish()
+    return writer.path

@@ -5,7 +5,7 @@ import numpy as np
 
 from ptv.rays import Rays
 from ptv.stats import run_statistics
-from validation.studies.multi_dt_experiment import run_particles
+from ptv.stats.links import RunParticles
 
 #: Three points in front of both probe cameras, m.
 POINTS = np.array([[0.01, 0.02, 0.30], [-0.02, 0.01, 0.32], [0.00, -0.01, 0.28]])
@@ -53,6 +53,6 @@ def run_statistics_probe() -> run_statistics.PtvStatistics:
             (rng.uniform(-0.03, 0.03, (40, 3)) * [1, 1, 0.03], rng.normal(0, 1e-4, (40, 3)))
             for _ in range(3)
         ]
-        runs.append(run_particles(k, dt, snapshots))
+        runs.append(RunParticles.from_links(k, dt, snapshots))
     settings = run_statistics.StatisticsSettings(n_bins=6, n_boot=5, plateau=(5e-3, 10e-3))
     return run_statistics.compute_statistics(runs, settings)

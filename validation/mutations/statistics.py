@@ -9,12 +9,12 @@ from dataclasses import replace
 import numpy as np
 
 from ptv.stats import dissipation, mean_displacement, multidt, pairs, structure
+from ptv.stats.links import RunParticles
 from simulator import spectra
 from simulator.presets import flow_preset
 from validation.mutations.base import Mutation
 from validation.mutations.patching import Patch, edited
 from validation.mutations.probes import run_statistics_probe
-from validation.studies.multi_dt_experiment import run_particles
 
 #: The Δt of the probes, s, and their separation bins.
 _DT = np.array([1e-3, 2e-3, 3e-3])
@@ -61,7 +61,8 @@ def _structure_function(field: str = "s2"):
 
 def _mean_displacement():
     runs = [
-        run_particles(k, dt, run) for k, (dt, run) in enumerate(zip(_DT, _snapshots(), strict=True))
+        RunParticles.from_links(k, dt, run)
+        for k, (dt, run) in enumerate(zip(_DT, _snapshots(), strict=True))
     ]
     return mean_displacement.mean_displacement(runs).se
 

@@ -162,27 +162,13 @@ def score_positions(
     >>> import json, pathlib, tempfile
     >>> import numpy as np
     >>> import simulator, validation
-    >>> from validation.dataset.truth_file import TruthRun, TruthWriter
     >>> rig, preset = simulator.load_rig("paper-stereo"), simulator.flow_preset("lem-10hz")
     >>> flow = simulator.KSFlow(simulator.PopeSpectrum(preset.parameters), n_modes=50)
     >>> sample = simulator.shared_start(flow, preset.dt[:3], particles=300, snapshots=4,
     ...                                 region=rig.sheet, rng=0)
-    >>> def truth_run(run):  # one Δt: positions (M, 2, P, 3), m, and their images
-    ...     x, xy, visible = run.positions, {}, {}
-    ...     for name, camera in zip(rig.camera_names, rig.cameras):
-    ...         pixels, seen = camera.project_visible(x.reshape(-1, 3))
-    ...         xy[name] = pixels.reshape(*x.shape[:3], 2)
-    ...         visible[name] = seen.reshape(x.shape[:3])
-    ...     return TruthRun(run.times[1], x, run.velocity[:, 0], xy, visible)
-    >>> def header(f):  # the rig and the flow, as synptv render writes them
-    ...     f.attrs["rig"] = json.dumps(rig.spec)
-    ...     f.create_group("flow").attrs.update(preset.parameters.as_dict(), spectrum="pope")
     >>> tmp = tempfile.TemporaryDirectory()
     >>> folder = pathlib.Path(tmp.name)
-    >>> writer = TruthWriter(folder / "truth.h5", header=header, cameras=rig.camera_names,
-    ...                      planes=0, chunks=[(0, 4)], frames=4, shared_first_frame=True)
-    >>> writer.write_chunk(0, [truth_run(run) for run in sample.runs])
-    >>> writer.finish()
+    >>> _ = validation.write_sample_truth(folder, rig, sample, preset.parameters)
     >>> rng = np.random.default_rng(1)
     >>> with open(folder / "positions.csv", "w") as f:  # the truth with 10 µm of noise
     ...     print("dt,snapshot,frame,x,y,z,track", file=f)

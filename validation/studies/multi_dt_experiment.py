@@ -227,7 +227,8 @@ def analyse(
                 truth = sums if truth is None else truth + sums
         runs.append(pairs)
     links = tuple(
-        run_particles(k, d, pairs) for k, (d, pairs) in enumerate(zip(sample.dt, runs, strict=True))
+        RunParticles.from_links(k, d, pairs)
+        for k, (d, pairs) in enumerate(zip(sample.dt, runs, strict=True))
     )
     snapshot_sums = double_frame_sums(runs, log_bins)
     fit = structure_function(snapshot_sums, sample.dt, n_boot=n_boot, rng=rng)
@@ -256,42 +257,6 @@ def analyse(
         links=links,
         inertial=inertial,
         sums=snapshot_sums,
-    )
-
-
-def run_particles(k: int, dt: float, pairs) -> RunParticles:
-    """The measured links of one Δt run as the stack's statistics take them.
-
-    Parameters
-    ----------
-    k : int
-        Δt index.
-    dt : float
-        Δt, s.
-    pairs : sequence of (ndarray (P, 3), ndarray (P, 3))
-        Per snapshot, X(t) and ΔX of the particles inside the analysis volume, m.
-
-    Returns
-    -------
-    RunParticles
-        Every snapshot kept and every link used (in the analysis volume, no outliers).
-    """
-    counts = np.array([len(x) for x, _ in pairs], dtype=np.int64)
-    snapshots = np.arange(len(pairs), dtype=np.int64)
-    total = int(counts.sum())
-    return RunParticles(
-        k=k,
-        dt=float(dt),
-        positions=np.concatenate([x for x, _ in pairs]),
-        displacements=np.concatenate([d for _, d in pairs]),
-        offsets=np.concatenate([[0], np.cumsum(counts)]),
-        snapshot_ids=snapshots,
-        detections=np.zeros((len(pairs), 2, 0), dtype=np.int64),
-        matches=np.zeros((len(pairs), 2), dtype=np.int64),
-        links=counts,
-        processed=snapshots,
-        in_analysis=np.ones(total, dtype=bool),
-        outlier=np.zeros(total, dtype=bool),
     )
 
 
