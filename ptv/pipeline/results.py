@@ -273,7 +273,7 @@ def save_results(
     --------
     A dataset folder written here: two cameras (Tsai, ±20° about Y) image 12 particles
     moving at 0.2 m/s along X, one frame pair at each of Δt = 1 and 2 ms.
-    Its positions and links, saved:
+    Its positions and links, saved and read back:
 
     >>> import json, pathlib, tempfile
     >>> import numpy as np
@@ -315,6 +315,11 @@ def save_results(
     ['results.h5', 'summary.json']
     >>> json.loads(paths[1].read_text())["dt"]  # s
     [0.001, 0.002]
+    >>> runs = ptv.load_runs(paths[0])  # the links back, as compute_statistics takes them
+    >>> [(run.k, run.dt, len(run.positions)) for run in runs]
+    [(0, 0.001, 12), (1, 0.002, 12)]
+    >>> all(np.array_equal(a.displacements, b.displacements) for a, b in zip(runs, result.runs))
+    True
     >>> tmp.cleanup()
     """
     folder = Path(folder)
@@ -354,51 +359,19 @@ def load_runs(path: str | os.PathLike) -> list[RunParticles]:
 
     Examples
     --------
-    A dataset folder written here: two cameras (Tsai, ±20° about Y) image 12 particles
-    moving at 0.2 m/s along X, one frame pair at each of Δt = 1 and 2 ms.
-    Its links, saved and read back as :func:`ptv.compute_statistics` takes them:
+    :func:`save_results`'s example reads its links back. A file that is not a results
+    file is refused:
 
-    >>> import json, pathlib, tempfile
-    >>> import numpy as np
-    >>> import tifffile
+    >>> import pathlib, tempfile
+    >>> import h5py
     >>> import ptv
-    >>> from scipy.spatial.transform import Rotation
-    >>> def camera(angle):  # 0.5 m from the origin, turned ``angle`` degrees about Y
-    ...     turn = Rotation.from_euler("y", angle, degrees=True).as_matrix()
-    ...     return ptv.TsaiCalibration(turn, [0, 0, 0.5], focal_length=0.05, kappa1=0.0,
-    ...                                sx=1.0, principal_point=(63.5, 63.5),
-    ...                                pixel_size=(1e-5, 1e-5))
-    >>> rig = {"left": camera(-20), "right": camera(20)}
-    >>> rows, cols = np.mgrid[:128, :128]
-    >>> def image(points, camera):  # spots of σ = 1 px and 2000 DN on 100 ± 2 DN
-    ...     xy = camera.project(points)
-    ...     spots = [np.exp(-((cols - x) ** 2 + (rows - y) ** 2) / 2) for x, y in xy]
-    ...     noise = np.random.default_rng(0).normal(0, 2, rows.shape)
-    ...     return (100 + 2000 * np.sum(spots, axis=0) + noise).astype(np.uint16)
     >>> tmp = tempfile.TemporaryDirectory()
-    >>> folder = pathlib.Path(tmp.name)
-    >>> x = np.random.default_rng(2).uniform(-4e-3, 4e-3, (12, 3))  # particles at t, m
-    >>> u = np.array([0.2, 0.0, 0.0])  # their velocity, m/s
-    >>> spec = {"cameras": {name: {"image_size": [128, 128]} for name in rig},
-    ...         "dt": [1e-3, 2e-3], "frames_per_dt": 1,
-    ...         "particle_images": "{camera}_{k}_{m}_{a|b}.tif"}
-    >>> _ = (folder / "experiment.json").write_text(json.dumps(spec))
-    >>> for k, dt in enumerate(spec["dt"]):  # one frame pair per Δt
-    ...     for name, cam in rig.items():
-    ...         tifffile.imwrite(folder / f"{name}_{k}_0_a.tif", image(x, cam))
-    ...         tifffile.imwrite(folder / f"{name}_{k}_0_b.tif", image(x + u * dt, cam))
-    >>> _ = ptv.save_calibrations(folder / "tsai.h5", rig)
-    >>> settings = ptv.PipelineSettings(volume=((-6e-3,) * 3, (6e-3,) * 3),
-    ...                                 tolerance=1e-4, max_speed=0.5)
-    >>> detector = ptv.ImageDetector(ptv.open_dataset(folder))
-    >>> calibrations = ptv.load_calibrations(folder / "tsai.h5")
-    >>> result = ptv.run_pipeline(detector, calibrations, settings, statistics=False)
-    >>> h5, _ = ptv.save_results(result, folder / "out")
-    >>> runs = ptv.load_runs(h5)
-    >>> [(run.k, run.dt, len(run.positions)) for run in runs]
-    [(0, 0.001, 12), (1, 0.002, 12)]
-    >>> all(np.array_equal(a.displacements, b.displacements) for a, b in zip(runs, result.runs))
-    True
+    >>> other = pathlib.Path(tmp.name) / "other.h5"
+    >>> h5py.File(other, "w").close()
+    >>> ptv.load_runs(other)
+    Traceback (most recent call last):
+    ...
+    ValueError: ...
     >>> tmp.cleanup()
     """
     with h5py.File(path, "r") as f:
