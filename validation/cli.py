@@ -10,6 +10,7 @@ import sys
 
 from validation.commands.calibrate import add_calibrate_parser
 from validation.commands.claims import add_claims_parser
+from validation.commands.convert import add_convert_parser
 from validation.commands.export import add_export_parser
 from validation.commands.flow import add_flow_parser
 from validation.commands.ptv import add_ptv_parser
@@ -50,6 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
         add_ptv_parser,
         add_score_parser,
         add_export_parser,
+        add_convert_parser,
         add_scene_parser,
     ):
         add(sub)
