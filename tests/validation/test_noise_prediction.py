@@ -69,10 +69,11 @@ def test_the_exact_positions_c2_is_taken_off_before_the_noise_comparison():
 
 
 def test_the_c2_margin_follows_the_error_of_the_median_where_it_is_larger():
-    """Nine bins each 30 % uncertain: the median is uncertain by √(π/2)·0.3/3 = 0.125, so
-    the margin is z times that (z = 3.29 standard errors by default, two-sided 0.1 %);
-    bins 1 % uncertain keep the 5 % floor."""
-    assert c2_margin(np.full(9, 0.3)) == pytest.approx(3.2905 * np.sqrt(np.pi / 2) * 0.1, rel=1e-4)
-    assert c2_margin(np.full(9, 0.3), 2.0) == pytest.approx(2 * np.sqrt(np.pi / 2) * 0.1)
+    """Nine bins each 3 % uncertain, moving together (their pairs share the particles):
+    the median is as uncertain as one, 0.03, so the margin is z times that (z = 3.29
+    standard errors by default, two-sided 0.1 %); bins 1 % uncertain keep the 5 % floor."""
+    assert c2_margin(np.full(9, 0.03)) == pytest.approx(3.2905 * 0.03, rel=1e-4)
+    assert c2_margin(np.full(9, 0.02), 2.0) == C2_MARGIN
+    assert c2_margin(np.array([0.02, 0.03, 0.04]), 4.0) == pytest.approx(0.12)
     assert c2_margin(np.full(9, 0.01)) == C2_MARGIN
     assert c2_margin(np.full(3, np.nan)) == C2_MARGIN
