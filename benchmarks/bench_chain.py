@@ -16,13 +16,12 @@ import time
 from pathlib import Path
 
 from benchmarks.machine import machine
-from ptv.pipeline.frames import DetectorSettings
-from ptv.pipeline.options import PipelineSettings
+from ptv.settings import DetectorSettings, PipelineSettings
 from simulator.rigs import load_rig
-from validation.dataset.render import particle_job
 from validation.run.experiment import render_settings
 from validation.run.particle_chunks import chunk_detections, render_chunk
 from validation.run.ptv_rung import ptv_chunk
+from validation.run.render_dataset import particle_job
 from validation.run.scenario import load_scenario
 from validation.workflow.parallel import DaskExecutor, dask_client
 

@@ -45,8 +45,8 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from ptv.calibration.dot_lists import read_openptv_dots
-from ptv.calibration.experiment import find_traverse_dots, plate_setup, read_image
 from ptv.calibration.plate import PlateDescription
+from ptv.calibration.plate_images import find_traverse_dots, plate_setup, read_image
 from ptv.calibration.targets import find_dots
 
 EXAMPLE = Path(__file__).parents[1] / "examples" / "openptv-multiplane"

@@ -45,7 +45,7 @@ from pathlib import Path
 
 from scipy.stats import binom
 
-from validation.run.tolerances import FALSE_ALARM as RATE
+from validation.score.tolerances import FALSE_ALARM as RATE
 
 #: The binomial limit: the most failures N honest seeds may show where the rate holds,
 #: exceeded with probability below this.
@@ -115,8 +115,8 @@ def points_seed(scenario, folder: Path, kept: Path, scale_error: float = 0.0) ->
     are copied to ``kept``. With ``scale_error`` s, the true-camera rung sees through
     cameras that scale the world by 1 + s (:class:`ScaledCamera`): a biased PTV, for the
     power of the checks rather than their false alarms."""
-    from validation.dataset.truth_file import TruthFile
     from validation.run.experiment import ExperimentRun
+    from validation.truth.truth_file import TruthFile
     from validation.workflow.parallel import InProcess
 
     run = ExperimentRun(scenario, folder, InProcess(), None, False)
@@ -189,8 +189,8 @@ def rendered_seed(scenario, folder: Path, kept: Path, scale_error: float = 0.0) 
     {id: passed}; its results.json is copied to ``kept``."""
     if scale_error:
         raise ValueError("a scale error is a points-chain option")
-    from validation.report.run_report import write_report
     from validation.run.experiment import run_stages
+    from validation.run.run_report import write_report
 
     stages = run_stages(scenario, folder)
     write_report(scenario, stages, folder)

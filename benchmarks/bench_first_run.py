@@ -43,7 +43,7 @@ _CHILD = "from benchmarks.bench_first_run import child; child({groups!r})"
 
 
 def _flow() -> None:
-    from simulator.flow import draw_ks_field
+    from simulator.ks_field import draw_ks_field
     from simulator.particles import SHEET, integrate
     from simulator.presets import flow_preset
     from simulator.spectra import PopeSpectrum
@@ -83,7 +83,8 @@ def _detect() -> None:
 
 
 def _statistics() -> None:
-    from ptv.stats.pairs import LogBins, pair_sums
+    from ptv.bins import LogBins
+    from ptv.stats.pairs import pair_sums
 
     rng = np.random.default_rng(0)
     x = rng.uniform(-0.035, 0.035, (500, 3))

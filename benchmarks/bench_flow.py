@@ -20,14 +20,14 @@ import numba
 import numpy as np
 
 from benchmarks.machine import machine
-from simulator.flow import draw_ks_field
+from simulator.ks_field import draw_ks_field
 from simulator.particles import SHEET, integrate
 from simulator.presets import flow_preset
 from simulator.spectra import PopeSpectrum
 
 _MEMORY_PROBE = """
 import json, resource, numpy as np
-from simulator.flow import draw_ks_field
+from simulator.ks_field import draw_ks_field
 from simulator.presets import flow_preset
 from simulator.spectra import PopeSpectrum
 f = draw_ks_field(PopeSpectrum(flow_preset("lem-10hz").parameters), n_modes=300, rng=0)
@@ -42,7 +42,7 @@ print(json.dumps({"baseline_mib": before / 1024, "peak_mib": after / 1024}))
 
 _AVX2_PROBE = """
 import json, time, numpy as np
-from simulator.flow import draw_ks_field
+from simulator.ks_field import draw_ks_field
 from simulator.particles import SHEET
 from simulator.presets import flow_preset
 from simulator.spectra import PopeSpectrum

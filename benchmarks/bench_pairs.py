@@ -8,7 +8,8 @@ import time
 
 import numpy as np
 
-from ptv.stats.pairs import LogBins, pair_sums
+from ptv.bins import LogBins
+from ptv.stats.pairs import pair_sums
 
 
 def run(quick: bool) -> dict:

@@ -18,11 +18,11 @@ pairs within one object pixel, after one rigid alignment), side by side in one r
   reported too, an upper bound a user without the truth would not find); its tracks
   read back from ``res/ptv_is.<number>``.
 - **synptv's tracker on OpenPTV's points**: the same rt_is points linked by
-  :func:`ptv.tracking.recording.track_points` (max speed from the exported bounds):
+  :func:`ptv.pipeline.time_resolved.track_points` (max speed from the exported bounds):
   tracker against tracker on identical input.
 - **synptv**, its own chain: the model-free calibration from the same plates, its
-  detection and matching (:func:`ptv.tracking.recording.measure_recording`) and
-  :func:`~ptv.tracking.recording.track_points`.
+  detection and matching (:func:`ptv.pipeline.time_resolved.measure_recording`) and
+  :func:`~ptv.pipeline.time_resolved.track_points`.
 
 Run: ``python -m benchmarks.bench_peer_optv_tracking [--quick]`` prints one JSON object and
 a markdown table; needs ``optv`` (``pip install ".[peers]"`` in the clone).
@@ -51,18 +51,19 @@ from benchmarks.bench_peer_optv import (
 )
 from benchmarks.bench_tracking_rendered import _scores
 from ptv.calibration.io import load_calibrations
+from ptv.detect.frames import ImageDetector
 from ptv.io.dataset import open_dataset
-from ptv.pipeline.frames import DetectorSettings, ImageDetector
 from ptv.pipeline.resolve import resolve_matching
-from ptv.tracking.recording import measure_recording, track_points
+from ptv.pipeline.time_resolved import measure_recording, track_points
+from ptv.settings import DetectorSettings
 from validation.commands.export import export_dataset
-from validation.dataset.recording import sequence_folder
-from validation.dataset.recording_truth import read_recording_truth
 from validation.export.openptv import FIRST_NUMBER
 from validation.run.experiment import object_pixel
 from validation.run.recording_run import RecordingRun
+from validation.run.render_recording import sequence_folder
 from validation.run.scenario import load_scenario
 from validation.score.trajectories import TrackPoints
+from validation.truth.recording_truth import read_recording_truth
 from validation.workflow.parallel import InProcess
 
 MM = 1e3

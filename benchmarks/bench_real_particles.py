@@ -196,9 +196,9 @@ def openptv_check(folder: Path, calibration: str, frame: int = 10001) -> dict | 
         return None
     from scipy.spatial import cKDTree
 
+    from ptv.detect.frames import ImageDetector
     from ptv.io.images import read_image
-    from ptv.pipeline.frames import ImageDetector
-    from ptv.pipeline.settings import load_settings
+    from ptv.pipeline.settings_file import load_settings
 
     dataset = open_dataset(folder)
     detector = ImageDetector(dataset, load_settings(folder / "ptv.toml").detection)

@@ -11,8 +11,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from validation.report.run_report import write_report
 from validation.run.experiment import run_stages
+from validation.run.run_report import write_report
 from validation.run.scenario import load_scenario
 
 TARGET_S = 120.0

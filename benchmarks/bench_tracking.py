@@ -7,7 +7,7 @@ points each code links are the particles in the sheet at every frame with 15 µm
 Gaussian noise per component, 2 % of them dropped at random (a detection missed, so that
 a track must bridge a gap to stay whole). synptv: :func:`ptv.tracking.linking.
 track_frames` with the radii and the gap closing ``synptv ptv --tracks`` uses
-(:func:`ptv.tracking.recording.track_radii`, max speed 5u′, the noise given; up to
+(:func:`ptv.pipeline.time_resolved.track_radii`, max speed 5u′, the noise given; up to
 ``track_gap`` missed frames). trackpy: ``link_df`` in 3-D with its nearest-velocity
 predictor, the same first radius, and as many frames of memory. Both are scored against
 the true trajectories
@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
-from ptv.pipeline.options import PipelineSettings
+from ptv.pipeline.time_resolved import track_radii
+from ptv.settings import PipelineSettings
 from ptv.tracking.linking import track_frames
-from ptv.tracking.recording import track_radii
 from ptv.tracking.stitching import stitch_tracks
 from simulator.particles import KSFlow
 from simulator.presets import flow_preset

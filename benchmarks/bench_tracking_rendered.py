@@ -1,11 +1,11 @@
 """Tracking a rendered recording: synptv's tracker beside trackpy's linker on the same points.
 
 Set-up: the ``tr`` scenario's recording (quick: ``tr-ci``) rendered as ``synptv run``
-renders it (:func:`validation.dataset.recording.build_recording_dataset`), its particles
+renders it (:func:`validation.run.render_recording.build_recording_dataset`), its particles
 detected on every image and matched through the rig's true cameras
-(:func:`ptv.tracking.recording.measure_recording`): the points a lab's code would link,
+(:func:`ptv.pipeline.time_resolved.measure_recording`): the points a lab's code would link,
 ghost matches and points displaced by overlapping images included. synptv:
-:func:`ptv.tracking.recording.track_points` (two passes, gap closing and joins). trackpy:
+:func:`ptv.pipeline.time_resolved.track_points` (two passes, gap closing and joins). trackpy:
 ``link_df`` in 3-D with its nearest-velocity predictor, the same first-link radius and as
 many frames of memory as synptv's gap. Max speed 5u′ for both. Both are scored against
 the true trajectories (:mod:`validation.score.trajectories`, pairs within one object
@@ -21,20 +21,21 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.bench_tracking import _trackpy
+from ptv.detect.frames import ImageDetector
 from ptv.io.dataset import open_dataset
-from ptv.pipeline.frames import DetectorSettings, ImageDetector
-from ptv.pipeline.options import link_radius
+from ptv.pipeline.link_radii import link_radius
 from ptv.pipeline.resolve import resolve_matching
+from ptv.pipeline.time_resolved import measure_recording, track_points
+from ptv.settings import DetectorSettings
 from ptv.tracking.fitting import MIN_FIT_POINTS
-from ptv.tracking.recording import measure_recording, track_points
-from validation.dataset.recording import sequence_folder
-from validation.dataset.recording_truth import read_recording_truth
 from validation.run.experiment import object_pixel
 from validation.run.recording_run import RecordingRun
 from validation.run.recording_scores import long_tracks
+from validation.run.render_recording import sequence_folder
 from validation.run.scenario import load_scenario
 from validation.score.recorded_tracks import align_tracks, true_trajectories
 from validation.score.trajectories import TrackPoints, trajectory_scores
+from validation.truth.recording_truth import read_recording_truth
 from validation.workflow.parallel import InProcess
 
 

@@ -100,8 +100,8 @@ _EXPORTS = {
     "flow_preset": ("simulator.presets", "flow_preset"),
     "PopeSpectrum": ("simulator.spectra", "PopeSpectrum"),
     "KolmogorovBandSpectrum": ("simulator.spectra", "KolmogorovBandSpectrum"),
-    "draw_ks_field": ("simulator.flow", "draw_ks_field"),
-    "KSField": ("simulator.flow", "KSField"),
+    "draw_ks_field": ("simulator.ks_field", "draw_ks_field"),
+    "KSField": ("simulator.ks_field", "KSField"),
     "exact_dll": ("simulator.truth", "longitudinal_structure_function"),
     # tracers
     "Box": ("simulator.particles", "Box"),

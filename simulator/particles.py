@@ -23,7 +23,7 @@ from typing import Protocol
 import numpy as np
 
 from simulator import ks_kernels
-from simulator.flow import DEFAULT_UNSTEADINESS, KSField, draw_ks_field
+from simulator.ks_field import DEFAULT_UNSTEADINESS, KSField, draw_ks_field
 from simulator.spectra import Spectrum
 
 log = logging.getLogger(__name__)
@@ -225,7 +225,7 @@ class KSFlow:
     n_modes : int
         KS modes.
     unsteadiness : float
-        λ of the KS frequencies (:func:`simulator.flow.draw_ks_field`).
+        λ of the KS frequencies (:func:`simulator.ks_field.draw_ks_field`).
 
     Examples
     --------

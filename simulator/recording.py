@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simulator.flow import draw_ks_field
+from simulator.ks_field import draw_ks_field
 from simulator.particles import (
     MARGIN_IN_U_RMS,
     SHEET,

@@ -39,7 +39,7 @@ or digit (:data:`FILE_NAME_RULE`).
 import itertools
 import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
@@ -50,8 +50,26 @@ from simulator.optics.interfaces import N_PMMA, N_WATER
 from simulator.optics.placement import viewing_direction
 from simulator.particles import Box
 from simulator.tank import box_tank, sight_face, wall_window
+from simulator.target import PlateDesign
 
-_TOP = {"name": True, "description": False, "sheet": True, "tank": True, "cameras": True}
+_TOP = {
+    "name": True,
+    "description": False,
+    "sheet": True,
+    "tank": True,
+    "cameras": True,
+    "plate": False,
+}
+#: A [plate]: the calibration plate's design and the traverse's step (every field
+#: optional; left out, PlateDesign's and 1 mm).
+_PLATE = {
+    "pitch": False,
+    "dot_diameter": False,
+    "mark_diameter": False,
+    "columns": False,
+    "rows": False,
+    "plane_spacing": False,
+}
 _SHEET = {"width": True, "height": True, "thickness": True, "profile": False}
 #: Light profiles of a [sheet] (``simulator.render.spot.SHEET_PROFILES``, which the rig
 #: loader does not import: it would bring the renderer along).
@@ -157,6 +175,11 @@ class Rig:
         ``"gaussian"`` (the particle lighting's own Gaussian sheet) or ``"top-hat"``
         (uniform over the sheet's thickness,
         :func:`simulator.render.camera_frames.rig_lighting`).
+    plate : PlateDesign
+        The calibration plate (a rig file's ``[plate]``; default
+        :class:`simulator.target.PlateDesign`'s 21 × 21 dots on a 5 mm pitch).
+    plane_spacing : float
+        Step of the plate's traverse, m (``[plate] plane_spacing``; default 1 mm).
 
     Examples
     --------
@@ -184,6 +207,8 @@ class Rig:
     tank: Tank
     spec: dict
     sheet_profile: str = "gaussian"
+    plate: PlateDesign = field(default_factory=PlateDesign)
+    plane_spacing: float = 1e-3
 
 
 #: Camera names become folder and file names: letters, digits, '.', '_' and '-',
@@ -244,6 +269,10 @@ _LIMITS = {
     "obliquity_direction_deg": (-360.0, 360.0, "°"),
     "n_glass": (1.0, 2.5, ""),
     "n_water": (1.0, 2.0, ""),
+    "pitch": (1e-4, 0.2, "m"),
+    "dot_diameter": (1e-5, 0.1, "m"),
+    "mark_diameter": (1e-5, 0.1, "m"),
+    "plane_spacing": (1e-5, 0.1, "m"),
 }
 #: Sensor width and height, px, and the largest distortion coefficient (normalised
 #: image coordinates, where the edge of a 35 mm-class field lies near 0.4).
@@ -542,6 +571,7 @@ def rig_from_dict(spec: dict, *, source: str = "<rig>") -> Rig:
         cameras.append(camera)
     if len(set(names)) != len(names):
         raise RigFileError(f"{source}: camera names must be unique, got {names}")
+    plate, plane_spacing = _plate(spec.get("plate", {}), f"{source}: plate")
     return Rig(
         name=str(spec["name"]),
         description=str(spec.get("description", "")),
@@ -551,7 +581,34 @@ def rig_from_dict(spec: dict, *, source: str = "<rig>") -> Rig:
         tank=tank,
         spec=spec,
         sheet_profile=profile,
+        plate=plate,
+        plane_spacing=plane_spacing,
     )
+
+
+def _plate(table: object, where: str) -> tuple[PlateDesign, float]:
+    """The plate design and the traverse step (m) of a [plate] table."""
+    table = _check_fields(table, _PLATE, where)
+    lengths = {
+        k: _number(table, k, where)
+        for k in ("pitch", "dot_diameter", "mark_diameter")
+        if k in table
+    }
+    counts = {}
+    for key in ("columns", "rows"):
+        if key in table:
+            value = table[key]
+            if isinstance(value, bool) or not isinstance(value, int) or not 5 <= value <= 1001:
+                raise RigFileError(
+                    f"{where}.{key}: expected an integer from 5 to 1001, got {value!r}"
+                )
+            counts[key] = value
+    try:
+        design = PlateDesign(**lengths, **counts)
+    except ValueError as err:
+        raise RigFileError(f"{where}: {err}") from None
+    spacing = _number(table, "plane_spacing", where) if "plane_spacing" in table else 1e-3
+    return design, spacing
 
 
 def rig_presets() -> list[str]:

@@ -1,5 +1,6 @@
-"""The code's rooms: no import circle between synptv's modules, and no module too long
-to live in (outside modules of compiled numba kernels)."""
+"""The code's rooms: no import circle between synptv's modules, floors inside ``ptv`` and
+``validation`` whose imports point down, and no module too long to live in (outside
+modules of compiled numba kernels)."""
 
 import ast
 from pathlib import Path
@@ -11,6 +12,33 @@ PACKAGES = ("ptv", "simulator", "validation", "benchmarks")
 #: Longest module, lines, unless most of its functions are compiled kernels.
 MAX_LINES = 700
 _COMPILERS = {"njit", "jit", "vectorize", "guvectorize", "stencil"}
+#: The floors of a package, lowest first (docs/README.md, "Floors"). A room is
+#: a subpackage or a module right under the package; a room imports only rooms of lower
+#: floors, never one of its own floor or above (the package's ``__init__``, its public
+#: front door, may import any).
+FLOORS = {
+    "ptv": (
+        ("_assign", "_checks", "_threads", "bins", "box", "camera_model", "errors", "names",
+         "rays"),
+        ("io", "tracking", "triangulate"),
+        ("settings",),
+        ("detect", "matching", "stats"),
+        ("calibration", "reconstruct"),
+        ("pipeline",),
+    ),
+    "validation": (
+        ("reference_particles", "truth", "workflow"),
+        ("dataset", "score"),
+        ("report",),
+        ("run",),
+        ("export", "studies"),
+        ("claims", "convert"),
+        ("mutations",),
+        ("audit",),
+        ("commands",),
+        ("cli",),
+    ),
+}
 
 
 def _modules() -> dict[str, Path]:
@@ -82,18 +110,67 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
+def _graph() -> dict[str, set[str]]:
+    """Every module's imports of the packages' modules."""
+    modules = _modules()
+    return {
+        name: _imported(ast.parse(path.read_text(encoding="utf-8")), name,
+                        path.name == "__init__.py", modules)
+        for name, path in modules.items()
+    }  # fmt: skip
+
+
+def _upward(graph: dict[str, set[str]], package: str, floors: tuple) -> list[str]:
+    """The imports of ``package``'s modules that do not point to a lower floor, as
+    "module -> module"; a room on no floor is reported as "room: on no floor"."""
+    floor = {room: level for level, rooms in enumerate(floors) for room in rooms}
+    found = []
+    for name, targets in sorted(graph.items()):
+        parts = name.split(".")
+        if parts[0] != package or len(parts) == 1:
+            continue
+        if parts[1] not in floor:
+            found.append(f"{parts[1]}: on no floor")
+            continue
+        for target in sorted(targets):
+            room = target.split(".")[1:2]
+            if target.split(".")[0] != package or not room or room[0] == parts[1]:
+                continue
+            if floor.get(room[0], len(floors)) >= floor[parts[1]]:
+                found.append(f"{name} -> {target}")
+    return sorted(set(found))
+
+
+def test_the_floor_check_finds_an_upward_import():
+    floors = (("low",), ("mid_a", "mid_b"), ("high",))
+    graph = {
+        "p": {"p.high"},
+        "p.low": set(),
+        "p.mid_a.x": {"p.low", "p.mid_a.y"},
+        "p.mid_a.y": {"p.mid_b"},
+        "p.mid_b": {"p.high.z"},
+        "p.high.z": {"p.mid_a.x", "p.low"},
+        "p.other": set(),
+    }
+    assert _upward(graph, "p", floors) == [
+        "other: on no floor",
+        "p.mid_a.y -> p.mid_b",
+        "p.mid_b -> p.high.z",
+    ]
+
+
+@pytest.mark.parametrize("package", sorted(FLOORS))
+def test_every_import_between_rooms_points_down(package):
+    assert _upward(_graph(), package, FLOORS[package]) == []
+
+
 def test_the_cycle_finder_finds_a_circle():
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert _cycles({"a": {"b"}, "b": set()}) == []
 
 
 def test_no_import_circle():
-    modules = _modules()
-    graph = {
-        name: _imported(ast.parse(path.read_text(encoding="utf-8")), name,
-                        path.name == "__init__.py", modules)
-        for name, path in modules.items()
-    }  # fmt: skip
+    graph = _graph()
     assert len(graph) > 200
     assert _cycles(graph) == []
 

@@ -57,7 +57,7 @@ computes; the CSV has the header ``dt,snapshot,frame,x,y,z``)::
     print(validation.score_summary(scored.frames)["yield"])
 
 Every name's docstring has examples on small inputs; the packages hold the rest
-(``validation.dataset``: rendering datasets; ``validation.export``: OpenPTV and MyPTV
+(``validation.run``: rendering datasets; ``validation.export``: OpenPTV and MyPTV
 layouts; ``validation.truth``: the reference values the checks compare with).
 """
 
@@ -72,15 +72,15 @@ _EXPORTS = {
     "Scenario": ("validation.run.scenario", "Scenario"),
     "run_scenario": ("validation.run.experiment", "run_stages"),
     # scoring against the truth
-    "TruthFile": ("validation.dataset.truth_file", "TruthFile"),
-    "write_sample_truth": ("validation.dataset.truth_file", "write_sample_truth"),
+    "TruthFile": ("validation.truth.truth_file", "TruthFile"),
+    "write_sample_truth": ("validation.truth.truth_file", "write_sample_truth"),
     "read_positions": ("validation.score.positions", "read_positions"),
     "check_positions": ("validation.score.positions", "check_positions"),
     "score_positions": ("validation.score.reference", "score_positions"),
     "score_summary": ("validation.score.scores", "summarize"),
     "scores_per_dt": ("validation.score.scores", "per_dt"),
     "track_scores": ("validation.score.scores", "track_scores"),
-    "score_statistics": ("validation.score.statistics", "score_statistics"),
+    "score_statistics": ("validation.run.score_statistics", "score_statistics"),
     "read_tracks": ("validation.score.track_file", "read_tracks"),
     "TrackPoints": ("validation.score.trajectories", "TrackPoints"),
     "TrueTrajectories": ("validation.score.trajectories", "TrueTrajectories"),

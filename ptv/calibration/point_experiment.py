@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ptv.calibration.experiment import masked_image
 from ptv.calibration.grid_errors import PositionErrors
+from ptv.calibration.plate_images import masked_image
 from ptv.calibration.point_target import (
     MIN_SEEDS,
     UNITS,
@@ -28,7 +28,7 @@ from ptv.calibration.point_target import (
 )
 from ptv.calibration.refractive_pinhole import FlatWindow
 from ptv.io.dataset import DatasetError, camera_masks
-from ptv.io.experiment import has_point_target, read_experiment
+from ptv.io.experiment_file import has_point_target, read_experiment
 from ptv.io.images import read_image
 from ptv.triangulate import triangulate
 
@@ -93,7 +93,7 @@ def point_target_setup(folder: str | Path) -> PointTargetSetup:
     ------
     FileNotFoundError
         No experiment.json, or a missing target file, seed file or image.
-    ptv.io.experiment.DescriptionError
+    ptv.io.experiment_file.DescriptionError
         experiment.json breaks its schema or lacks a field calibrating needs (every
         problem in one line).
     DatasetError

@@ -37,16 +37,7 @@ import numpy as np
 from ptv.detect.background import BackgroundEstimate, estimate_background
 from ptv.detect.locate import detect_particles
 
-__all__ = [
-    "BACKGROUND_REMOVALS",
-    "invert",
-    "median_background",
-    "particles_left_by_median",
-    "tophat",
-]
-
-#: The background removals a detection can ask for.
-BACKGROUND_REMOVALS = ("none", "tophat", "median")
+__all__ = ["invert", "median_background", "particles_left_by_median", "tophat"]
 
 
 def invert(image: np.ndarray, top: float | None = None) -> np.ndarray:

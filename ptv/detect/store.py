@@ -8,7 +8,7 @@ A detection store is a folder::
     chunk-<m0>-<m1>.h5       the exposures of snapshots m0 … m1 − 1 (HDF5)
 
 Each chunk file holds ``exposures`` (E, 3) int32 rows (k, m, frame) in the order of
-:func:`ptv.pipeline.frames.exposures` (k = −1 for a frame a shared by every Δt; frame 0 = a,
+:func:`ptv.detect.frames.exposures` (k = −1 for a frame a shared by every Δt; frame 0 = a,
 1 = b) and, per camera, ``<camera>/offsets`` (E + 1,) int64, ``<camera>/xy`` (N, 2)
 float64 centres in px (OpenCV convention) and ``<camera>/flags`` (N,) uint8
 (:class:`ptv.detect.DetectionFlag`): exposure e's detections are rows
@@ -28,7 +28,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ptv.pipeline.frames import ChunkDetections, DetectedCentres, exposures
+from ptv.detect.frames import ChunkDetections, DetectedCentres, exposures
 
 __all__ = [
     "FORMAT_NAME",
@@ -68,7 +68,7 @@ def write_chunk(path: Path, chunk: ChunkDetections, *, frames: Sequence[int]) ->
     path : Path
         The chunk file (:func:`chunk_name` inside the store folder).
     chunk : ChunkDetections
-        Its detections; every exposure of :func:`ptv.pipeline.frames.exposures` must be there.
+        Its detections; every exposure of :func:`ptv.detect.frames.exposures` must be there.
     frames : sequence of int
         Frame pairs of the run at each Δt.
 
@@ -157,9 +157,9 @@ def write_index(
     folder : Path
         The store.
     cameras, dt, frames, shared_first_frame :
-        As :class:`ptv.pipeline.frames.FrameDetections`.
+        As :class:`ptv.detect.frames.FrameDetections`.
     detector : dict
-        The detector settings (:meth:`ptv.pipeline.frames.DetectorSettings.as_dict`).
+        The detector settings (:meth:`ptv.settings.DetectorSettings.as_dict`).
     chunks : sequence of (int, int)
         Snapshot ranges of the chunk files, covering 0 … max(frames) − 1 in order.
     source : str
@@ -184,7 +184,7 @@ def write_index(
 
 
 class DetectionStore:
-    """:class:`ptv.pipeline.frames.FrameDetections` read from a detection store folder.
+    """:class:`ptv.detect.frames.FrameDetections` read from a detection store folder.
 
     The chunk holding the snapshot asked for is read whole and kept until another
     chunk is asked for, so reading snapshot after snapshot reads each file once.

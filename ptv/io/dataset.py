@@ -8,7 +8,7 @@ can be put in it (lengths in m, times in s)::
     particles/dt<k>/<camera>/<mmmmmm>_a.tif      frame pair m of the run at Δt_k: frame a
     particles/dt<k>/<camera>/<mmmmmm>_b.tif      at t, frame b at t + Δt_k
 
-``experiment.json`` is checked against its JSON Schema first (:mod:`ptv.io.experiment`,
+``experiment.json`` is checked against its JSON Schema first (:mod:`ptv.io.experiment_file`,
 docs/experiment.md: every problem named in one line). Keys used here: ``cameras``
 ({name: {"image_size": [width, height], "mask": optional image path}}), ``dt`` (list
 of s), ``frames_per_dt`` (an int, or one int per Δt),
@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from ptv.errors import DatasetError
-from ptv.io.experiment import read_experiment
+from ptv.io.experiment_file import read_experiment
 from ptv.io.images import read_image, read_mask
 from ptv.io.sequence import TimeResolved
 from ptv.names import FILE_NAME_RULE, is_file_name

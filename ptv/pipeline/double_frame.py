@@ -1,6 +1,6 @@
 """Double-frame 3D-PTV, from detected particles to links, then to S2(r), ε and u′.
 
-The particles detected on every frame come from a :class:`ptv.pipeline.frames.FrameDetections`
+The particles detected on every frame come from a :class:`ptv.detect.frames.FrameDetections`
 source (detected from a dataset's images, or read from a detection store). For every
 Δt_k and every snapshot m:
 
@@ -57,10 +57,16 @@ import numpy as np
 
 from ptv.box import Box, inside_box
 from ptv.camera_model import CameraModel
+from ptv.detect.frames import FrameDetections
 from ptv.io.dataset import cameras_in_order
-from ptv.pipeline.frames import FrameDetections
-from ptv.pipeline.options import PipelineSettings, link_radius, predicted_radius, radius_at
-from ptv.pipeline.resolve import MeasuredSettings, match_frame, resolve_settings
+from ptv.pipeline.link_radii import link_radius, predicted_radius, radius_at
+from ptv.pipeline.resolve import (
+    Locate,
+    MeasuredSettings,
+    match_detections,
+    resolve_settings,
+)
+from ptv.settings import PipelineSettings
 from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import PtvStatistics, compute_statistics
 from ptv.tracking.link_prediction import chained_link
@@ -165,6 +171,7 @@ def measure_snapshot(
     frame_a: tuple[list[int], np.ndarray] | None = None,
     keep_matched: bool = False,
     previous: "SnapshotMeasurement | None" = None,
+    locate: Locate | None = None,
 ) -> SnapshotMeasurement:
     """Match frames a and b of snapshot m at Δt_k, then link and test the links.
 
@@ -189,6 +196,10 @@ def measure_snapshot(
         of the prediction (:func:`ptv.tracking.link_prediction.chained_link`); without
         it, or without that radius, links are searched within max_speed·Δt_k + 5σ_b of
         X(t).
+    locate : callable (k, m, frame) -> (list of int, ndarray (N, 3)), optional
+        What gives a frame's 3-D points and the particles seen per camera (e.g. a
+        reconstruction of the frame's images, :mod:`ptv.pipeline.reconstructed`);
+        default: the frame's detections matched (:func:`match_detections`).
 
     Returns
     -------
@@ -199,13 +210,14 @@ def measure_snapshot(
         raise ValueError(
             f"need one calibration per camera: {len(cameras)} for {len(frames.cameras)} cameras"
         )
+    if locate is None:
+        locate = match_detections(frames, cameras, settings)
     points, detections = [], []
     for frame in ("a", "b"):
         if frame == "a" and frame_a is not None:
             counts, matched = frame_a
         else:
-            xy = frames.detections(k, m, frame)
-            counts, matched = [len(v) for v in xy], match_frame(xy, cameras, settings)
+            counts, matched = locate(k, m, frame)
         detections.append(counts)
         points.append(matched)
     dt = float(frames.dt[k])
@@ -256,6 +268,7 @@ def measure_snapshots(
     *,
     tick: Callable[[], None] | None = None,
     keep_matched: bool = False,
+    locate: Locate | None = None,
 ) -> list[list[SnapshotMeasurement]]:
     """Measure some snapshots at every Δt (a chunk of a run; snapshots are independent).
 
@@ -274,12 +287,16 @@ def measure_snapshots(
         Called after each snapshot of each Δt.
     keep_matched : bool
         Keep the matched points of both frames in each measurement.
+    locate : callable (k, m, frame) -> (list of int, ndarray (N, 3)), optional
+        As :func:`measure_snapshot`.
 
     Returns
     -------
     list of K lists of SnapshotMeasurement
         Per Δt, the snapshots measured in the order given.
     """
+    if locate is None:
+        locate = match_detections(frames, cameras, settings)
     out: list[list[SnapshotMeasurement]] = [[] for _ in frames.dt]
     shared = frames.shared_first_frame
     # With a shared first frame the Δt are measured from the smallest up, each predicted
@@ -294,8 +311,7 @@ def measure_snapshots(
             if m >= settings.snapshot_count(frames.frames[k]):
                 continue
             if shared and frame_a is None:
-                xy = frames.detections(k, m, "a")
-                frame_a = ([len(v) for v in xy], match_frame(xy, cameras, settings))
+                frame_a = locate(k, m, "a")
             measured[k] = measure_snapshot(
                 frames,
                 k,
@@ -305,6 +321,7 @@ def measure_snapshots(
                 frame_a=frame_a,
                 keep_matched=keep_matched,
                 previous=previous,
+                locate=locate,
             )
             if shared:
                 previous = measured[k]
@@ -495,7 +512,7 @@ class PtvResult:
         every Δt, frame a repeated at each Δt that shares it).
     recording : RecordingTracks or None
         The tracks through every frame of a time-resolved recording
-        (:func:`ptv.tracking.recording.run_recording`; None otherwise).
+        (:func:`ptv.pipeline.time_resolved.run_recording`; None otherwise).
     measured : MeasuredSettings
         How the tolerance and max_speed were measured on the data (None where the
         settings gave them).
@@ -524,7 +541,7 @@ def run_pipeline(
     Parameters
     ----------
     frames : FrameDetections
-        E.g. :class:`ptv.pipeline.frames.ImageDetector` of :func:`ptv.io.dataset.open_dataset`.
+        E.g. :class:`ptv.detect.frames.ImageDetector` of :func:`ptv.io.dataset.open_dataset`.
     calibrations : mapping of camera name to CameraModel
         E.g. :func:`ptv.calibration.io.load_calibrations`; must name exactly the
         dataset's cameras.

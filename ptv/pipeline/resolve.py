@@ -7,16 +7,17 @@ the settings give it or derived; and :func:`match_frame`, which matches one fram
 them."""
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ptv.camera_model import CameraModel
+from ptv.detect.frames import FrameDetections
 from ptv.matching.stereo import match
 from ptv.matching.tolerance import MatchTolerance, match_tolerance
-from ptv.pipeline.frames import FrameDetections
-from ptv.pipeline.options import PipelineSettings, default_min_cameras, link_radius
+from ptv.pipeline.link_radii import link_radius
+from ptv.settings import PipelineSettings, default_min_cameras
 from ptv.tracking.link_prediction import LinkPrediction, measure_prediction
 from ptv.tracking.link_speed import LinkSpeed, link_speed
 
@@ -60,7 +61,7 @@ def resolve_matching(
     frames: FrameDetections, cameras: Sequence[CameraModel], settings: PipelineSettings
 ) -> tuple[PipelineSettings, MatchTolerance | None]:
     """The settings with min_cameras and the matching tolerance known: as given, or from
-    the camera count (:func:`ptv.pipeline.options.default_min_cameras`) and measured on
+    the camera count (:func:`ptv.settings.default_min_cameras`) and measured on
     frame a of the first :data:`LINK_SPEED_SNAPSHOTS` snapshots of the smallest Δt
     (:func:`ptv.matching.tolerance.match_tolerance`).
 
@@ -110,8 +111,30 @@ def resolve_matching(
     return replace(settings, tolerance=measured.tolerance), measured
 
 
-def resolve_settings(
+#: What gives a frame's 3-D points: (k, m, frame) → (particles seen per camera, points
+#: (N, 3) m).
+Locate = Callable[[int, int, str], tuple[list[int], np.ndarray]]
+
+
+def match_detections(
     frames: FrameDetections, cameras: Sequence[CameraModel], settings: PipelineSettings
+) -> Locate:
+    """The default :data:`Locate`: a frame's detections, matched across the cameras
+    (:func:`match_frame`); the counts are the detections per camera."""
+
+    def locate(k: int, m: int, frame: str) -> tuple[list[int], np.ndarray]:
+        xy = frames.detections(k, m, frame)
+        return [len(v) for v in xy], match_frame(xy, cameras, settings)
+
+    return locate
+
+
+def resolve_settings(
+    frames: FrameDetections,
+    cameras: Sequence[CameraModel],
+    settings: PipelineSettings,
+    *,
+    locate: Locate | None = None,
 ) -> tuple[PipelineSettings, MeasuredSettings]:
     """The settings with min_cameras, the tolerance and max_speed known: as given, or
     derived from the rig and measured on the data.
@@ -134,6 +157,10 @@ def resolve_settings(
     settings : PipelineSettings
         Options; min_cameras, tolerance, max_speed and predicted_radii None to derive
         them.
+    locate : Locate, optional
+        What gives a frame's points (e.g. a reconstruction of its images); then the
+        matching is not resolved (no detections are matched). Default: the
+        detections matched (:func:`match_detections`).
 
     Returns
     -------
@@ -148,26 +175,29 @@ def resolve_settings(
         matched particles in both frames, or too few links in them to measure a speed;
         too few predicted links to measure their misses.
     """
-    settings, tolerance = resolve_matching(frames, cameras, settings)
+    tolerance = None
+    if locate is None:
+        settings, tolerance = resolve_matching(frames, cameras, settings)
+        locate = match_detections(frames, cameras, settings)
     speed = None
     if settings.max_speed is None:
-        settings, speed = _with_measured_speed(frames, cameras, settings)
+        settings, speed = _with_measured_speed(frames, locate, settings)
     prediction = None
     if frames.shared_first_frame and len(frames.dt) > 1 and settings.predicted_radii is None:
-        settings, prediction = _with_prediction_radii(frames, cameras, settings)
+        settings, prediction = _with_prediction_radii(frames, locate, settings)
     return settings, MeasuredSettings(
         tolerance=tolerance, link_speed=speed, link_prediction=prediction
     )
 
 
 def _with_measured_speed(
-    frames: FrameDetections, cameras: Sequence[CameraModel], settings: PipelineSettings
+    frames: FrameDetections, locate: Locate, settings: PipelineSettings
 ) -> tuple[PipelineSettings, LinkSpeed]:
     """max_speed measured on the first snapshots of the smallest Δt (resolve_settings)."""
     k = int(np.argmin(frames.dt))
     pairs = []
     for m in range(settings.snapshot_count(frames.frames[k])):
-        a, b = (match_frame(frames.detections(k, m, f), cameras, settings) for f in "ab")
+        a, b = (locate(k, m, f)[1] for f in "ab")
         if len(a) >= 2 and len(b):
             pairs.append((a, b))
         if len(pairs) == LINK_SPEED_SNAPSHOTS:
@@ -182,7 +212,7 @@ def _with_measured_speed(
 
 
 def _with_prediction_radii(
-    frames: FrameDetections, cameras: Sequence[CameraModel], settings: PipelineSettings
+    frames: FrameDetections, locate: Locate, settings: PipelineSettings
 ) -> tuple[PipelineSettings, LinkPrediction]:
     """The radii around the predicted links of every larger Δt, measured on the first
     :data:`LINK_SPEED_SNAPSHOTS` snapshots with matched points in every frame."""
@@ -190,8 +220,8 @@ def _with_prediction_radii(
     count = min(settings.snapshot_count(n) for n in frames.frames)
     snapshots = []
     for m in range(count):
-        a = match_frame(frames.detections(0, m, "a"), cameras, settings)
-        b = [match_frame(frames.detections(k, m, "b"), cameras, settings) for k in range(len(dt))]
+        a = locate(0, m, "a")[1]
+        b = [locate(k, m, "b")[1] for k in range(len(dt))]
         if len(a) >= 2 and all(len(p) for p in b):
             snapshots.append((a, b))
         if len(snapshots) == LINK_SPEED_SNAPSHOTS:

@@ -10,7 +10,7 @@ JSON (SI units; NaN written as null), beside ``results.h5`` (:mod:`ptv.pipeline.
 import numpy as np
 
 from ptv.pipeline.double_frame import PtvResult, ambiguity_message
-from ptv.pipeline.options import radius_at
+from ptv.pipeline.link_radii import radius_at
 from ptv.stats.dissipation import Plateau
 from ptv.stats.links import RunParticles
 from ptv.stats.mean_displacement import MeanDisplacement
@@ -168,7 +168,7 @@ def summary(result: PtvResult, *, calibration: str | None = None) -> dict:
     and their fraction, particle spacing), ``match_tolerance`` and ``link_speed`` (how
     the matching tolerance and max_speed were measured on the data; None where the
     settings gave them), ``warnings`` (an image detector's
-    :attr:`~ptv.pipeline.frames.ImageDetector.warnings`, :func:`thin_data_warnings`
+    :attr:`~ptv.detect.frames.ImageDetector.warnings`, :func:`thin_data_warnings`
     and :func:`ptv.pipeline.double_frame.ambiguity_message`), and those of
     :func:`statistics_summary` (only ``statistics_dt`` and ``errors``, both None, for a run
     of positions and links only);

@@ -78,14 +78,14 @@ def _json_ready(value):
 def save_fitted_tracks_csv(result, track_fit, folder: str | os.PathLike) -> Path:
     """Write ``tracks_fitted.csv`` and ``tracks_fit.json`` into ``folder``: the fit of the
     tracks of the recording of ``result``
-    (:func:`ptv.tracking.track_fit.fit_recording`, ``track_fit``).
+    (:func:`ptv.pipeline.track_fit.fit_recording`, ``track_fit``).
 
     One row per fitted point (the points of tracks too short to fit and the outliers are
     left out), sorted by track then frame, under the header
     ``track,frame,time_s,x,y,z,vx,vy,vz,ax,ay,az,sigma_x,sigma_v,sigma_a``: the fitted
     position (m, calibration's frame), velocity (m/s), acceleration (m/s²) and their
     standard errors per component from the noise. The JSON holds
-    :meth:`ptv.tracking.track_fit.FittedRecording.as_dict`.
+    :meth:`ptv.pipeline.track_fit.FittedRecording.as_dict`.
 
     Returns
     -------

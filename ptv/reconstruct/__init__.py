@@ -8,7 +8,8 @@ images), :mod:`~ptv.reconstruct.background` (background level of dense images),
 :mod:`~ptv.reconstruct.triangulation` (candidates from the peaks of all cameras),
 :mod:`~ptv.reconstruct.shake` (shaking particles against the residual),
 :mod:`~ptv.reconstruct.mapping` (batched, timed camera calls and their derivatives),
-:mod:`~ptv.reconstruct.settings` and :mod:`~ptv.reconstruct.ipr` (the outer loop).
+and :mod:`~ptv.reconstruct.ipr` (the outer loop; its options,
+:class:`ptv.settings.IPRSettings`, live with the stack's other settings).
 Only the camera protocol of :mod:`ptv.camera_model` is used.
 """
 
@@ -18,7 +19,7 @@ from ptv.reconstruct.otf import OpticalTransferFunction
 from ptv.reconstruct.otf_measure import measure_camera_otf, measure_otf, refine_otf
 from ptv.reconstruct.peaks import find_peaks
 from ptv.reconstruct.projection import draw_spots, projected_image, residual_image
-from ptv.reconstruct.settings import IPRSettings
+from ptv.settings import IPRSettings
 
 __all__ = [
     "BackgroundLevel",

@@ -64,7 +64,6 @@ from ptv.reconstruct.background import background_level
 from ptv.reconstruct.mapping import GridMapping, Mappings, voxel_size
 from ptv.reconstruct.otf import OpticalTransferFunction, peak_fraction
 from ptv.reconstruct.peaks import find_peaks
-from ptv.reconstruct.settings import IPRSettings
 from ptv.reconstruct.shake import camera_intensities, shake_pass
 from ptv.reconstruct.triangulation import (
     Candidates,
@@ -72,6 +71,7 @@ from ptv.reconstruct.triangulation import (
     select_candidates,
     triangulate_candidates,
 )
+from ptv.settings import IPRSettings
 
 logger = logging.getLogger(__name__)
 

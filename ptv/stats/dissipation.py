@@ -20,8 +20,9 @@ from typing import Literal
 
 import numpy as np
 
+from ptv.settings import DEFAULT_C2
+
 __all__ = [
-    "DEFAULT_C2",
     "NU_WATER",
     "DissipationProfile",
     "Plateau",
@@ -34,9 +35,6 @@ __all__ = [
 ]
 
 logger = logging.getLogger(__name__)
-
-#: Kolmogorov constant of the longitudinal S2 (C_K = 1.52), docs/flow.md §3.4.
-DEFAULT_C2 = 2.0
 
 #: Kinematic viscosity of water at 20 °C used by the paper, m²/s.
 NU_WATER = 1.0e-6

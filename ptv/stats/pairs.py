@@ -18,49 +18,7 @@ import numpy as np
 from numba import njit, prange
 
 from ptv._threads import over_threads
-
-
-@dataclass(frozen=True)
-class LogBins:
-    """Logarithmically spaced separation bins.
-
-    Parameters
-    ----------
-    r_min, r_max : float
-        Outer edges, m, 0 < r_min < r_max.
-    n_bins : int
-        Number of bins ≥ 1.
-
-    Examples
-    --------
-    >>> import ptv
-    >>> bins = ptv.LogBins(r_min=1e-3, r_max=16e-3, n_bins=4)
-    >>> bins.edges  # m
-    array([0.001, 0.002, 0.004, 0.008, 0.016])
-    >>> bins.centres.round(6)  # geometric, m
-    array([0.001414, 0.002828, 0.005657, 0.011314])
-    """
-
-    r_min: float
-    r_max: float
-    n_bins: int
-
-    def __post_init__(self) -> None:
-        if not (0 < self.r_min < self.r_max < np.inf):
-            raise ValueError(f"need 0 < r_min < r_max, got r_min={self.r_min}, r_max={self.r_max}")
-        if not isinstance(self.n_bins, int | np.integer) or self.n_bins < 1:
-            raise ValueError(f"n_bins must be an integer >= 1, got {self.n_bins!r}")
-
-    @property
-    def edges(self) -> np.ndarray:
-        """Bin edges, shape (n_bins + 1,), m."""
-        return np.geomspace(self.r_min, self.r_max, self.n_bins + 1)
-
-    @property
-    def centres(self) -> np.ndarray:
-        """Geometric bin centres, shape (n_bins,), m."""
-        e = self.edges
-        return np.sqrt(e[1:] * e[:-1])
+from ptv.bins import BINNINGS, LogBins
 
 
 @dataclass(frozen=True)
@@ -213,10 +171,6 @@ def _pair_sums_midpoint(x, d, r_min, r_max, n_bins, n_chunks):
                     sum_q[c, b, m] += q
                     sum_q2[c, b, m] += q * q
     return count.sum(axis=0), sum_q.sum(axis=0), sum_q2.sum(axis=0), sum_r.sum(axis=0)
-
-
-#: How a pair's separation is taken (module docstring).
-BINNINGS = ("start", "midpoint")
 
 
 def pair_sums(

@@ -29,15 +29,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ptv._checks import positive
-from ptv.box import Box, check_box
-from ptv.stats.dissipation import (
-    DEFAULT_C2,
-    DissipationProfile,
-    Plateau,
-    dissipation_profile,
-    plateau_epsilon,
-)
+from ptv.bins import LogBins
+from ptv.settings import StatisticsSettings
+from ptv.stats.dissipation import DissipationProfile, Plateau, dissipation_profile, plateau_epsilon
 from ptv.stats.eulerian import (
     EulerianFit,
     Grid,
@@ -55,7 +49,6 @@ from ptv.stats.mean_displacement import (
     shared_mean_displacement,
 )
 from ptv.stats.multidt import dt_subsets
-from ptv.stats.pairs import BINNINGS, LogBins
 from ptv.stats.resampling import SnapshotBootstrap, block_length
 from ptv.stats.snapshots import SnapshotSums
 from ptv.stats.structure import (
@@ -66,125 +59,9 @@ from ptv.stats.structure import (
 )
 from ptv.tracking.linking import trajectory_residuals
 
-__all__ = [
-    "ANALYSIS_VOLUME",
-    "PtvStatistics",
-    "S2Population",
-    "StatisticsSettings",
-    "Subset",
-    "compute_statistics",
-]
+__all__ = ["PtvStatistics", "S2Population", "Subset", "compute_statistics"]
 
 log = logging.getLogger(__name__)
-
-#: The paper's 70 × 70 × 2 mm analysis volume centred in the sheet, m.
-ANALYSIS_VOLUME: Box = ((-0.035, -0.035, -0.001), (0.035, 0.035, 0.001))
-
-
-@dataclass(frozen=True)
-class StatisticsSettings:
-    """Options of :func:`compute_statistics` (SI units).
-
-    Attributes
-    ----------
-    analysis_volume : (lower, upper)
-        Box the statistics are restricted to by X(t), m (default :data:`ANALYSIS_VOLUME`).
-    r_min, r_max : float
-        Outer edges of the log-spaced separation bins, m (default 0.5 and 35 mm).
-    n_bins : int
-        Separation bins (default 24).
-    binning : {"start", "midpoint"}
-        A pair's separation for its bin and its direction: at t (default), or the chord
-        midpoint of t and t + Δt (docs/statistics.md §4; a shared first frame only).
-    plateau : (float, float)
-        Range of r over which ε(r) is averaged, m (default 2–20 mm).
-    plateau_method : {"mean", "max"}
-        Mean of ε(r) over the range (the paper's Table 3) or its maximum.
-    kolmogorov_c2 : float
-        C2 of ε = (S2/C2)^{3/2}/r (default 2.0).
-    n_boot : int
-        Bootstrap replicates over snapshots (default 200).
-    eulerian_cells : (int, int, int)
-        Cells of the Eulerian grid over the analysis volume (default 4 × 4 × 1); one
-        cell is used when none of them holds enough displacements.
-    min_cell_count : int
-        Displacements a cell needs at every Δt to be fitted (default 10).
-    trajectory_threshold : float or None
-        With a shared first frame and K ≥ 4 Δt: particles whose displacements stray
-        from a smooth path in Δt by more than this many times the median residual of
-        all particles (:func:`ptv.tracking.linking.trajectory_residuals`) are mislinked at some
-        Δt and left out of S2 (default 5; None keeps them).
-    snapshot_block : int or None
-        Consecutive snapshots the bootstrap draws together: None (default) to follow
-        the correlation of successive snapshots measured on the data
-        (:func:`ptv.stats.resampling.block_length`: 1 for independent snapshots), or a
-        given block length ≥ 1.
-    seed : int
-        Seed of the bootstrap.
-
-    Examples
-    --------
-    >>> import ptv
-    >>> settings = ptv.StatisticsSettings(r_min=1e-3, r_max=8e-3, n_bins=3, n_boot=100)
-    >>> settings.bins.edges  # m
-    array([0.001, 0.002, 0.004, 0.008])
-    >>> ptv.StatisticsSettings(plateau=(0.02, 0.002))
-    Traceback (most recent call last):
-    ...
-    ValueError: plateau must be (r_min, r_max) with 0 < r_min < r_max, got (0.02, 0.002)
-    """
-
-    analysis_volume: Box = ANALYSIS_VOLUME
-    r_min: float = 0.5e-3
-    r_max: float = 35e-3
-    n_bins: int = 24
-    binning: str = "start"
-    plateau: tuple[float, float] = (2e-3, 20e-3)
-    plateau_method: str = "mean"
-    kolmogorov_c2: float = DEFAULT_C2
-    n_boot: int = 200
-    eulerian_cells: tuple[int, int, int] = (4, 4, 1)
-    min_cell_count: int = 10
-    trajectory_threshold: float | None = 5.0
-    snapshot_block: int | None = None
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        object.__setattr__(
-            self, "analysis_volume", check_box("analysis_volume", self.analysis_volume)
-        )
-        object.__setattr__(self, "kolmogorov_c2", positive("kolmogorov_c2", self.kolmogorov_c2))
-        LogBins(self.r_min, self.r_max, self.n_bins)  # validates
-        if self.binning not in BINNINGS:
-            raise ValueError(f"binning must be one of {', '.join(BINNINGS)}, got {self.binning!r}")
-        lo, hi = self.plateau
-        if not 0 < lo < hi:
-            raise ValueError(
-                f"plateau must be (r_min, r_max) with 0 < r_min < r_max, got {self.plateau}"
-            )
-        if self.plateau_method not in ("mean", "max"):
-            raise ValueError(f"plateau_method must be 'mean' or 'max', got {self.plateau_method!r}")
-        if not isinstance(self.n_boot, int) or self.n_boot < 2:
-            raise ValueError(f"n_boot must be an integer >= 2, got {self.n_boot!r}")
-        Grid((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), self.eulerian_cells)  # validates the shape
-        if not isinstance(self.min_cell_count, int) or self.min_cell_count < 3:
-            raise ValueError(f"min_cell_count must be an integer >= 3, got {self.min_cell_count!r}")
-        block = self.snapshot_block
-        if block is not None and (
-            not isinstance(block, int) or isinstance(block, bool) or block < 1
-        ):
-            raise ValueError(f"snapshot_block must be None or an integer >= 1, got {block!r}")
-        if self.trajectory_threshold is not None:
-            object.__setattr__(
-                self,
-                "trajectory_threshold",
-                positive("trajectory_threshold", self.trajectory_threshold),
-            )
-
-    @property
-    def bins(self) -> LogBins:
-        """The separation bins."""
-        return LogBins(self.r_min, self.r_max, self.n_bins)
 
 
 @dataclass(frozen=True, eq=False)

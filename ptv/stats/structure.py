@@ -22,13 +22,14 @@ from typing import Literal
 
 import numpy as np
 
+from ptv.bins import LogBins
 from ptv.stats.multidt import (
     fit_multi_dt,
     fit_multi_dt_bootstrap,
     select_dt,
     usable_bootstrap_bins,
 )
-from ptv.stats.pairs import LogBins, PairSums, pair_sums
+from ptv.stats.pairs import PairSums, pair_sums
 from ptv.stats.snapshots import SnapshotSums
 
 __all__ = [

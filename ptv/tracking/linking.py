@@ -553,7 +553,7 @@ class RecordingTracks:
     tracks : Tracks
         Every matched point of every frame, with its track.
     radius, predicted_radius : float
-        The search radii used (:func:`ptv.tracking.recording.track_radii`), m.
+        The search radii used (:func:`ptv.pipeline.time_resolved.track_radii`), m.
     gap : int
         Missed frames a track could close (:func:`track_frames`).
     joins : int
@@ -562,7 +562,7 @@ class RecordingTracks:
     miss_noise : float or None
         The noise of the first pass's predictions, m (None with too few of them); twice
         it sets the second pass's radius where that is below the settings' noise
-        (:func:`ptv.tracking.recording.track_points`).
+        (:func:`ptv.pipeline.time_resolved.track_points`).
     """
 
     numbers: np.ndarray

@@ -42,6 +42,9 @@ class ParticleLighting:
     cutoff : float
         Particles further than ``cutoff`` e⁻² half-widths from the sheet centre are dark;
         under a top-hat sheet, also those outside its slab (beyond one half-width).
+    aperture : ((float, float), (float, float)) or None
+        The X and Y ranges, m, outside which particles are dark too (a volume lit through
+        a rectangular aperture); None (default): a sheet, lit across all X and Y.
 
     Examples
     --------
@@ -62,12 +65,19 @@ class ParticleLighting:
     electrons_at_reference: float = 6000.0
     wavelength: float = 532e-9
     cutoff: float = 2.0
+    aperture: tuple[tuple[float, float], tuple[float, float]] | None = None
 
     def __post_init__(self) -> None:
         for name in ("particle_diameter", "electrons_at_reference", "wavelength", "cutoff"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be > 0, got {value!r}")
+        if self.aperture is not None:
+            ranges = np.asarray(self.aperture, dtype=float)
+            if ranges.shape != (2, 2) or not np.isfinite(ranges).all():
+                raise ValueError(f"aperture must be ((x0, x1), (y0, y1)), m, got {self.aperture!r}")
+            if not (ranges[:, 0] < ranges[:, 1]).all():
+                raise ValueError(f"aperture ranges must increase, got {self.aperture!r}")
 
     def lit(self, z: np.ndarray) -> np.ndarray:
         """Whether particles at world Z (shape (N,), m) are lit (``cutoff``)."""
@@ -75,6 +85,16 @@ class ParticleLighting:
         if self.sheet.profile == "top-hat":
             reach = min(reach, self.sheet.half_width)
         return np.abs(z - self.sheet.center) <= reach
+
+    def lit_at(self, positions: np.ndarray) -> np.ndarray:
+        """Whether particles at world positions (shape (N, 3), m) are lit: by the sheet
+        (:meth:`lit`) and inside the ``aperture``."""
+        positions = np.asarray(positions, dtype=float).reshape(-1, 3)
+        lit = self.lit(positions[:, 2])
+        if self.aperture is not None:
+            for axis, (low, high) in enumerate(self.aperture):
+                lit &= (positions[:, axis] >= low) & (positions[:, axis] <= high)
+        return lit
 
 
 def rig_lighting(lighting: ParticleLighting, rig: "Rig") -> ParticleLighting:
@@ -92,7 +112,8 @@ def rig_lighting(lighting: ParticleLighting, rig: "Rig") -> ParticleLighting:
     ParticleLighting
         ``lighting`` itself for the default ``"gaussian"`` profile; for ``"top-hat"``,
         ``lighting`` with a top-hat sheet over the rig's sheet (centre and half its
-        thickness), lit uniformly through its depth.
+        thickness) and its aperture over the sheet's width and height: the rig's sheet
+        is a volume lit uniformly, and dark outside.
 
     Examples
     --------
@@ -106,15 +127,21 @@ def rig_lighting(lighting: ParticleLighting, rig: "Rig") -> ParticleLighting:
     LaserSheet(center=0.0, half_width=0.015, profile='top-hat')
     >>> lighting.lit(np.array([0.0, 0.014, 0.016]))  # particles at these Z (m)
     array([ True,  True, False])
+    >>> lighting.aperture  # and at these X and Y (m)
+    ((-0.01, 0.01), (-0.0125, 0.0125))
+    >>> lighting.lit_at(np.array([[0.0, 0.0, 0.0], [0.011, 0.0, 0.0]]))
+    array([ True, False])
     """
     if rig.sheet_profile == "gaussian":
         return lighting
+    centre, size = rig.sheet.centre, rig.sheet.size
     sheet = LaserSheet(
-        center=float(rig.sheet.centre[2]),
-        half_width=0.5 * float(rig.sheet.size[2]),
-        profile=rig.sheet_profile,
+        center=float(centre[2]), half_width=0.5 * float(size[2]), profile=rig.sheet_profile
     )
-    return replace(lighting, sheet=sheet)
+    aperture = tuple(
+        (float(centre[a] - 0.5 * size[a]), float(centre[a] + 0.5 * size[a])) for a in (0, 1)
+    )
+    return replace(lighting, sheet=sheet, aperture=aperture)
 
 
 @dataclass(frozen=True)
@@ -229,7 +256,7 @@ def record_particles(
     if positions.ndim != 2 or positions.shape[1] != 3 or not np.isfinite(positions).all():
         raise ValueError(f"positions must be finite with shape (P, 3), got {positions.shape}")
     lens = camera.lens
-    lit = lighting.lit(positions[:, 2])
+    lit = lighting.lit_at(positions)
     xy = np.full((len(positions), 2), np.nan)
     sigma = np.full(len(positions), np.nan)
     electrons = np.zeros(len(positions))

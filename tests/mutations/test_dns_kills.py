@@ -4,16 +4,16 @@ flow spun up twice: 3 min on two cores shared with other work).
 
 The run's checks are computed as ``synptv run`` computes them
 (:mod:`validation.run.dns_checks`) from what its flow stage writes
-(:func:`simulator.dns.flow.build_stationary_field`) and from tracers followed with the
-flow from every snapshot over dns-ci's Δt set (:class:`simulator.dns.flow.DnsTracerFlow`),
-seeded in the whole box.
+(:func:`simulator.dns.stationary_flow.build_stationary_field`) and from tracers followed
+with the flow from every snapshot over dns-ci's Δt set
+(:class:`simulator.dns.stationary_flow.DnsTracerFlow`), seeded in the whole box.
 """
 
 import numpy as np
 import pytest
 
 from simulator.dns.fieldfile import read_snapshot
-from simulator.dns.flow import (
+from simulator.dns.stationary_flow import (
     FIELD_FILE,
     DnsSpec,
     DnsTracerFlow,

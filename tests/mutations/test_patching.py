@@ -7,7 +7,7 @@ import validation.claims  # noqa: F401  (the modules the claims use, loaded befo
 from ptv.stats.dissipation import epsilon_estimate
 from validation.claims import CLAIMS
 from validation.mutations import MUTATIONS, mutation
-from validation.mutations.images import DETECTION, LINKING, MATCHING
+from validation.mutations.image_stack import DETECTION, LINKING, MATCHING
 from validation.mutations.patching import Patch, applied, edited
 
 NAMES = [m.name for m in MUTATIONS]

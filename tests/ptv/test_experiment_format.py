@@ -12,10 +12,10 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from ptv.detect import Detections
+from ptv.detect.frames import ImageDetector
 from ptv.io.dataset import DatasetError, open_dataset
-from ptv.io.experiment import DescriptionError, description_problems, read_experiment
+from ptv.io.experiment_file import DescriptionError, description_problems, read_experiment
 from ptv.io.images import ImageError, read_image
-from ptv.pipeline.frames import ImageDetector
 
 PARTICLES = {
     "cameras": {"cam1": {"image_size": [64, 48]}, "cam2": {"image_size": [64, 48]}},

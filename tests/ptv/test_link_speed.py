@@ -17,8 +17,9 @@ from ptv.pipeline.double_frame import (
     ambiguity_message,
     run_particles,
 )
-from ptv.pipeline.options import PipelineSettings, link_radius
+from ptv.pipeline.link_radii import link_radius
 from ptv.pipeline.resolve import settings_with_measured_speed
+from ptv.settings import PipelineSettings
 from ptv.tracking.link_speed import SPEED_SIGMAS, link_speed, nearest_spacing
 from ptv.tracking.linking import link
 

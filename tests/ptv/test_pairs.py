@@ -6,7 +6,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ptv.stats.pairs import LogBins, pair_sums
+from ptv.bins import LogBins
+from ptv.stats.pairs import pair_sums
 
 
 def brute_force(x, d, bins):

@@ -20,23 +20,23 @@ from scipy.spatial import cKDTree
 
 from ptv.calibration.grid_errors import nominal_positions
 from ptv.calibration.io import load_calibrations
+from ptv.detect.frames import ImageDetector
 from ptv.io.dataset import DatasetError, open_dataset
 from ptv.pipeline.double_frame import measure_snapshot, measure_snapshots, run_pipeline
-from ptv.pipeline.frames import ImageDetector
-from ptv.pipeline.options import PipelineSettings
 from ptv.pipeline.resolve import match_frame, resolve_matching
 from ptv.pipeline.results import load_runs, save_results
+from ptv.settings import ANALYSIS_VOLUME, PipelineSettings, StatisticsSettings
 from ptv.stats.links import RunParticles, shared_snapshots
 from ptv.stats.mean_displacement import shared_mean_displacement
 from ptv.stats.pairs import pair_sums
-from ptv.stats.run_statistics import ANALYSIS_VOLUME, StatisticsSettings, compute_statistics
+from ptv.stats.run_statistics import compute_statistics
 from ptv.tracking.outliers import median_test_outliers
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign
 from validation.dataset.calibrate import calibrate_dataset
-from validation.dataset.render import RenderSettings, write_dataset
-from validation.dataset.truth_file import TruthFile
+from validation.run.render_dataset import RenderSettings, write_dataset
+from validation.truth.truth_file import TruthFile
 
 SETTINGS = RenderSettings(frames=3, planes=3, particles=800)
 

@@ -8,16 +8,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ptv.pipeline.frames import DetectorSettings
-from ptv.pipeline.options import PipelineSettings
-from ptv.pipeline.settings import (
-    PtvSettings,
+from ptv.pipeline.settings_file import (
     SettingsError,
     load_settings,
     settings_from_dict,
     settings_toml,
 )
-from ptv.stats.run_statistics import StatisticsSettings
+from ptv.settings import DetectorSettings, PipelineSettings, PtvSettings, StatisticsSettings
 
 
 def test_the_printed_defaults_are_the_defaults():
@@ -113,7 +110,7 @@ def test_a_missing_or_broken_file_is_named(tmp_path):
 
 
 def test_min_cameras_tolerance_and_max_speed_left_out_follow_the_cameras_and_the_data():
-    from ptv.pipeline.options import default_min_cameras
+    from ptv.settings import default_min_cameras
 
     assert [default_min_cameras(n) for n in (2, 3, 4, 5, 6)] == [2, 2, 3, 4, 5]
     defaults = PipelineSettings()

@@ -1,4 +1,4 @@
-"""Two-pass linking of a recording's points (``ptv.tracking.recording.track_points``).
+"""Two-pass linking of a recording's points (``ptv.pipeline.time_resolved.track_points``).
 
 Particles on straight paths 2 mm apart, 40 µm a frame, with Gaussian noise of σ per
 component: the first pass's prediction misses give σ back, and the second pass links
@@ -8,8 +8,13 @@ with 2σ where that is below the settings' 30 µm, every particle in one track.
 import numpy as np
 import pytest
 
-from ptv.pipeline.options import PipelineSettings
-from ptv.tracking.recording import MISS_NOISE_FACTOR, prediction_noise, track_points, track_radii
+from ptv.pipeline.time_resolved import (
+    MISS_NOISE_FACTOR,
+    prediction_noise,
+    track_points,
+    track_radii,
+)
+from ptv.settings import PipelineSettings
 
 RATE = 4000.0
 FRAMES = 40

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from simulator.flow import draw_ks_field
+from simulator.ks_field import draw_ks_field
 from simulator.particles import (
     ANALYSIS_VOLUME,
     SHEET,

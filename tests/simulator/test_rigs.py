@@ -358,3 +358,33 @@ def test_the_sheet_profile_is_gaussian_unless_asked_and_checked():
         match=r"mine.toml: sheet.profile: expected one of gaussian, top-hat, got 'flat'",
     ):
         rig_from_dict(spec_of("paper-stereo", ("sheet", "profile"), "flat"), source="mine.toml")
+
+
+def test_a_plate_table_sets_the_plate_and_the_traverse_step():
+    rig = load_rig("lpt-challenge-small")
+    assert (rig.plate.pitch, rig.plate.dot_diameter, rig.plate.mark_diameter) == (
+        0.0025,
+        0.001,
+        0.0016,
+    )
+    assert (rig.plate.columns, rig.plate.rows, rig.plane_spacing) == (13, 13, 0.005)
+    default = load_rig("paper-stereo")
+    assert (default.plate.pitch, default.plate.columns, default.plane_spacing) == (5e-3, 21, 1e-3)
+
+
+@pytest.mark.parametrize(
+    ("plate", "message"),
+    [
+        ({"pitch": 0.0}, r"plate\.pitch: must be from"),
+        ({"columns": 4}, r"plate\.columns: expected an integer from 5"),
+        ({"columns": 2.5}, r"plate\.columns: expected an integer"),
+        ({"dot_diameter": 0.004}, r"plate: need dot_diameter < mark_diameter < pitch"),
+        ({"plane_spacing": -1e-3}, r"plate\.plane_spacing: must be from"),
+        ({"spacing": 1e-3}, r"plate: unknown field 'spacing'"),
+    ],
+)
+def test_a_bad_plate_table_is_named(plate, message):
+    spec = preset_spec("paper-stereo")
+    spec["plate"] = plate
+    with pytest.raises(RigFileError, match=message):
+        rig_from_dict(spec, source="mine.toml")

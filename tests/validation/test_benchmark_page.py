@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from validation.cli import main
-from validation.dataset.truth_file import TruthFile
+from validation.truth.truth_file import TruthFile
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "benchmark-your-code.md"
 #: The page's render sizes, and the test's: the paper-stereo rig with 16 times fewer

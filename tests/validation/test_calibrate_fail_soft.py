@@ -6,14 +6,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-import ptv.calibration.experiment as experiment
-from ptv.calibration.experiment import CameraCalibrationError
+import ptv.calibration.plate_images as experiment
+from ptv.calibration.plate_images import CameraCalibrationError
 from ptv.rays import Rays
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.dataset.calibrate import calibrate_dataset
-from validation.dataset.render import RenderSettings, write_dataset
-from validation.report.run_report import _tsai_note
+from validation.run.render_dataset import RenderSettings, write_dataset
+from validation.run.run_report import _tsai_note
 from validation.run.scenario import RigSection, load_scenario
 from validation.run.verdict import failed_rung_checks, verdict, verdict_line
 

@@ -13,7 +13,8 @@ import ptv.stats.pairs as pairs
 import validation.claims.rendered_case as rendered_case
 from simulator.presets import flow_preset
 from simulator.spectra import C_KOLMOGOROV
-from validation.claims import CLAIMS, ClaimContext, dt3_gamma, run_claims
+from validation.claims import CLAIMS, ClaimContext, run_claims
+from validation.truth.dt3_bias import dt3_gamma
 
 CALIBRATION = [c.id for c in CLAIMS if c.id.startswith("calib.")]
 

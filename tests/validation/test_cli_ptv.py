@@ -13,18 +13,17 @@ import pytest
 from scipy.spatial import cKDTree
 
 from ptv.calibration.io import load_calibrations, read_calibrated_volume, save_calibrations
-from ptv.pipeline.options import PipelineSettings
-from ptv.pipeline.settings import PtvSettings
-from ptv.tracking.recording import MISS_NOISE_FACTOR
+from ptv.pipeline.time_resolved import MISS_NOISE_FACTOR
+from ptv.settings import PipelineSettings, PtvSettings
 from simulator.particles import Box
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.cli import main
 from validation.commands.ptv import with_derived_volumes
 from validation.dataset.calibrate import calibrate_dataset
-from validation.dataset.render import RenderSettings, particle_job, write_dataset
 from validation.report.ptv_figures import FIGURE_FILES
 from validation.run.particle_chunks import particle_path, render_chunk
+from validation.run.render_dataset import RenderSettings, particle_job, write_dataset
 from validation.score.track_file import read_tracks
 
 SETTINGS = RenderSettings(frames=2, planes=3, particles=600, n_modes=80, seed=5)
@@ -400,7 +399,7 @@ def test_tracks_link_every_frame_of_a_recording(dataset, recording, tmp_path, ca
     assert t["points"] == len(rows) and t["frames"] == [0, FRAMES - 1]
     assert summary["settings"]["max_acceleration"] == 400.0
     # The prediction's radius follows the noise the first pass's tracks show, where that
-    # is below the settings' 30 µm (ptv.tracking.recording.track_points).
+    # is below the settings' 30 µm (ptv.pipeline.time_resolved.track_points).
     noise = min(30e-6, MISS_NOISE_FACTOR * t["miss_noise"])
     assert t["predicted_radius"] == pytest.approx(400.0 / FRAME_RATE**2 + 5 * 6**0.5 * noise)
     # Against the truth: each point's nearest true particle (after the small offset of

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from ptv.stats.pairs import LogBins, pair_sums
+from ptv.bins import LogBins
+from ptv.stats.pairs import pair_sums
 from validation.claims.conventions import _pair_reference
 from validation.claims.formation import _contaminated_range
 from validation.truth.independent import log_edges

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 import tifffile
 
-from ptv.io.experiment import description_problems
+from ptv.io.experiment_file import description_problems
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.cli import main
-from validation.dataset.render import RenderSettings, write_dataset
+from validation.run.render_dataset import RenderSettings, write_dataset
 
 SETTINGS = RenderSettings(frames=1, planes=2, particles=200, n_modes=60, seed=3)
 
@@ -179,7 +179,7 @@ def test_calibrate_command_finds_every_dot_and_scores_against_nominal_and_truth(
 
 
 def test_png_plates_under_their_own_pattern_calibrate_as_the_tiff_ones(dataset, tmp_path):
-    from ptv.calibration.experiment import find_traverse_dots, plate_setup
+    from ptv.calibration.plate_images import find_traverse_dots, plate_setup
 
     out, _ = dataset
     copy = tmp_path / "png"
@@ -201,7 +201,7 @@ def test_png_plates_under_their_own_pattern_calibrate_as_the_tiff_ones(dataset, 
 
 def test_plate_images_numbered_in_any_way_are_listed_one_per_plane(dataset, tmp_path):
     # Planes numbered 01 and 11, as a lab's traverse names them: no {j} pattern holds them.
-    from ptv.calibration.experiment import plate_setup
+    from ptv.calibration.plate_images import plate_setup
 
     out, _ = dataset
     listed = tmp_path / "listed"
@@ -220,7 +220,7 @@ def test_plate_images_numbered_in_any_way_are_listed_one_per_plane(dataset, tmp_
 
 
 def test_a_local_threshold_finds_the_same_dots_as_the_global_one(dataset, tmp_path):
-    from ptv.calibration.experiment import find_traverse_dots, plate_setup
+    from ptv.calibration.plate_images import find_traverse_dots, plate_setup
 
     out, _ = dataset
     local = tmp_path / "local"
@@ -275,7 +275,7 @@ def test_methods_the_traverse_cannot_fit_are_refused_before_any_dot_search(
 
 
 def test_a_method_that_fails_leaves_no_calibration_file(dataset, capsys, tmp_path, monkeypatch):
-    import ptv.calibration.experiment as module
+    import ptv.calibration.plate_images as module
 
     def fails_for_tsai(method, planes, sheet):
         if method == "tsai":

@@ -25,22 +25,22 @@ def test_the_slow_flow_gets_ranges_from_its_eta_and_integral_length(tmp_path):
     width, height, thickness = load_rig("box-4cam").sheet.size
     assert np.allclose(scenario.ptv.analysis_volume, (0.7 * width, 0.7 * height, 0.8 * thickness))
     r_max = min(0.35 * min(width, height), l_int)  # half the volume's smaller side: 35 mm
-    assert np.allclose(scenario.ptv.r_range, (10 * eta, r_max))
+    assert np.allclose((scenario.ptv.r_min, scenario.ptv.r_max), (10 * eta, r_max))
     assert np.allclose(scenario.ptv.plateau, (40 * eta, min(l_int / 2, 0.6 * r_max)))
     assert scenario.ptv.max_speed is None and scenario.ptv.min_cameras is None
 
 
 def test_given_ranges_are_kept(tmp_path):
-    body = SLOW_FLOW + "[ptv]\nr_range = [1.0e-3, 30.0e-3]\nplateau = [5.0e-3, 15.0e-3]\n"
+    body = SLOW_FLOW + "[ptv]\nr_min = 1.0e-3\nr_max = 30.0e-3\nplateau = [5.0e-3, 15.0e-3]\n"
     scenario = load_scenario(write(tmp_path, body))
-    assert scenario.ptv.r_range == (1e-3, 30e-3)
+    assert (scenario.ptv.r_min, scenario.ptv.r_max) == (1e-3, 30e-3)
     assert scenario.ptv.plateau == (5e-3, 15e-3)
 
 
 def test_the_paper_scenarios_keep_the_paper_ranges():
     for name in ("default", "ci", "paper-8hz", "paper-10hz", "paper-12hz"):
         ptv = load_scenario(name).ptv
-        assert (ptv.analysis_volume, ptv.r_range, ptv.plateau) == (
+        assert (ptv.analysis_volume, (ptv.r_min, ptv.r_max), ptv.plateau) == (
             (0.07, 0.07, 0.008),
             (0.5e-3, 35e-3),
             (2e-3, 20e-3),
@@ -49,7 +49,8 @@ def test_the_paper_scenarios_keep_the_paper_ranges():
 
 def test_a_dns_must_give_its_ranges(tmp_path):
     body = '[flow]\nkind = "dns"\nepsilon = 1.0e-4\ngrid = 64\ndt_tau_eta = [0.05, 0.1]\n'
-    with pytest.raises(ScenarioError, match=r"ptv.r_range and ptv.plateau: a DNS must give"):
+    missing = r"ptv.r_min and ptv.r_max and ptv.plateau: a DNS must give"
+    with pytest.raises(ScenarioError, match=missing):
         load_scenario(write(tmp_path, body))
 
 
@@ -59,14 +60,16 @@ def test_a_field_file_keeps_the_paper_ranges_with_a_warning(caplog):
     scenario = load_scenario("default")
     with caplog.at_level(logging.WARNING):
         derived = derive_ptv_ranges(scenario, set(), (0.1, 0.1, 0.01), None, "f.toml")
-    assert derived.ptv.r_range == (0.5e-3, 35e-3) and derived.ptv.plateau == (2e-3, 20e-3)
-    assert "ptv.r_range = 0.5–35 mm is the paper flow's default, not derived" in caplog.text
+    assert (derived.ptv.r_min, derived.ptv.r_max) == (0.5e-3, 35e-3)
+    assert derived.ptv.plateau == (2e-3, 20e-3)
+    assert "ptv.r_max = 35 mm is the paper flow's default, not derived" in caplog.text
+    assert "ptv.plateau = 2–20 mm is the paper flow's default, not derived" in caplog.text
 
 
 def test_a_flow_whose_range_comes_out_empty_is_refused(tmp_path):
     # η = 2.8 mm: 40η = 113 mm, beyond the 35 mm the sheet's analysis volume holds
     body = "[flow]\nu_rms = 0.01\nepsilon = 1.0e-8\nnu = 1.0e-5\ndt_tau_eta = [0.05, 0.1]\n"
-    with pytest.raises(ScenarioError, match=r"ptv\.r_range derived from the flow"):
+    with pytest.raises(ScenarioError, match=r"ptv\.r_min and ptv\.r_max derived from the flow"):
         load_scenario(write(tmp_path, body))
 
 

@@ -8,8 +8,8 @@ import pytest
 from scipy.linalg import expm
 
 from validation.run import dns_checks
-from validation.run.tolerances import false_alarm_z
 from validation.run.verdict import dns_rows
+from validation.score.tolerances import false_alarm_z
 
 EPSILON = 1e-5
 #: The honest flux at 10η on dns-ci, m²/s³.

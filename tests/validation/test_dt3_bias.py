@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ptv.stats.pairs import LogBins
+from ptv.bins import LogBins
 from simulator.particles import Box, ParticleSnapshots
 from validation.truth.dt3_bias import c1_bias
 

@@ -266,7 +266,7 @@ def myptv_projection(path: Path, points_mm: np.ndarray) -> np.ndarray:
 def test_myptv_camera_files_project_like_the_rigs_pinhole(myptv, dataset):
     """The camera guesses are the rig cameras' pinholes (pupil, rotation, image distance,
     principal point), checked against OpenCV's projection of the rig's cameras."""
-    from validation.dataset.truth_file import TruthFile
+    from validation.truth.truth_file import TruthFile
 
     rig = TruthFile(dataset).rig
     points = np.random.default_rng(1).uniform([-40, -40, -5], [40, 40, 5], (50, 3))

@@ -14,10 +14,10 @@ import tifffile
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.cli import main
-from validation.dataset.recording import RecordingPlan, build_recording_dataset, sequence_folder
-from validation.dataset.render import RenderSettings, ks_flow
 from validation.export.openptv import NOISE_GUESS_PX
 from validation.run.experiment import object_pixel
+from validation.run.render_dataset import RenderSettings, ks_flow
+from validation.run.render_recording import RecordingPlan, build_recording_dataset, sequence_folder
 
 FRAMES = 12
 FIRST_NUMBER = 10001

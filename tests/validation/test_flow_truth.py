@@ -3,10 +3,11 @@
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ptv.settings import StatisticsSettings
 from ptv.stats.pairs import pair_sums
-from ptv.stats.run_statistics import S2Population, StatisticsSettings
-from validation.dataset.truth_file import TruthRun
-from validation.truth.flow import population_truth
+from ptv.stats.run_statistics import S2Population
+from validation.truth.flow_truth import population_truth
+from validation.truth.truth_file import TruthRun
 
 SETTINGS = StatisticsSettings(r_min=1e-3, r_max=30e-3, n_bins=8)
 DT = (1e-4, 3e-4)

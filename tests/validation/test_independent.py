@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
+from ptv.bins import LogBins
 from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
-from ptv.stats.pairs import LogBins, pair_sums
+from ptv.stats.pairs import pair_sums
 from simulator.presets import flow_preset
 from simulator.spectra import PopeSpectrum
 from simulator.truth import longitudinal_structure_function

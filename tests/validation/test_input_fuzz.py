@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
 from validation.cli import main
-from validation.dataset.render import RenderSettings, write_dataset
+from validation.run.render_dataset import RenderSettings, write_dataset
 
 FUZZ = settings(
     max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
@@ -194,7 +194,7 @@ def test_run_refuses_any_bytes_as_a_scenario_file_in_one_line(data, capsys):
 @FUZZ
 @given(spec=spoilt(RIG))
 def test_render_accepts_or_refuses_any_rig_file(spec, capsys):
-    with _workspace() as root, mock.patch("validation.dataset.render.write_dataset", _stop):
+    with _workspace() as root, mock.patch("validation.run.render_dataset.write_dataset", _stop):
         path = root / "rig.toml"
         path.write_text(to_toml(spec))
         argv = ["render", "--rig", str(path), "--out", str(root / "out"), "--quiet"]
@@ -235,7 +235,7 @@ def test_calibrate_accepts_or_refuses_any_experiment_json(small_dataset, data, c
     spec = data.draw(spoilt(json.loads((small_dataset / "experiment.json").read_text())))
     with (
         _dataset_with(small_dataset, spec) as (root, copy),
-        mock.patch("ptv.calibration.experiment.find_dots", _stop),
+        mock.patch("ptv.calibration.plate_images.find_dots", _stop),
     ):
         argv = ["calibrate", "--dataset", str(copy), "--out", str(root / "cal"), "--quiet"]
         assert_accepted_or_refused_in_one_line(argv, copy / "experiment.json", root, capsys)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ptv.stats.pairs import LogBins
+from ptv.bins import LogBins
 from ptv.stats.structure import time_resolved_sums
 from simulator.presets import flow_preset
 from simulator.spectra import C_KOLMOGOROV, KolmogorovBandSpectrum

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
+from ptv.bins import LogBins
 from ptv.stats.multidt import wls_line
-from ptv.stats.pairs import LogBins
 from validation.run.checks import C2_MARGIN, _c2_check, c2_margin
-from validation.run.noise_prediction import NoisePrediction, predicted_noise
+from validation.score.noise_prediction import NoisePrediction, predicted_noise
 
 BINS = LogBins(1e-4, 1e-2, 4)
 BOX = (0.07, 0.07, 0.008)

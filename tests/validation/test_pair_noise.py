@@ -5,7 +5,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ptv.stats.pairs import LogBins
+from ptv.bins import LogBins
 from validation.truth import pair_noise
 from validation.truth.pair_noise import PairNoiseSums
 

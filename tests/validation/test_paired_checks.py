@@ -7,7 +7,7 @@ import pytest
 from scipy.stats import norm, t
 
 from validation.run.checks import EPSILON_METHOD, U_PRIME_METHOD, compare_variant
-from validation.run.tolerances import false_alarm_z, paired_ratio, pairs_with, snapshot_dof
+from validation.score.tolerances import false_alarm_z, paired_ratio, pairs_with, snapshot_dof
 
 R = 400
 EPS = 0.13

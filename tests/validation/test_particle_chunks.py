@@ -7,14 +7,20 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from ptv.detect.frames import ImageDetector
 from ptv.detect.store import DetectionStore, write_index
 from ptv.io.dataset import open_dataset
-from ptv.pipeline.frames import DetectorSettings, ImageDetector
+from ptv.settings import DetectorSettings
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
-from validation.dataset.render import DetectionOutput, RenderSettings, build_dataset, particle_job
-from validation.dataset.truth_file import TruthFile
 from validation.run.particle_chunks import render_chunk, snapshot_chunks
+from validation.run.render_dataset import (
+    DetectionOutput,
+    RenderSettings,
+    build_dataset,
+    particle_job,
+)
+from validation.truth.truth_file import TruthFile
 
 SETTINGS = RenderSettings(frames=4, planes=2, particles=300, n_modes=60, seed=11)
 DETECTOR = DetectorSettings(saturation=4095.0)
@@ -79,14 +85,16 @@ def test_detections_in_memory_are_those_of_the_written_images(tmp_path):
 
 
 def test_a_chunk_of_a_rig_lit_through_its_depth_has_its_lit_particles_all_equally_bright():
-    """A rig whose [sheet] asks for the top-hat profile lights its particles with it, and a
-    rig that does not keeps the settings' own lighting."""
+    """A rig whose [sheet] asks for the top-hat profile lights the particles of its volume
+    (its sheet in X and Y too) with it, and a rig that does not keeps the settings' own
+    lighting."""
     job = particle_job(load_rig("lpt-challenge-small"), flow_preset("lem-10hz"), SETTINGS)
     assert job.lighting.sheet.profile == "top-hat" and job.lighting.sheet.half_width == 0.015
     chunk = render_chunk((0, 1), job=job)
     positions = chunk.truth[0].positions[0, 0]
     plain = particle_job(load_rig("paper-stereo"), flow_preset("lem-10hz"), SETTINGS)
     assert plain.lighting is SETTINGS.lighting
-    assert (np.abs(positions[:, 2]) > 0.015).any()  # some in the padding, dark
+    inside = (np.abs(positions) <= [0.010, 0.0125, 0.015]).all(axis=1)  # the lit volume
+    assert not inside.all()  # some in the padding, dark
     visible = chunk.truth[0].visible["cam1"][0, 0]
-    np.testing.assert_array_equal(visible, np.abs(positions[:, 2]) <= 0.015)
+    np.testing.assert_array_equal(visible, inside)

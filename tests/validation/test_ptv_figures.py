@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from ptv.pipeline.double_frame import PtvResult
-from ptv.pipeline.options import PipelineSettings
+from ptv.settings import ANALYSIS_VOLUME, PipelineSettings, StatisticsSettings
 from ptv.stats.links import RunParticles
-from ptv.stats.run_statistics import ANALYSIS_VOLUME, StatisticsSettings, compute_statistics
+from ptv.stats.run_statistics import compute_statistics
 from validation.report.ptv_figures import (
     _loglog,
     epsilon_figure,

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from validation.cli import main
-from validation.dataset.recording_truth import read_recording_truth
+from validation.truth.recording_truth import read_recording_truth
 
 SCENARIO = """name = "tr-tiny"
 seed = 2

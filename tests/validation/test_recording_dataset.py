@@ -1,4 +1,4 @@
-"""Rendered recordings (``validation.dataset.recording``): a lab's dataset and its truth.
+"""Rendered recordings (``validation.run.render_recording``): a lab's dataset and its truth.
 
 A small recording (150 tracers in the paper-stereo sheet, 12 frames at τ_η/10, 3 plate
 planes) is rendered once. It must be what ``synptv ptv`` reads as a time-resolved
@@ -19,14 +19,14 @@ import tifffile
 from ptv.io.dataset import open_dataset
 from simulator.presets import flow_preset
 from simulator.rigs import load_rig
-from validation.dataset import recording as recording_module
-from validation.dataset.recording import (
+from validation.run import render_recording as recording_module
+from validation.run.render_dataset import RenderSettings, ks_flow
+from validation.run.render_recording import (
     RecordingPlan,
     build_recording_dataset,
     sequence_folder,
 )
-from validation.dataset.recording_truth import read_recording_truth
-from validation.dataset.render import RenderSettings, ks_flow
+from validation.truth.recording_truth import read_recording_truth
 
 FRAMES = 12
 

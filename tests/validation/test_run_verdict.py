@@ -3,7 +3,7 @@ built so that which check fails, and on which rung, is known from the constructi
 
 import pytest
 
-from validation.report.run_report import _checks_section
+from validation.run.run_report import _checks_section
 from validation.run.verdict import (
     BASELINE,
     UNDER_TEST,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ptv.stats.pairs import LogBins
+from ptv.bins import LogBins
 from simulator.particles import ANALYSIS_VOLUME, KSFlow, follow_snapshots
 from simulator.presets import flow_preset
 from simulator.spectra import KolmogorovBandSpectrum, PopeSpectrum

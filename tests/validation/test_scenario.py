@@ -1,8 +1,9 @@
 """Scenarios: presets load, dict round trip, errors that name file and field, rig paths."""
 
 import json
+import logging
 import shutil
-from dataclasses import replace
+from dataclasses import fields, replace
 from importlib import resources
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from ptv.settings import PipelineSettings, StatisticsSettings
 from simulator.rigs import load_rig
 from validation.run.scenario import (
     PtvSection,
@@ -76,7 +78,7 @@ def test_any_valid_scenario_round_trips_through_json(
             base.particles, count=count, electrons=electrons, shared_first_frame=shared
         ),
         sensor=replace(base.sensor, gain=gain),
-        ptv=replace(base.ptv, r_range=(r_low, r_low * r_ratio)),
+        ptv=replace(base.ptv, r_min=r_low, r_max=r_low * r_ratio),
     )
     assert json_round_trip(scenario) == scenario
 
@@ -84,9 +86,26 @@ def test_any_valid_scenario_round_trips_through_json(
 def test_missing_tables_and_fields_take_the_defaults(tmp_path):
     scenario = load_scenario(write(tmp_path / "minimal.toml", 'name = "minimal"\n'))
     assert scenario.seed == 0 and scenario.description == ""
-    derived = ("analysis_volume", "r_range", "plateau")  # tests/validation/test_derived_ptv.py
+    derived = ("analysis_volume", "r_min", "r_max", "plateau")  # test_derived_ptv.py
     assert replace(scenario.ptv, **{k: getattr(PtvSection(), k) for k in derived}) == PtvSection()
     assert json_round_trip(scenario) == scenario
+
+
+def test_the_ptv_table_names_its_settings_as_the_settings_do():
+    settings = {f.name for cls in (PipelineSettings, StatisticsSettings) for f in fields(cls)}
+    assert {f.name for f in fields(PtvSection)} - settings == {"methods"}
+
+
+def test_the_old_ptv_keys_are_read_under_their_new_names_with_a_warning(tmp_path, caplog):
+    body = 'name = "s"\n[ptv]\nr_range = [1.0e-3, 30.0e-3]\nbins = 12\n'
+    with caplog.at_level(logging.WARNING):
+        ptv = load_scenario(write(tmp_path / "s.toml", body)).ptv
+    assert (ptv.r_min, ptv.r_max, ptv.n_bins) == (1e-3, 30e-3, 12)
+    old = [r.getMessage() for r in caplog.records if "is an old name" in r.getMessage()]
+    assert [message.split(".toml: ")[1] for message in old] == [
+        "ptv.r_range is an old name, read as ptv.r_min and ptv.r_max: write that",
+        "ptv.bins is an old name, read as ptv.n_bins: write that",
+    ]
 
 
 def test_an_integer_is_accepted_for_a_float_field(tmp_path):
@@ -120,12 +139,14 @@ def test_an_integer_is_accepted_for_a_float_field(tmp_path):
         ("[particles]\nframes = 1\n", "particles.frames"),
         ("[particles]\ndiameter = 0.0\n", "particles.diameter"),
         ("[ptv]\nanalysis_volume = [0.07, 0.07]\n", "ptv.analysis_volume"),
-        ("[ptv]\nr_range = [35e-3, 0.5e-3]\n", "ptv.r_range"),
-        ("[ptv]\nr_range = [0.0, 35e-3]\n", "ptv.r_range"),
-        ("[ptv]\nr_range = [-1e-3, 35e-3]\n", "ptv.r_range"),
+        ("[ptv]\nr_min = 35e-3\nr_max = 0.5e-3\n", "ptv.r_min and ptv.r_max"),
+        ("[ptv]\nr_min = 0.0\n", "ptv.r_min and ptv.r_max"),
+        ("[ptv]\nr_min = -1e-3\n", "ptv.r_min and ptv.r_max"),
+        ("[ptv]\nr_range = [35e-3, 0.5e-3]\n", "ptv.r_min and ptv.r_max"),
         ("[ptv]\nplateau = [2e-3, 2e-3]\n", "ptv.plateau"),
-        ("[ptv]\nr_range = [1e-3]\n", "ptv.r_range"),
-        ('[ptv]\nr_range = ["0.5 mm", "35 mm"]\n', "ptv.r_range"),
+        ("[ptv]\nr_range = [1e-3]\n", "ptv.r_range must be a list of 2 numbers"),
+        ('[ptv]\nr_min = "0.5 mm"\n', "ptv.r_min"),
+        ("[ptv]\nr_range = [1e-3, 30e-3]\nr_max = 30e-3\n", "give ptv.r_max only"),
         ('[rig]\nname = "no-such-rig"\n', "rig.name"),
         ("[ptv]\nmethods = []\n", "ptv.methods"),
         ("[checks]\nc1_r_min_eta = 0.0\n", "checks.c1_r_min_eta"),
@@ -133,16 +154,16 @@ def test_an_integer_is_accepted_for_a_float_field(tmp_path):
         ("[ptv]\nmax_speed = 0.0\n", "max_speed"),
         ("[particles]\nelectrons = inf\n", "particles.electrons"),
         ("[particles]\ndiameter = nan\n", "particles.diameter"),
-        ("[ptv]\nr_range = [0.5e-3, inf]\n", "ptv.r_range"),
+        ("[ptv]\nr_max = inf\n", "ptv.r_max"),
         ("[particles]\ncount = 1_000_000_000\n", "particles.count"),
         ("[particles]\nframes = 100_000_000\n", "particles.frames"),
         ("[flow]\nmodes = 10_000_000\n", "flow.modes"),
         ("[ptv]\nmin_cameras = 1\n", "ptv.min_cameras"),
         ("[ptv]\nmin_cameras = 3\n", "ptv.min_cameras"),
         ("[ptv]\nmin_cameras = 2.5\n", "min_cameras"),
-        ("[ptv]\nr_range = [0.5e-3, 0.2]\n", "ptv.r_range reaches 200 mm, beyond the 99.32 mm"),
+        ("[ptv]\nr_max = 0.2\n", "ptv.r_max reaches 200 mm, beyond the 99.32 mm"),
         ("[ptv]\nplateau = [2e-3, 0.15]\n", "ptv.plateau reaches 150 mm"),
-        ("[ptv]\nr_range = [2e-5, 35e-3]\n", "ptv.r_range starts at 0.02 mm, below the flow's"),
+        ("[ptv]\nr_min = 2e-5\n", "ptv.r_min starts at 0.02 mm, below the flow's"),
         ("[ptv]\nplateau = [1e-5, 20e-3]\n", "ptv.plateau starts at 0.01 mm, below"),
         ("[ptv]\ntolerance = 0.0\n", "tolerance must be a finite number > 0"),
         ("[ptv]\nmax_speed = -1.5\n", "max_speed must be a finite number > 0"),

@@ -8,7 +8,7 @@ import pytest
 from validation.run.scenario import ScenarioError, load_scenario, scenario_from_dict
 
 DNS = {"kind": "dns", "epsilon": 1e-5, "grid": 64, "dt_tau_eta": [0.1, 0.2]}
-PTV = {"r_range": [1e-3, 25e-3], "plateau": [2e-3, 20e-3]}
+PTV = {"r_min": 1e-3, "r_max": 25e-3, "plateau": [2e-3, 20e-3]}
 
 
 def scenario(flow: dict, ptv: dict = PTV):
@@ -41,14 +41,14 @@ def test_a_ks_flow_is_written_as_before_without_its_kind():
         ({"file": "f.h5"}, PTV, "flow.file is not a field of a 'dns' flow"),
         (
             {},
-            {**PTV, "r_range": [1e-3, 35e-3]},
-            "ptv.r_range reaches 35 mm, beyond half the DNS box",
+            {**PTV, "r_max": 35e-3},
+            "ptv.r_max reaches 35 mm, beyond half the DNS box",
         ),
-        ({}, {}, "ptv.r_range and ptv.plateau: a DNS must give them"),
+        ({}, {}, "ptv.r_min and ptv.r_max and ptv.plateau: a DNS must give them"),
         (
             {},
-            {"r_range": [0.5e-3, 25e-3], "plateau": [2e-3, 20e-3]},
-            "ptv.r_range starts at 0.5 mm, below the flow's Kolmogorov length",
+            {"r_min": 0.5e-3, "r_max": 25e-3, "plateau": [2e-3, 20e-3]},
+            "ptv.r_min starts at 0.5 mm, below the flow's Kolmogorov length",
         ),
     ],
 )

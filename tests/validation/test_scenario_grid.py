@@ -55,7 +55,8 @@ count = 200
 frames = 3
 [ptv]
 methods = ["model-free"]
-r_range = [1.0e-3, {r_max}]
+r_min = 1.0e-3
+r_max = {r_max}
 plateau = [2.0e-3, 10.0e-3]
 [calibration]
 methods = ["model-free"]
@@ -72,7 +73,7 @@ def test_the_file_is_found_beside_the_scenario_and_gives_the_flow(tmp_path):
     flow = grid_run_flow(scenario.flow, scenario.particles.frames)
     assert flow.scales["box_side"] == BOX and flow.scales["file_snapshots"] == 6
     # the run's 3 snapshots spread over the file, each leaving room for the largest Δt
-    starts = flow.dataset.tracers.starts
+    starts = flow.tracers.starts
     assert starts[0] == 0.0 and starts[-1] + flow.preset.dt[-1] == pytest.approx(TIMES[-1])
     assert len(flow.inputs["sha256"]) == 64
 

@@ -5,7 +5,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from validation.score.report import score_figure
+from validation.report.score_report import score_figure
 
 
 def _result(ratio):

@@ -5,12 +5,12 @@ import json
 import numpy as np
 import pytest
 
-from ptv.pipeline.options import PipelineSettings
+from ptv.settings import PipelineSettings
 from simulator.rigs import load_rig
-from validation.dataset.truth_file import TruthFile, TruthRun, TruthWriter
 from validation.report.sheet_region_table import sheet_region_table
 from validation.truth.matching import score_matching
 from validation.truth.sheet_regions import SheetRegions, region_counts, region_table
+from validation.truth.truth_file import TruthFile, TruthRun, TruthWriter
 
 #: A 100 × 100 × 10 mm sheet, a plate as wide over a traverse of ±6 mm, three cameras.
 REGIONS = SheetRegions(

@@ -15,7 +15,7 @@ def _tiny_dns():
     settings["name"] = "dns-tiny"
     settings["flow"]["grid"] = 32
     settings["particles"].update(count=400, frames=3)
-    settings["ptv"].update(r_range=[1e-3, 12e-3], plateau=[2e-3, 10e-3], n_boot=20, bins=8)
+    settings["ptv"].update(r_min=1e-3, r_max=12e-3, plateau=[2e-3, 10e-3], n_boot=20, n_bins=8)
     return scenario_from_dict(settings)
 
 

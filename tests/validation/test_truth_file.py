@@ -4,7 +4,7 @@ unreadable file starts again, and what is read back is what was written."""
 import h5py
 import numpy as np
 
-from validation.dataset.truth_file import TruthRun, TruthWriter
+from validation.truth.truth_file import TruthRun, TruthWriter
 
 CAMERAS = ("cam1",)
 

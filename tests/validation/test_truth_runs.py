@@ -5,7 +5,7 @@ from functools import reduce
 import numpy as np
 import pytest
 
-from ptv.stats.pairs import LogBins
+from ptv.bins import LogBins
 from validation.run.truth_rungs import NoiseSums
 
 BINS = LogBins(1e-4, 2e-2, 6)

@@ -2,12 +2,12 @@
 
 The audited objects (docs/claims.md §6):
 
-- every field of the settings the PTV stack reads: :class:`ptv.pipeline.options.
-  PipelineSettings` (matching, linking, the median test), :class:`ptv.pipeline.frames.
-  DetectorSettings` and :class:`ptv.stats.run_statistics.StatisticsSettings`;
-- the public module constants of the chain's code (``ptv.detect``, ``ptv.matching``,
-  ``ptv.tracking``, ``ptv.stats``, ``ptv.pipeline``) and of the renderer's image
-  formation (``simulator.render``).
+- every field of the settings the PTV stack reads (:mod:`ptv.settings`):
+  :class:`~ptv.settings.PipelineSettings` (matching, linking, the median test),
+  :class:`~ptv.settings.DetectorSettings` and :class:`~ptv.settings.StatisticsSettings`;
+- the public module constants of the chain's code (``ptv.settings``, ``ptv.bins``,
+  ``ptv.detect``, ``ptv.matching``, ``ptv.tracking``, ``ptv.stats``, ``ptv.pipeline``)
+  and of the renderer's image formation (``simulator.render``).
 
 Each entry says how it is perturbed: a tolerance or threshold ×0.5 and ×2, a physical
 constant or size ±10 %, a count ×0.5 and ×2, a choice of algorithm swapped for the
@@ -65,9 +65,9 @@ class Audited:
         return "." in self.target.partition(":")[2]
 
 
-_PIPE = "ptv.pipeline.options:PipelineSettings."
-_DET = "ptv.pipeline.frames:DetectorSettings."
-_STAT = "ptv.stats.run_statistics:StatisticsSettings."
+_PIPE = "ptv.settings:PipelineSettings."
+_DET = "ptv.settings:DetectorSettings."
+_STAT = "ptv.settings:StatisticsSettings."
 #: The claim of synptv run's default statistics (#49).
 _RUN = ("run",)
 _SHARED = "read with a shared first frame only; the claims' runs are one experiment per Δt"
@@ -157,8 +157,8 @@ AUDITED: tuple[Audited, ...] = (
     Audited("ptv.tracking.link_speed:CONVERGED", "tolerance"),
     Audited("ptv.tracking.link_speed:MAX_ITERATIONS", "count"),
     Audited("ptv.tracking.stitching:DROP_COST", "not run", (), reason=_RECORDING),
-    Audited("ptv.tracking.recording:MISS_NOISE_FACTOR", "not run", (), reason=_RECORDING),
-    Audited("ptv.tracking.recording:MIN_MISSES", "not run", (), reason=_RECORDING),
+    Audited("ptv.pipeline.time_resolved:MISS_NOISE_FACTOR", "not run", (), reason=_RECORDING),
+    Audited("ptv.pipeline.time_resolved:MIN_MISSES", "not run", (), reason=_RECORDING),
     Audited("ptv.tracking.fitting:SIGNIFICANCE", "not run", (), reason=_CLAIMED),
     Audited("ptv.tracking.fitting:FOURTH_DERIVATIVE_DEGREE", "not run", (), reason=_CLAIMED),
     Audited("ptv.tracking.fitting:OUTLIER_CHI2", "not run", (), reason=_CLAIMED),
@@ -173,13 +173,13 @@ AUDITED: tuple[Audited, ...] = (
     Audited("ptv.stats.mean_displacement:OFFSET_FALSE_ALARM", "not run", (), reason=_RATE),
     Audited("simulator.render.spot:SHEET_PROFILES", "not run", (), reason=_CHOICES),
     Audited("ptv.pipeline.double_frame:AMBIGUITY_WARNING", "not run", (), reason=_WARNING),
-    Audited("ptv.pipeline.frames:STILL_FRACTION", "not run", (), reason=_WARNING),
-    Audited("ptv.pipeline.frames:MIN_STILL_CHECK", "not run", (), reason=_WARNING),
+    Audited("ptv.detect.frames:STILL_FRACTION", "not run", (), reason=_WARNING),
+    Audited("ptv.detect.frames:MIN_STILL_CHECK", "not run", (), reason=_WARNING),
     Audited("ptv.pipeline.summary:THIN_MATCH_FRACTION", "not run", (), reason=_WARNING),
     Audited("ptv.pipeline.summary:FORMAT_NAME", "not run", (), reason=_FORMAT),
     Audited("ptv.pipeline.summary:FORMAT_VERSION", "not run", (), reason=_FORMAT),
-    Audited("ptv.pipeline.options:MEASUREMENT_VOLUME", "not run", (), reason=_ALIAS),
-    Audited("ptv.pipeline.settings:SECTIONS", "not run", (), reason=_FORMAT),
+    Audited("ptv.settings:MEASUREMENT_VOLUME", "not run", (), reason=_ALIAS),
+    Audited("ptv.pipeline.settings_file:SECTIONS", "not run", (), reason=_FORMAT),
     Audited("ptv.detect._groups:GROUP_DISTANCE_PX", "tolerance"),
     Audited("ptv.detect._groups:MAX_GROUP", "count"),
     Audited("ptv.detect._groups:PIECE_DISTANCES", "not run", (), reason="a schedule of distances"),
@@ -205,17 +205,17 @@ AUDITED: tuple[Audited, ...] = (
     ),
     Audited("ptv.detect._refine:HALF", "not run", (), reason=_COMPILED),
     Audited("ptv.detect._image:KERNEL_DTYPES", "not run", (), reason=_FLAGS),
-    Audited("ptv.detect.preprocess:BACKGROUND_REMOVALS", "not run", (), reason=_CHOICES),
+    Audited("ptv.settings:BACKGROUND_REMOVALS", "not run", (), reason=_CHOICES),
     *(
         Audited(f"ptv.detect.store:{name}", "not run", (), reason=_FORMAT)
         for name in ("FORMAT_NAME", "FORMAT_VERSION", "INDEX")
     ),
     Audited("ptv.stats.pairs:N_CHUNKS", "not run", (), reason=_WORK),
-    Audited("ptv.stats.pairs:BINNINGS", "not run", (), reason=_CHOICES),
-    Audited("ptv.stats.run_statistics:ANALYSIS_VOLUME", "not run", (), reason=_ALIAS),
+    Audited("ptv.bins:BINNINGS", "not run", (), reason=_CHOICES),
+    Audited("ptv.settings:ANALYSIS_VOLUME", "not run", (), reason=_ALIAS),
     Audited("ptv.stats.dissipation:NU_WATER", "not run", (), reason=_UNUSED_DEFAULT),
     Audited(
-        "ptv.stats.dissipation:DEFAULT_C2",
+        "ptv.settings:DEFAULT_C2",
         "not run",
         (),
         reason="taken as keyword defaults when the modules load; claim #12 pins C₂ = 2",

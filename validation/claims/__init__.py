@@ -16,9 +16,11 @@ particles crowd (:mod:`validation.claims.crowding`), two the conventions of a bi
 of Δt in files (:mod:`validation.claims.conventions`), and three the time-resolved
 stack's track fits and Lagrangian statistics on a short recording of exact trajectories
 measured with known noise (``tracks.*``, ``lagrangian.*``:
-:mod:`validation.claims.recording`). ``quick`` sizes run in CI (about a minute on an
-idle 2-core machine); ``full`` sizes take the sample sizes the tolerances were designed
-for.
+:mod:`validation.claims.fitted_tracks`), and two iterative particle reconstruction on
+dense images: its OTF measured on the images against the optics' specification, and what
+it finds (``ipr.*``: :mod:`validation.claims.ipr`). ``quick`` sizes run in CI (about a
+minute on an idle 2-core machine); ``full`` sizes take the sample sizes the tolerances
+were designed for.
 
 Not regressed here: the calibration claims on rendered plate images
 (``synptv calibrate`` and ``synptv run`` measure those; here dots are exact
@@ -32,13 +34,14 @@ from validation.claims.calibration import CALIBRATION_CLAIMS
 from validation.claims.context import CORRELATION_LENGTH, SIZES, ClaimContext, Sizes
 from validation.claims.conventions import CONVENTION_CLAIMS
 from validation.claims.crowding import CROWDING_CLAIMS
+from validation.claims.fitted_tracks import RECORDING_CLAIMS
 from validation.claims.formation import FORMATION_CLAIMS
-from validation.claims.images import IMAGE_CLAIMS
+from validation.claims.image_stack import IMAGE_CLAIMS
+from validation.claims.ipr import IPR_CLAIMS
 from validation.claims.optics import OPTICS_CLAIMS
-from validation.claims.recording import RECORDING_CLAIMS
 from validation.claims.run_statistics import RUN_STATISTICS_CLAIMS
 from validation.claims.spectrum import SPECTRUM_CLAIMS
-from validation.claims.statistics import FLOW_CLAIMS, STATISTICS_CLAIMS, dt3_gamma
+from validation.claims.statistics import FLOW_CLAIMS, STATISTICS_CLAIMS
 
 __all__ = [
     "CLAIMS",
@@ -48,7 +51,6 @@ __all__ = [
     "ClaimContext",
     "ClaimResult",
     "Sizes",
-    "dt3_gamma",
     "run_claims",
 ]
 
@@ -64,6 +66,7 @@ CLAIMS: tuple[Claim, ...] = (
     + CROWDING_CLAIMS
     + CONVENTION_CLAIMS
     + RECORDING_CLAIMS
+    + IPR_CLAIMS
 )
 
 
@@ -102,7 +105,7 @@ def run_claims(
     >>> import validation
     >>> from validation.claims import CLAIMS
     >>> len(CLAIMS), [claim.id for claim in CLAIMS[:3]]
-    (53, ['table3.arithmetic', 'flow.pope_spectrum', 'calib.model_free_beats_tsai_scheimpflug'])
+    (55, ['table3.arithmetic', 'flow.pope_spectrum', 'calib.model_free_beats_tsai_scheimpflug'])
     >>> ctx = validation.ClaimContext("quick")
     >>> results = validation.run_claims(ctx, ids=["flow.pope_spectrum", "optics.snell"])
     >>> [(r.id, r.passed) for r in results]

@@ -13,6 +13,7 @@ from simulator.spectra import KolmogorovBandSpectrum, PopeSpectrum
 from simulator.target import Imperfections, PlateDesign, build_plate, traverse_positions
 from validation.claims.crowded_scores import CrowdedScores, crowded_scores
 from validation.claims.formation_scores import FormationScores, formation_scores
+from validation.claims.ipr_scores import IprScores, ipr_scores
 from validation.claims.recorded_case import RecordedCase, record_case
 from validation.claims.recorded_scores import (
     LagrangianScores,
@@ -73,6 +74,8 @@ class Sizes:
         Tracers in the sheet of the recorded case of the track claims (#51–#53).
     recording_frames : int
         Its frames, τ_η/10 apart.
+    ipr_snapshots : int
+        Snapshots of the dense case of the reconstruction claims (#55, #56).
     """
 
     particles: int
@@ -82,6 +85,7 @@ class Sizes:
     image_snapshots: int = 3
     recording_particles: int = 500
     recording_frames: int = 60
+    ipr_snapshots: int = 1
 
 
 SIZES = {
@@ -93,6 +97,7 @@ SIZES = {
         image_snapshots=12,
         recording_particles=1000,
         recording_frames=120,
+        ipr_snapshots=3,
     ),
 }
 
@@ -293,6 +298,12 @@ class ClaimContext:
     def lagrangian(self) -> LagrangianScores:
         """The recorded case's Lagrangian statistics, noisy and noise-free."""
         return lagrangian_scores(self.recorded_case, seed=self.seed + 18)
+
+    @cached_property
+    def ipr(self) -> IprScores:
+        """The dense case's measured OTF and reconstruction against the truth (claims
+        #55, #56)."""
+        return ipr_scores(self.sizes.ipr_snapshots, seed=self.seed + 20)
 
     @cached_property
     def reference(self) -> BruteForceS2:

@@ -23,16 +23,17 @@ from scipy.spatial.distance import pdist
 
 from ptv.detect.store import DetectionStore, write_index
 from ptv.io.dataset import open_dataset
+from ptv.settings import StatisticsSettings
 from ptv.stats.links import RunParticles
-from ptv.stats.run_statistics import StatisticsSettings, compute_statistics
+from ptv.stats.run_statistics import compute_statistics
 from simulator.particles import ANALYSIS_VOLUME
 from simulator.rigs import load_rig
 from simulator.spectra import PopeSpectrum
 from validation.claims.base import Claim, ClaimResult, result
 from validation.claims.context import BINS, ClaimContext
-from validation.dataset.render import RenderSettings, build_dataset
-from validation.dataset.truth_file import TruthFile
+from validation.run.render_dataset import RenderSettings, build_dataset
 from validation.truth.independent import exact_dll, log_edges
+from validation.truth.truth_file import TruthFile
 
 #: The largest error a bin's r convention may put into a comparison of S2 with a model
 #: at that r: the size of bias the multi-Δt method exists to remove (docs/claims.md #47).

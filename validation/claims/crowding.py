@@ -12,7 +12,7 @@ apart from the stack.
 from validation.claims.base import Claim, ClaimResult, result
 from validation.claims.context import ClaimContext
 from validation.claims.crowded_scores import CrowdedScores
-from validation.claims.images import MATCH_DIFFERENCE
+from validation.claims.image_stack import MATCH_DIFFERENCE
 
 #: Yield and ghost fraction in the analysis box (frames a and b) over seeds 100–111 of the
 #: crowded case at quick size (3 frame pairs): yield 0.9376 ± 0.0031, ghosts 0.0572 ±

@@ -16,7 +16,7 @@ from scipy.stats import norm
 from validation.claims.base import Claim, ClaimResult, result
 from validation.claims.context import ClaimContext
 from validation.claims.formation_scores import FormationScores
-from validation.claims.images import FALSE_ALARM
+from validation.claims.image_stack import FALSE_ALARM
 
 #: A median's standard error per robust standard deviation, times √n (normal law).
 MEDIAN_EFFICIENCY = 1.2533

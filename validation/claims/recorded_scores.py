@@ -1,7 +1,7 @@
 """What the claims on tracks measure on the recorded case, against its exact values.
 
 - **Track fits** (:func:`track_fit_scores`): the tracks are fitted as ``synptv ptv
-  --tracks`` fits them (:func:`ptv.tracking.track_fit.fit_recording`: the noise measured
+  --tracks`` fits them (:func:`ptv.pipeline.track_fit.fit_recording`: the noise measured
   from the tracks, the points the fit does not explain taken out, the window chosen).
   For the window the stack chose, :func:`validation.truth.fit_floor.fit_floor` gives,
   apart from the stack, the least-squares fit d_ref of the exact positions at every
@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ptv.pipeline.track_fit import fit_recording
 from ptv.stats.lagrangian import lagrangian_statistics
-from ptv.tracking.track_fit import fit_recording
 from validation.claims.recorded_case import RecordedCase
 from validation.truth.fit_floor import fit_floor
 from validation.truth.lagrangian import exact_lagrangian

@@ -3,9 +3,9 @@
 A rig records a few snapshots of a flow at its largest Δt through the simulator's
 refracting cameras with sensor noise; the PTV stack then runs on the images exactly as
 in ``synptv run``: :func:`ptv.detect.detect_particles` with the default
-:class:`ptv.pipeline.frames.DetectorSettings`, and
+:class:`ptv.settings.DetectorSettings`, and
 :func:`ptv.pipeline.double_frame.measure_snapshot` (matching, linking, median test) with
-the default :class:`ptv.pipeline.options.PipelineSettings` (min_cameras from the camera
+the default :class:`ptv.settings.PipelineSettings` (min_cameras from the camera
 count, max_speed measured on the case's own links:
 :func:`ptv.pipeline.resolve.resolve_settings`) and the rig's true cameras, so that
 no calibration error enters. Everything the claims compare with comes from the
@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from ptv.detect import detect_particles
+from ptv.detect.frames import ChunkDetections, DetectedCentres
 from ptv.pipeline.double_frame import SnapshotMeasurement, measure_snapshot
-from ptv.pipeline.frames import ChunkDetections, DetectedCentres, DetectorSettings
-from ptv.pipeline.options import PipelineSettings
 from ptv.pipeline.resolve import resolve_settings
+from ptv.settings import DetectorSettings, PipelineSettings
 from simulator.particles import KSFlow, double_frame
 from simulator.presets import flow_preset
 from simulator.render.camera_frames import ParticleFrame, ParticleLighting, record_particles

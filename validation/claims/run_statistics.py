@@ -1,7 +1,7 @@
 """The run statistics at their defaults (docs/claims.md #49, #54).
 
 The statistics claims (#8–#15) call the estimators with the claims' own bins and plateau,
-so ``synptv run``'s defaults (:class:`ptv.stats.run_statistics.StatisticsSettings`) are
+so ``synptv run``'s defaults (:class:`ptv.settings.StatisticsSettings`) are
 not what they judge. Here the run statistics take the claims' noisy links with
 ``StatisticsSettings()`` as it stands, and their plateau ε is compared with the
 estimator's expectation on the exact D_LL, computed apart from the stack with the
@@ -16,13 +16,14 @@ snapshot as independent, shows.
 
 import numpy as np
 
-from ptv.stats.run_statistics import StatisticsSettings, compute_statistics
+from ptv.settings import StatisticsSettings
+from ptv.stats.run_statistics import compute_statistics
 from simulator.spectra import PopeSpectrum
 from validation.claims.base import Claim, ClaimResult, result
 from validation.claims.context import ClaimContext
 from validation.claims.statistics import C1_PLATEAU_BIAS
 from validation.run.checks import NORMAL_Z
-from validation.run.tolerances import false_alarm_z
+from validation.score.tolerances import false_alarm_z
 from validation.truth.independent import REFERENCE_C2, exact_dll, plateau_epsilon_reference
 
 #: The documented plateau of ``synptv run`` (docs/statistics.md): the mean of ε(r) over

@@ -25,8 +25,9 @@ from simulator.presets import FLOW_PRESETS
 from validation.claims.base import Claim, ClaimResult, result
 from validation.claims.context import CORRELATION_LENGTH, PLATEAU_RANGE, ClaimContext
 from validation.run.checks import NORMAL_Z
-from validation.run.tolerances import false_alarm_z
+from validation.score.tolerances import false_alarm_z
 from validation.studies.multi_dt_experiment import Measurement
+from validation.truth.dt3_bias import dt3_gamma
 from validation.truth.independent import (
     REFERENCE_C2,
     BruteForceS2,
@@ -48,17 +49,6 @@ C1_PLATEAU_BIAS = 0.01
 POOLED_FROM = 0.2
 #: An offset of this many standard errors of β₀ must be detected and recovered (#5).
 OFFSET_IN_SE = 5.0
-
-
-def dt3_gamma(dt: np.ndarray) -> float:
-    """γ of a Δt set, s: the least-squares line c₁Δt² + c₂ through βΔt³ has c₁ = γβ.
-
-    docs/statistics.md §4 gives γ/τ_η = 0.155, 0.218, 0.243 for the Table 4 sets.
-    """
-    dt = np.asarray(dt, dtype=float)
-    design = np.stack([dt**2, np.ones_like(dt)], axis=1)
-    (gamma, _), *_ = np.linalg.lstsq(design, dt**3, rcond=None)
-    return float(gamma)
 
 
 def _table3(claim: Claim, ctx: ClaimContext) -> ClaimResult:

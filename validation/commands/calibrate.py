@@ -16,7 +16,7 @@ PLATE_METHODS = "model-free,tsai,pinhole,soloff"
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    from ptv.io.experiment import has_point_target, read_experiment
+    from ptv.io.experiment_file import has_point_target, read_experiment
     from validation.dataset.calibrate import calibrate_dataset, check_methods
     from validation.report.calibration_figures import plate_offsets_figure
     from validation.report.png import save_figure

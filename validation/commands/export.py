@@ -18,6 +18,9 @@ from validation.workflow.files import check_output_folder, hold_new_folder
 FORMATS = {
     "openptv": "OpenPTV (liboptv, optv, pyptv): parameters/*.par, cal/, img/",
     "myptv": "MyPTV's workflow: params_file.yml, camera files, Calibration/, Images/",
+    "openlpt": "OpenLPT 2.2.4: camFile/ (pinholes fitted to the plate dots), camFileTrue/ "
+    "(the true cameras as polynomials), imgFile/ and image lists, config_dt<k>.txt, "
+    "tracerConfig_dt<k>.txt, run_ipr.py",
 }
 
 
@@ -25,10 +28,11 @@ def add_export_parser(sub) -> None:
     """The ``synptv export`` subcommand."""
     export = sub.add_parser(
         "export",
-        help="write a rendered dataset in the layout OpenPTV or MyPTV reads",
+        help="write a rendered dataset in the layout OpenPTV, MyPTV or OpenLPT reads",
         description="Write a dataset rendered by synptv (plate images, particle images, "
         "the rig's cameras and windows) in the folder layout of another PTV code, with its "
-        "parameter files, initial camera guesses and a README.txt saying what each file is "
+        "parameter files, initial camera guesses (for OpenLPT its calibration from the "
+        "plate dots and the true cameras) and a README.txt saying what each file is "
         "and which settings were guessed. A recorded dataset (synptv run's dataset folder "
         "of a [recording] scenario) exports to OpenPTV as one image sequence per "
         "recording. Formats: "
@@ -65,10 +69,11 @@ def export_dataset(dataset: str | Path, layout: str, out: str | Path) -> list[Pa
         layout that takes frame pairs only; nothing is written.
     """
     from validation.export.myptv import write_myptv
+    from validation.export.openlpt import write_openlpt
     from validation.export.openptv import write_openptv
     from validation.export.source import read_source
 
-    writers = {"openptv": write_openptv, "myptv": write_myptv}
+    writers = {"openptv": write_openptv, "myptv": write_myptv, "openlpt": write_openlpt}
     if layout not in writers:
         raise ValueError(f"--format {layout!r}: one of {', '.join(sorted(writers))}")
     out = check_output_folder(out)

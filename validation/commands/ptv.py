@@ -17,7 +17,8 @@ from validation.workflow.progress import ProgressBar
 def _ptv_settings(args: argparse.Namespace):
     """The settings file's options (defaults without one), with the command line's
     --max-speed, --snapshots and --min-cameras over them."""
-    from ptv.pipeline.settings import PtvSettings, load_settings
+    from ptv.pipeline.settings_file import load_settings
+    from ptv.settings import PtvSettings
 
     settings = PtvSettings() if args.settings is None else load_settings(args.settings)
     given = {
@@ -40,7 +41,7 @@ DERIVED_VOLUMES = {
 
 def _given_fields(path: str | None) -> set[str]:
     """The ``section.field`` names a settings file gives (read by
-    :func:`ptv.pipeline.settings.load_settings` first, so it is valid TOML)."""
+    :func:`ptv.pipeline.settings_file.load_settings` first, so it is valid TOML)."""
     if path is None:
         return set()
     spec = tomllib.loads(Path(path).read_text(encoding="utf-8"))
@@ -126,7 +127,7 @@ def _snapshot_list(text: str) -> list[int]:
 def _say_paper_ranges(statistics) -> None:
     """Warn when the statistics ranges are the defaults, which suit the paper's flow: a
     recording's η and L_int are not known to the stack, so they cannot be derived."""
-    from ptv.stats.run_statistics import StatisticsSettings
+    from ptv.settings import StatisticsSettings
 
     default = StatisticsSettings()
     names = ("r_min", "r_max", "plateau")
@@ -146,14 +147,14 @@ def _same(a, b) -> bool:
 
 def run_ptv(args: argparse.Namespace) -> int:
     from ptv.calibration.io import load_calibrations
+    from ptv.detect.frames import ImageDetector
     from ptv.io.dataset import cameras_in_order, open_dataset
     from ptv.pipeline.double_frame import run_pipeline
-    from ptv.pipeline.frames import ImageDetector
     from ptv.pipeline.results import save_results
-    from ptv.pipeline.settings import settings_toml
+    from ptv.pipeline.settings_file import settings_toml
     from ptv.pipeline.summary import summary
+    from ptv.pipeline.time_resolved import run_recording
     from ptv.pipeline.track_csv import save_fitted_tracks_csv, save_tracks_csv
-    from ptv.tracking.recording import run_recording
     from validation.report.overlay import save_overlays
     from validation.report.ptv_figures import save_ptv_figures
     from validation.report.track_figure import save_tracks_figure
@@ -256,9 +257,9 @@ def run_ptv(args: argparse.Namespace) -> int:
 
 
 def _fit_tracks(result, settings):
-    """The fit of a recording's tracks (:func:`ptv.tracking.track_fit.fit_recording`), or
+    """The fit of a recording's tracks (:func:`ptv.pipeline.track_fit.fit_recording`), or
     None with a warning when no track is long enough."""
-    from ptv.tracking.track_fit import fit_recording
+    from ptv.pipeline.track_fit import fit_recording
 
     recording = result.recording
     try:

@@ -21,7 +21,7 @@ RENDER_DEFAULTS = {
 
 def run_render(args: argparse.Namespace) -> int:
     """Render the dataset of a scenario, or of the options, into a new folder."""
-    from validation.dataset.render import RenderSettings, write_dataset
+    from validation.run.render_dataset import RenderSettings, write_dataset
     from validation.workflow.parallel import check_parallel_options, executor
 
     check_parallel_options(args.workers, args.scheduler)

@@ -35,8 +35,8 @@ def _held_run(args: argparse.Namespace, out, run, report):
 def run_experiment(args: argparse.Namespace) -> int:
     """Run the scenario's stages, write the report, print the verdict; exit status 1
     when a check that must hold fails."""
-    from validation.report.run_report import write_report
     from validation.run.experiment import run_stages
+    from validation.run.run_report import write_report
     from validation.run.scenario import load_scenario
     from validation.run.verdict import summary_lines
     from validation.workflow.parallel import check_parallel_options
@@ -52,7 +52,7 @@ def run_experiment(args: argparse.Namespace) -> int:
     p = scenario.ptv
     print(
         f"analysis: volume {' x '.join(f'{v * 1e3:.4g}' for v in p.analysis_volume)} mm, "
-        f"r {p.r_range[0] * 1e3:.3g}-{p.r_range[1] * 1e3:.3g} mm in {p.bins} bins, plateau "
+        f"r {p.r_min * 1e3:.3g}-{p.r_max * 1e3:.3g} mm in {p.n_bins} bins, plateau "
         f"{p.plateau[0] * 1e3:.3g}-{p.plateau[1] * 1e3:.3g} mm, matching tolerance "
         + ("measured" if p.tolerance is None else f"{p.tolerance * 1e6:g} µm (given)")
         + ", max_speed "
@@ -94,7 +94,10 @@ def run_experiment(args: argparse.Namespace) -> int:
             f"T_L = {f['eddy_time']:.4g} s, dissipation/injection = "
             f"{f['epsilon_dissipation'] / f['epsilon']:.4f}"
         )
-    baselines = set(scenario.ptv.methods[1:])  # their checks already say what went wrong
+    # The baselines' checks already say what went wrong.
+    baselines = set(scenario.ptv.methods[1:])
+    if scenario.ipr is not None:  # IPR through the first of [ipr] methods is under test
+        baselines = set(scenario.ptv.methods) | set(scenario.ipr.variants()[2:])
     for variant, rung in results["ptv"].items():
         for warning in [] if variant in baselines else rung["summary"]["warnings"]:
             print(f"warning ({variant}): {warning}")

@@ -98,9 +98,9 @@ def _settings(size: tuple[float, float, float]):
 
 
 def _truth(dataset: str):
-    """The dataset's :class:`~validation.dataset.truth_file.TruthFile`, or a one-line
+    """The dataset's :class:`~validation.truth.truth_file.TruthFile`, or a one-line
     error."""
-    from validation.dataset.truth_file import TruthFile
+    from validation.truth.truth_file import TruthFile
 
     folder = Path(dataset)
     if not folder.is_dir():
@@ -116,10 +116,10 @@ def score(args: argparse.Namespace) -> tuple[dict, np.ndarray]:
     """The score of ``args.positions`` (module docstring) and the position errors of
     its true positives (N, 3), m; raises ValueError on bad input, writes nothing."""
     from validation.run.experiment import object_pixel
+    from validation.run.score_statistics import score_statistics
     from validation.score.positions import check_positions, read_positions
     from validation.score.reference import score_positions
     from validation.score.scores import per_dt, summarize, track_scores
-    from validation.score.statistics import score_statistics
     from validation.truth.matching import rotation_angle_deg
 
     truth = _truth(args.dataset)
@@ -244,7 +244,7 @@ def _print(result: dict, out: Path) -> None:
 
 def run_score(args: argparse.Namespace) -> int:
     """``synptv score`` (module docstring)."""
-    from validation.score.report import write_report
+    from validation.report.score_report import write_report
 
     if isinstance(args.tracks, str):
         if args.positions is not None:
@@ -270,16 +270,16 @@ def run_score(args: argparse.Namespace) -> int:
 def score_recorded_tracks(args: argparse.Namespace) -> dict:
     """The scores of a tracks CSV against a rendered recording's true trajectories
     (:mod:`validation.score.trajectories`); raises ValueError on bad input."""
-    from validation.dataset.recording_truth import read_recording_truth
     from validation.run.experiment import object_pixel
     from validation.score.recorded_tracks import align_tracks, alignment_dict, true_trajectories
     from validation.score.track_file import read_tracks
     from validation.score.trajectories import trajectory_scores
+    from validation.truth.recording_truth import read_recording_truth
 
     folder = Path(args.dataset)
     if not folder.is_dir():
         raise ValueError(f"--dataset {folder}: no such folder")
-    if (folder / "sequence0").is_dir():  # the recordings of validation.dataset.recording
+    if (folder / "sequence0").is_dir():  # the recordings of validation.run.render_recording
         raise ValueError(
             f"--dataset {folder}: a recorded dataset; name one of its recordings, e.g. "
             f"{folder / 'sequence0'}"

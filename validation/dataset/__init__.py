@@ -1,2 +1,3 @@
-"""Dataset folders: rendering one (``synptv render``), its truth file, calibrating its
-cameras (``synptv calibrate``)."""
+"""A dataset folder's cameras calibrated from its plate images with every method
+(``synptv calibrate``); rendering a dataset is :mod:`validation.run.render_dataset`, its
+truth file :mod:`validation.truth.truth_file`."""

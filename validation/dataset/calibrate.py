@@ -1,7 +1,7 @@
 """Calibrate a dataset folder's cameras and score them (``synptv calibrate``).
 
 Works on any folder with an experiment.json that describes its plate, real or
-synthetic: :mod:`ptv.calibration.experiment` finds and indexes the dots and calibrates
+synthetic: :mod:`ptv.calibration.plate_images` finds and indexes the dots and calibrates
 every camera with each requested method (no truth involved); this module writes one
 calibration file per method and computes the Table 1 metric against the nominal dot
 positions (as in the paper) and, when the folder holds a ``truth.h5``, against the
@@ -17,7 +17,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ptv.calibration.experiment import (
+from ptv.calibration.grid_errors import PositionErrors, TraverseDots, table1_errors
+from ptv.calibration.io import save_calibrations
+from ptv.calibration.methods import CALIBRATION_METHODS, check_planes
+from ptv.calibration.plate_images import (
     CameraCalibrationError,
     PlateSetup,
     calibrate_cameras,
@@ -25,9 +28,6 @@ from ptv.calibration.experiment import (
     nominal_grid,
     plate_setup,
 )
-from ptv.calibration.grid_errors import PositionErrors, TraverseDots, table1_errors
-from ptv.calibration.io import save_calibrations
-from ptv.calibration.methods import CALIBRATION_METHODS, check_planes
 from ptv.calibration.plate_offsets import MODES as PLATE_OFFSET_MODES
 from ptv.calibration.plate_offsets import PlateOffsets, estimate_plate_offsets
 from ptv.calibration.point_experiment import (
@@ -230,7 +230,7 @@ def calibrate_dataset(
         (:class:`ptv.io.dataset.DatasetError`) a bad field of
         experiment.json, a plate image missing or unreadable, an unreadable truth.h5,
         all found before any dot is searched; a required method that cannot fit a
-        camera (:class:`ptv.calibration.experiment.CameraCalibrationError`). Nothing is
+        camera (:class:`ptv.calibration.plate_images.CameraCalibrationError`). Nothing is
         written unless every required method calibrates.
     """
     check_methods(methods)

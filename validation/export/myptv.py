@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from simulator.optics.camera import Camera
-from validation.export.images import link_or_copy, noise_threshold
+from validation.export.image_copies import link_or_copy, noise_threshold
 from validation.export.source import ExportSource, rotation_angles
 
 MM = 1e3

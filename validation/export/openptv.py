@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from simulator.optics.camera import Camera
-from validation.export.images import grey_shift, noise_threshold, write_8bit
+from validation.export.image_copies import grey_shift, noise_threshold, write_8bit
 from validation.export.source import ExportSource, rotation_angles
 from validation.run.experiment import object_pixel
 

@@ -17,14 +17,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ptv.calibration.experiment import nominal_grid, plate_setup
+from ptv.calibration.plate_images import nominal_grid, plate_setup
 from ptv.io.dataset import Dataset, open_dataset
-from ptv.io.experiment import read_experiment
+from ptv.io.experiment_file import read_experiment
 from ptv.tracking.link_speed import SPEED_SIGMAS
 from simulator.rigs import Rig
-from validation.dataset.recording import sequence_folder
-from validation.dataset.recording_truth import read_recording_truth
-from validation.dataset.truth_file import TruthFile
+from validation.run.render_recording import sequence_folder
+from validation.truth.recording_truth import read_recording_truth
+from validation.truth.truth_file import TruthFile
 
 #: Snapshots whose true velocities give the tracking bounds' speed.
 SPEED_SNAPSHOTS = 5

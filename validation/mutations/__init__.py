@@ -11,10 +11,11 @@ from validation.mutations.calibration import CALIBRATION_MUTATIONS
 from validation.mutations.conventions import CONVENTION_MUTATIONS
 from validation.mutations.crowding import CROWDING_MUTATIONS
 from validation.mutations.dns import DNS_MUTATIONS
-from validation.mutations.flow import FLOW_MUTATIONS
 from validation.mutations.formation import FORMATION_MUTATIONS
-from validation.mutations.images import IMAGE_MUTATIONS
+from validation.mutations.image_stack import IMAGE_MUTATIONS
 from validation.mutations.optics import OPTICS_MUTATIONS
+from validation.mutations.reconstruction import RECONSTRUCTION_MUTATIONS
+from validation.mutations.simulated_flow import FLOW_MUTATIONS
 from validation.mutations.statistics import STATISTICS_MUTATIONS
 from validation.mutations.tracks import TRACK_MUTATIONS
 
@@ -31,6 +32,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     + CONVENTION_MUTATIONS
     + DNS_MUTATIONS
     + TRACK_MUTATIONS
+    + RECONSTRUCTION_MUTATIONS
 )
 
 

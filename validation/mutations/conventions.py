@@ -11,13 +11,15 @@ from types import SimpleNamespace
 import h5py
 import numpy as np
 
+from ptv.bins import LogBins
 from ptv.detect.store import DetectionStore, write_index
 from ptv.stats import pairs
 from simulator.rigs import load_rig
-from validation.dataset import render, truth_file
 from validation.mutations.base import Mutation
 from validation.mutations.patching import Patch, edited
 from validation.mutations.probes import run_statistics_probe
+from validation.run import render_dataset
+from validation.truth import truth_file
 
 #: A Δt with more digits than four, s.
 _DT = 1.23456789e-4
@@ -26,14 +28,18 @@ _DT = 1.23456789e-4
 def _pair_counts() -> np.ndarray:
     """Pairs per bin of 40 random points, 1–50 mm in six bins."""
     x = np.random.default_rng(1).uniform(0.0, 0.05, (40, 3))
-    return pairs.pair_sums(x, np.zeros_like(x), pairs.LogBins(1e-3, 5e-2, 6)).count
+    return pairs.pair_sums(x, np.zeros_like(x), LogBins(1e-3, 5e-2, 6)).count
 
 
 def _described_dt() -> list[float]:
     """Δt as experiment.json states it."""
     plate = SimpleNamespace(z_nominal=[0.0])
-    description = render._experiment_description(
-        load_rig("paper-stereo"), plate, np.array([_DT]), render.RenderSettings(), images=True
+    description = render_dataset._experiment_description(
+        load_rig("paper-stereo"),
+        plate,
+        np.array([_DT]),
+        render_dataset.RenderSettings(),
+        images=True,
     )
     return description["dt"]
 
@@ -109,7 +115,7 @@ CONVENTION_MUTATIONS: tuple[Mutation, ...] = (
         "experiment.json states Δt to four significant digits",
         (
             Patch(
-                "validation.dataset.render:_experiment_description",
+                "validation.run.render_dataset:_experiment_description",
                 edited('"dt": [float(d) for d in dt],', '"dt": [float(f"{d:.4g}") for d in dt],'),
             ),
         ),
@@ -122,7 +128,7 @@ CONVENTION_MUTATIONS: tuple[Mutation, ...] = (
         "truth.h5 stores each run's Δt in single precision",
         (
             Patch(
-                "validation.dataset.truth_file:TruthWriter._write_run",
+                "validation.truth.truth_file:TruthWriter._write_run",
                 edited('group.attrs["dt"] = run.dt', 'group.attrs["dt"] = np.float32(run.dt)'),
             ),
         ),

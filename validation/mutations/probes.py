@@ -4,6 +4,7 @@ the run statistics of a few random links."""
 import numpy as np
 
 from ptv.rays import Rays
+from ptv.settings import StatisticsSettings
 from ptv.stats import run_statistics
 from ptv.stats.links import RunParticles
 
@@ -54,5 +55,5 @@ def run_statistics_probe() -> run_statistics.PtvStatistics:
             for _ in range(3)
         ]
         runs.append(RunParticles.from_links(k, dt, snapshots))
-    settings = run_statistics.StatisticsSettings(n_bins=6, n_boot=5, plateau=(5e-3, 10e-3))
+    settings = StatisticsSettings(n_bins=6, n_boot=5, plateau=(5e-3, 10e-3))
     return run_statistics.compute_statistics(runs, settings)

@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ptv.bins import LogBins
 from ptv.stats import dissipation, mean_displacement, multidt, pairs, structure
 from ptv.stats.links import RunParticles
 from simulator import spectra
@@ -34,7 +35,7 @@ def _snapshots() -> list[list[tuple[np.ndarray, np.ndarray]]]:
 
 
 def _bins():
-    return pairs.LogBins(*_R_RANGE, 6)
+    return LogBins(*_R_RANGE, 6)
 
 
 def _pair_sums():

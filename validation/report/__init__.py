@@ -1,1 +1,2 @@
-"""The report of a run and the figures of runs, PTV results and calibrations."""
+"""The figures of runs, PTV results and calibrations, and the reports of a recording
+and of a score (the report of a run: :mod:`validation.run.run_report`)."""

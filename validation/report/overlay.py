@@ -64,7 +64,7 @@ def save_overlays(detector, snapshots: Sequence[int], out: Path) -> list[Path]:
 
     Parameters
     ----------
-    detector : ptv.pipeline.frames.ImageDetector
+    detector : ptv.detect.frames.ImageDetector
         The dataset and the detection settings of the run.
     snapshots : sequence of int
         Snapshot numbers m at Δt_0, each below the dataset's count there.

@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 
 from ptv.detect.peaklocking import PeakLocking
 from validation.report.ptv_figures import mark_off_axis, plain_log_axis
-from validation.run.noise_prediction import NoisePrediction
+from validation.score.noise_prediction import NoisePrediction
 
 
 def peak_locking_figure(locking: Mapping[str, PeakLocking], *, label: str = "") -> Figure:

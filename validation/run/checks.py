@@ -6,9 +6,9 @@ rebuilt from a finished run without recomputing anything.
 
 Every statistical check judges the method against the truth of its own sample and
 allows the method's allowance (a number from physics) plus the Student quantile of
-:data:`validation.run.tolerances.FALSE_ALARM` (0.1 %) times the standard error of the
+:data:`validation.score.tolerances.FALSE_ALARM` (0.1 %) times the standard error of the
 difference, paired where the two were bootstrapped with the same snapshot draws
-(:mod:`validation.run.tolerances`, docs/claims.md §4). Checks on one variant:
+(:mod:`validation.score.tolerances`, docs/claims.md §4). Checks on one variant:
 
 - ``c1``: |c1/S2_sample − 1| over the fitted bins with c1_r_min_eta·η ≤ r ≤
   c1_r_max_l_int·L_int, L_int = u'³/ε: ≤ :data:`C1_TOLERANCE` + z_B σ in every bin (z_B
@@ -59,8 +59,8 @@ import numpy as np
 
 from ptv.pipeline.double_frame import AMBIGUITY_WARNING
 from ptv.stats.mean_displacement import OFFSET_FALSE_ALARM
-from validation.run.noise_prediction import NoisePrediction
-from validation.run.tolerances import (
+from validation.score.noise_prediction import NoisePrediction
+from validation.score.tolerances import (
     FALSE_ALARM,
     false_alarm_z,
     float_array,
@@ -618,12 +618,15 @@ def error_budget(comparisons: dict, order) -> list[dict]:
             "c1_max_abs_deviation": c["c1"]["max_abs_deviation"],
             "epsilon_relative": eps,
         }
-        if base is not None:
+        if base is not None:  # what it adds: None where either rung has no value
             b = comparisons[base]
             row["base"] = base
-            row["c1_added"] = None if mean_c1 is None else mean_c1 - b["c1"]["mean_deviation"]
-            row["epsilon_added"] = (
-                None if eps is None else eps - b["epsilon"]["relative_to_exact_d_ll"]
-            )
+            row["c1_added"] = _added(mean_c1, b["c1"]["mean_deviation"])
+            row["epsilon_added"] = _added(eps, b["epsilon"]["relative_to_exact_d_ll"])
         rows.append(row)
     return rows
+
+
+def _added(value: float | None, base: float | None) -> float | None:
+    """``value − base``, None where either is None (a rung without fitted bins)."""
+    return None if value is None or base is None else value - base

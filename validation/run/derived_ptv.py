@@ -1,20 +1,20 @@
 """The PTV analysis ranges a scenario leaves out, derived from its rig and its flow.
 
-A scenario that gives no ``[ptv] analysis_volume``, ``r_range`` or ``plateau`` gets them
+A scenario that gives no ``[ptv] analysis_volume``, ``r_min``, ``r_max`` or ``plateau`` gets them
 from the rig's laser sheet (width W, height H, thickness T) and the flow's Kolmogorov
 length η and integral length L_int = u′³/ε:
 
 - analysis volume 0.7 W × 0.7 H × 0.8 T: the well-lit core of the sheet, away from its
   dim wings and the edges of the cameras' common view (70 × 70 × 8 mm on the paper's
   100 × 100 × 10 mm sheet);
-- r range from 10η to r_max = min(half the analysis volume's smaller side, L_int): no
+- r_min = 10η and r_max = min(half the analysis volume's smaller side, L_int): no
   bin below the dissipative range's start, none beyond what the volume holds in every
   direction of the sheet's plane;
 - plateau from 40η to min(L_int / 2, 0.6 r_max): the inertial range, the same
   40η … L_int / 2 in which c1 is checked against the truth (``[checks]``), kept clear
   of the last bins where few pairs fit in the volume. Where 40η lies beyond that end (a
   slow flow whose η is large against the volume), the widest plateau the volume allows
-  is taken instead, from the r range's start (10η) to the same end, with a warning; the
+  is taken instead, from 10η to the same end, with a warning; the
   report names it as starting below 40η (:func:`validation.run.verdict.plateau_row`).
 
 A DNS has no L_int before it runs, and its periodic box (half of it 22η at 64³, 45η at
@@ -30,7 +30,7 @@ from dataclasses import replace
 import numpy as np
 
 from ptv.pipeline.double_frame import AMBIGUITY_WARNING
-from ptv.pipeline.options import PipelineSettings
+from ptv.settings import PipelineSettings
 from validation.run.scenario_fields import ScenarioError
 
 __all__ = ["DERIVED_FIELDS", "derive_ptv_ranges", "independent_pair_ambiguity"]
@@ -38,10 +38,10 @@ __all__ = ["DERIVED_FIELDS", "derive_ptv_ranges", "independent_pair_ambiguity"]
 log = logging.getLogger(__name__)
 
 #: The [ptv] fields derived when a scenario leaves them out.
-DERIVED_FIELDS = ("analysis_volume", "r_range", "plateau")
+DERIVED_FIELDS = ("analysis_volume", "r_min", "r_max", "plateau")
 #: Analysis volume as fractions of the sheet's width, height and thickness.
 SHEET_FRACTION = (0.7, 0.7, 0.8)
-#: r range and plateau starts, in η.
+#: r_min and the plateau's start, in η.
 R_MIN_ETA = 10.0
 PLATEAU_MIN_ETA = 40.0
 #: Plateau end as fractions of L_int and of r_max.
@@ -82,24 +82,24 @@ def derive_ptv_ranges(scenario, given: set[str], sheet_size, scales: dict | None
             round(float(f * s), 9) for f, s in zip(SHEET_FRACTION, sheet_size, strict=True)
         )
     volume = values.get("analysis_volume", ptv.analysis_volume)
-    missing = [name for name in ("r_range", "plateau") if name not in given]
+    missing = [name for name in ("r_min", "r_max", "plateau") if name not in given]
     if scales is None:
         for name in missing:
-            lo, hi = getattr(ptv, name)
+            mm = "–".join(f"{v * 1e3:g}" for v in np.atleast_1d(getattr(ptv, name)))
             log.warning(
-                "%s: ptv.%s = %g–%g mm is the paper flow's default, not derived: this flow's "
+                "%s: ptv.%s = %s mm is the paper flow's default, not derived: this flow's "
                 "integral length is known only once it is run; set it to this flow's ranges",
                 source,
                 name,
-                lo * 1e3,
-                hi * 1e3,
+                mm,
             )
     else:
         eta, l_int = scales["eta"], scales["L_int"]
         r_max = min(0.5 * min(volume[0], volume[1]), l_int)
         plateau_max = min(PLATEAU_MAX_L_INT * l_int, PLATEAU_MAX_R * r_max)
         derived = {
-            "r_range": (R_MIN_ETA * eta, r_max),
+            "r_min": R_MIN_ETA * eta,
+            "r_max": r_max,
             "plateau": (PLATEAU_MIN_ETA * eta, plateau_max),
         }
         lo, hi = derived["plateau"]
@@ -116,15 +116,25 @@ def derive_ptv_ranges(scenario, given: set[str], sheet_size, scales: dict | None
                 R_MIN_ETA * eta * 1e3,
             )
             derived["plateau"] = (R_MIN_ETA * eta, hi)
-        for name in missing:
-            lo, hi = derived[name]
+        values.update({name: derived[name] for name in missing})
+        ranges = (
+            ("r_min and ptv.r_max", ("r_min", "r_max")),
+            ("plateau", ("plateau",)),
+        )
+        for where, names in ranges:
+            if not set(names) & set(missing):
+                continue
+            lo, hi = np.ravel([values.get(name, getattr(ptv, name)) for name in names])
             if not 0 < lo < hi:
                 raise ScenarioError(
-                    f"{source}: ptv.{name} derived from the flow (η = {eta * 1e3:.3g} mm) and "
-                    "the analysis volume comes out empty "
+                    f"{source}: ptv.{where} derived from the flow (η = {eta * 1e3:.3g} mm) "
+                    "and the analysis volume comes out empty "
                     f"({lo * 1e3:.3g}–{hi * 1e3:.3g} mm): set it"
                 )
-            values[name] = (float(lo), float(hi))
+        values = {
+            name: tuple(map(float, value)) if isinstance(value, tuple) else float(value)
+            for name, value in values.items()
+        }
     if values:
         shown = (
             f"ptv.{k} = {np.round(np.asarray(v) * 1e3, 3).tolist()} mm" for k, v in values.items()

@@ -29,27 +29,26 @@ the solver's acceleration, snapshot by snapshot (the tracers of snapshot m are s
 field snapshot m: the difference is paired). The check: |tracers − field| within the
 allowance (the fit's truncation and the spline's gradient in the path's acceleration,
 each bounded by Cauchy–Schwarz, and the field's direction sampling) plus
-:func:`~validation.run.tolerances.false_alarm_z` of the effective snapshots times the
+:func:`~validation.score.tolerances.false_alarm_z` of the effective snapshots times the
 moving-block bootstrap error of the mean difference.
 """
 
 import h5py
 import numpy as np
 
-from ptv.stats.pairs import LogBins
+from ptv.bins import LogBins
 from ptv.stats.resampling import autocorrelation_time, block_length, block_weights
 from simulator.dns.field_statistics import forcing_flux, modal_dll_slope
 from simulator.particles import Box
-from validation.claims.statistics import dt3_gamma
-from validation.dataset.truth_file import TruthFile
-from validation.run.tolerances import FALSE_ALARM, false_alarm_z
+from validation.score.tolerances import FALSE_ALARM, false_alarm_z
 from validation.truth.acceleration_fit import (
     DEFAULT_TERMS,
     acceleration_from_positions,
     truncation_bound,
 )
-from validation.truth.dt3_bias import at_separation, c1_bias
+from validation.truth.dt3_bias import at_separation, c1_bias, dt3_gamma
 from validation.truth.pair_flux import pair_flux
+from validation.truth.truth_file import TruthFile
 
 #: Energy budget: the stationary window's mean dissipation within this of ε.
 BUDGET_TOLERANCE = 0.02
@@ -173,7 +172,7 @@ def _dt3_bias(folder, truth: TruthFile, ptv, seed: int, eta: float) -> dict | No
             velocity,
             columns,
             region=Box(ptv.analysis_volume),
-            bins=LogBins(ptv.r_range[0], ptv.r_range[1], ptv.bins),
+            bins=LogBins(ptv.r_min, ptv.r_max, ptv.n_bins),
             binning=binning,
             n_boot=ptv.n_boot,
             rng=np.random.SeedSequence([seed, 3]),

@@ -5,12 +5,13 @@ unchanged, see :mod:`validation.workflow.stages`):
 
 ``dataset/``            simulate and render: plate images, truth.h5, and the particle
                         images only when they are kept
-                        (:func:`validation.dataset.render.build_dataset`)
+                        (:func:`validation.run.render_dataset.build_dataset`)
 ``detections/``         the particles detected on every image, once for every rung that
                         reads images (:mod:`ptv.detect.store`); when the dataset is built
                         in the same run they are detected in memory as the images are
                         rendered
-``truth/``              sample-truth S2, exact D_LL, reference ε (:mod:`validation.truth.flow`)
+``truth/``              sample-truth S2, exact D_LL, reference ε
+                        (:mod:`validation.truth.flow_truth`)
 ``calibrations/``       every calibration method from the plate images, Table 1, Fig. 3
 ``ptv/<variant>/``      statistics of each rung of the error budget:
                         ``exact`` true trajectories; ``detection`` detected centres,
@@ -42,40 +43,42 @@ from pathlib import Path
 import numpy as np
 
 from ptv.calibration.io import load_calibrations
-from ptv.detect.peaklocking import peak_locking
+from ptv.detect.frames import ImageDetector
 from ptv.detect.store import DetectionStore, chunk_name, write_chunk, write_index
 from ptv.io.dataset import open_dataset
 from ptv.pipeline.double_frame import PtvResult
-from ptv.pipeline.frames import DetectorSettings, ImageDetector
 from ptv.pipeline.results import save_results
+from ptv.settings import DetectorSettings
 from ptv.stats.run_statistics import compute_statistics
 from simulator.render.camera_frames import ParticleLighting, local_magnification
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig, load_rig
 from simulator.target import REALISTIC, Imperfections
 from validation.dataset.calibrate import calibrate_dataset
-from validation.dataset.render import (
+from validation.report.calibration_figures import error_maps
+from validation.report.png import save_figure
+from validation.report.ptv_figures import save_ptv_figures
+from validation.run.detection_record import save_detection
+from validation.run.flow_stage import dns_run_flow, ks_run_flow
+from validation.run.grid_flow import grid_run_flow
+from validation.run.ipr_stage import PREFIX as IPR_PREFIX
+from validation.run.ipr_stage import build_ipr_rung
+from validation.run.particle_chunks import chunk_detections, render_chunk, snapshot_chunks
+from validation.run.ptv_rung import ptv_rung
+from validation.run.render_dataset import (
     FORMAT_VERSION,
     DetectionOutput,
     RenderSettings,
     build_dataset,
     particle_job,
 )
-from validation.dataset.truth_file import TruthFile
-from validation.report.calibration_figures import error_maps
-from validation.report.png import save_figure
-from validation.report.ptv_figures import save_ptv_figures
-from validation.report.run_figures import peak_locking_figure
-from validation.run.flow_stage import dns_run_flow, ks_run_flow
-from validation.run.grid_flow import grid_run_flow
-from validation.run.particle_chunks import chunk_detections, render_chunk, snapshot_chunks
-from validation.run.ptv_rung import ptv_rung
 from validation.run.run_flow import RunFlow
 from validation.run.scenario import Scenario, pipeline_settings
 from validation.run.truth_rungs import detected_runs, detection_chunk, exact_runs
-from validation.truth.flow import flow_truth, population_truth
+from validation.truth.flow_truth import flow_truth, population_truth
 from validation.truth.matching import score_matching
 from validation.truth.sheet_regions import SheetRegions
+from validation.truth.truth_file import TruthFile
 from validation.workflow.chunk_map import map_chunks
 from validation.workflow.parallel import Executor, InProcess
 from validation.workflow.stages import StageOutcome, is_built, run_stage, stage_key, staging_folder
@@ -89,7 +92,7 @@ ProgressFactory = Callable[[str], Callable[[int, int], None]]
 
 
 def render_settings(scenario: Scenario) -> RenderSettings:
-    """What :func:`validation.dataset.render.write_dataset` draws for a scenario."""
+    """What :func:`validation.run.render_dataset.write_dataset` draws for a scenario."""
     cal, particles = scenario.calibration, scenario.particles
     return RenderSettings(
         frames=particles.frames,
@@ -213,7 +216,7 @@ class ExperimentRun:
         self.out = Path(out)
         self.executor = executor
         self.progress = progress
-        self.images = keep_images or scenario.output.images
+        self.images = keep_images or scenario.output.images or scenario.ipr is not None
         self.rig = load_rig(scenario.rig.name) if rig is None else rig
         self.settings = pipeline_settings(scenario)
         self.render = render_settings(scenario)
@@ -229,6 +232,11 @@ class ExperimentRun:
             "ptv": analysis,
             "seed": scenario.seed,
         }
+
+    @property
+    def ipr_variants(self) -> tuple[str, ...]:
+        """The IPR rungs (none without ``[ipr]``)."""
+        return () if self.scenario.ipr is None else self.scenario.ipr.variants()
 
     def bar(self, name: str):
         return self.progress(name) if self.progress is not None else None
@@ -304,7 +312,7 @@ class ExperimentRun:
                 self.rig,
                 self.preset,
                 self.render,
-                flow=self.flow.dataset,
+                flow=self.flow,
                 images=self.images,
                 detections=fused,
                 executor=self.executor,
@@ -339,7 +347,7 @@ class ExperimentRun:
         else:
             render = self.render if sensor is None else replace(self.render, sensor=sensor)
             job = particle_job(
-                self.rig, self.preset, render, flow=self.flow.dataset, detector=self.detector
+                self.rig, self.preset, render, flow=self.flow, detector=self.detector
             )
             fn, shared = render_detections_chunk, {"job": job, "folder": dataset}
         frames = (self.render.frames,) * len(self.preset.dt)
@@ -442,6 +450,8 @@ class ExperimentRun:
         }
         if variant not in REFERENCE_VARIANTS:
             inputs["calibration"] = calibrations.key
+        if variant.startswith(IPR_PREFIX):
+            inputs["ipr"] = asdict(self.scenario.ipr)
         if folder is None:
             folder = self.out / "ptv" / f"{variant}-{stage_key(inputs)[:12]}"
         return self.timed(
@@ -463,8 +473,8 @@ class ExperimentRun:
             variant: self.rung(
                 variant, builder, detections, calibrations, self.out / "ptv" / variant
             )
-            for variant in (*REFERENCE_VARIANTS, *self.scenario.ptv.methods)
-            if variant not in failed
+            for variant in (*REFERENCE_VARIANTS, *self.scenario.ptv.methods, *self.ipr_variants)
+            if variant.removeprefix(IPR_PREFIX) not in failed
         }
 
 
@@ -514,6 +524,8 @@ class RungBuilder:
             self.save(result, target, "none: true trajectories", label)
         elif variant == "detection":
             self.detection(target, cache, tick, label)
+        elif variant.startswith(IPR_PREFIX):
+            build_ipr_rung(self, target, variant, calibrations, cache, tick, label)
         else:
             if variant == "true-cameras":
                 cams, described = self.true_cameras, "true cameras"
@@ -560,7 +572,7 @@ class RungBuilder:
         runs, quality = detected_runs(chunks, self.truth.dt, self.store.cameras)
         result = self.reference_result(runs)
         self.save(result, target, "true cameras, truth-paired detections", label)
-        _save_detection(quality, target, label)
+        save_detection(quality, target, label)
         self.save_population(result, target)
 
     def save(self, result: PtvResult, folder: Path, calibration: str, label: str) -> None:
@@ -623,7 +635,7 @@ def run_stages(
     ExperimentStages
         The stage folders (``ptv``: variant → its folder), the time each took and the
         flow's scales; ``synptv run`` then writes its report from them
-        (:func:`validation.report.run_report.write_report`). A scenario with
+        (:func:`validation.run.run_report.write_report`). A scenario with
         ``[recording]`` runs through :mod:`validation.run.recording_run` instead.
 
     Examples
@@ -660,36 +672,3 @@ def run_stages(
 def _plane_list(planes: list[int]) -> str:
     """Plane indices as a short list: "0, 6, 12"."""
     return ", ".join(str(j) for j in planes)
-
-
-def _save_detection(quality, folder: Path, label: str) -> None:
-    """detection.json and the fractional-position histograms (peak-locking diagnostic),
-    the figure titled ``label``."""
-    locking = {name: peak_locking(sums) for name, sums in quality.fractions.items()}
-    _write_json(
-        folder / "detection.json",
-        {
-            "cameras": list(quality.cameras),
-            "rms_error_px": quality.rms_error_px.tolist(),
-            "found": quality.found.tolist(),
-            "spurious": quality.spurious.tolist(),
-            "position_noise_m": quality.position_noise.tolist(),
-            "dt": quality.dt.tolist(),
-            "displacement_noise_m": quality.displacement_noise.tolist(),
-            "pair_noise_m2": [
-                [None if not np.isfinite(v) else float(v) for v in row]
-                for row in quality.pair_noise
-            ],
-            "peak_locking": {
-                name: {
-                    "amplitude_px": pl.amplitude.tolist(),
-                    "p_chi2": pl.p_chi2.tolist(),
-                    "locked": pl.locked(),
-                    "counts": pl.counts.tolist(),
-                    "edges": pl.edges.tolist(),
-                }
-                for name, pl in locking.items()
-            },
-        },
-    )
-    save_figure(peak_locking_figure(locking, label=label), folder / "peak_locking.png")

@@ -17,7 +17,7 @@ from itertools import pairwise
 from pathlib import Path
 
 from simulator.dns.grid import dns_setup
-from simulator.flow import DEFAULT_UNSTEADINESS
+from simulator.ks_field import DEFAULT_UNSTEADINESS
 from simulator.presets import FLOW_PRESETS, FlowPreset, flow_preset
 from simulator.spectra import SPECTRA
 from simulator.turbulence import NU_WATER, TurbulenceParameters

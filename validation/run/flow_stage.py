@@ -5,12 +5,12 @@ Kinematic simulation needs no stage: each snapshot draws its realization (a fiel
 of one's own needs none either: :mod:`validation.run.grid_flow`). A DNS is a stage of its
 own, ``DIR/flow``: the stationary
 field, one snapshot per snapshot of the run, and the exact statistics of every snapshot
-(:mod:`simulator.dns.flow`). It is keyed by the flow's inputs, the number of snapshots
+(:mod:`simulator.dns.stationary_flow`). It is keyed by the flow's inputs, the number of snapshots
 and the seed, so a second run, or a study, reuses it.
 """
 
 import os
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from importlib.metadata import version
 from pathlib import Path
 
@@ -18,29 +18,25 @@ import h5py
 import numpy as np
 
 from simulator.dns.fieldfile import read_field_file_parameters
-from simulator.dns.flow import (
+from simulator.dns.stationary_flow import (
     FIELD_FILE,
     STATISTICS_FILE,
     DnsSpec,
     DnsTracerFlow,
     build_stationary_field,
 )
-from simulator.spectra import SPECTRA
 from simulator.turbulence import TurbulenceParameters
-from validation.dataset.render import DatasetFlow, RenderSettings, ks_flow
+from validation.run.render_dataset import RenderSettings, ks_flow
 from validation.run.run_flow import RunFlow
 from validation.run.scenario import Scenario
-from validation.truth.exact import ModalStructure, SpectrumStructure
+from validation.truth.exact import ModalStructure
 from validation.workflow.stages import StageOutcome, run_stage
 
 
 def ks_run_flow(scenario: Scenario, settings: RenderSettings) -> RunFlow:
     """Kinematic simulation: no stage, the flow as the scenario gives it."""
-    preset = scenario.flow.as_preset()
-    return RunFlow(
-        preset=preset,
-        dataset=ks_flow(preset, settings),
-        exact=SpectrumStructure(SPECTRA[scenario.flow.spectrum](preset.parameters)),
+    return replace(
+        ks_flow(scenario.flow.as_preset(), settings),
         scales=scenario.flow.scales(),
         inputs=scenario.as_dict()["flow"],
     )
@@ -94,8 +90,10 @@ def dns_run_flow(
     tracers = DnsTracerFlow(spec, stage.folder / FIELD_FILE, measured.u_rms)
     flow = RunFlow(
         preset=preset,
-        dataset=DatasetFlow(tracers, attrs, {"shell_k": k, "shell_energy": energy}),
+        tracers=tracers,
+        attrs=attrs,
         exact=ModalStructure(k, energy),
+        datasets={"shell_k": k, "shell_energy": energy},
         scales={**scenario.flow.scales(parameters), **measured_scales},
         inputs={**scenario.as_dict()["flow"], "field": stage.key},
         field=stage.folder,

@@ -12,7 +12,6 @@ import numpy as np
 
 from simulator.dns.series_flow import SeriesTracerFlow, series_scales, snapshot_starts
 from simulator.turbulence import TurbulenceParameters
-from validation.dataset.render import DatasetFlow
 from validation.run.flow_section import FlowSection
 from validation.run.run_flow import RunFlow
 from validation.truth.exact import ModalStructure
@@ -79,12 +78,10 @@ def grid_run_flow(flow: FlowSection, frames: int) -> RunFlow:
     attrs.update({k: v for k, v in measured.items() if v is not None})
     return RunFlow(
         preset=preset,
-        dataset=DatasetFlow(
-            SeriesTracerFlow(path.resolve(), starts, scales.u_rms),
-            attrs,
-            {"shell_k": scales.shell_k, "shell_energy": scales.shell_energy},
-        ),
+        tracers=SeriesTracerFlow(path.resolve(), starts, scales.u_rms),
+        attrs=attrs,
         exact=ModalStructure(scales.shell_k, scales.shell_energy),
+        datasets={"shell_k": scales.shell_k, "shell_energy": scales.shell_energy},
         scales={**flow.scales(parameters), **measured},
         inputs={**flow.as_dict(), "sha256": digest},
     )

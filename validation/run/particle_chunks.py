@@ -4,7 +4,7 @@ The unit of work of a rendered run is a range of snapshots m0 … m1 − 1 at ev
 (:func:`snapshot_chunks`). :func:`render_chunk` simulates their particles, records every
 exposure of every camera (:func:`simulator.render.camera_frames.record_particles`),
 optionally writes the images as TIFF in the dataset layout and detects the particles in
-memory (:class:`ptv.pipeline.frames.ChunkDetections`). The images are lossless 16-bit, so the
+memory (:class:`ptv.detect.frames.ChunkDetections`). The images are lossless 16-bit, so the
 detections are those that reading the TIFF files back would give.
 
 Everything random is seeded from the run's seed and the item it draws for (the
@@ -22,12 +22,13 @@ import tifffile
 
 from ptv.camera_model import on_image
 from ptv.detect import detect_particles
-from ptv.pipeline.frames import ChunkDetections, DetectedCentres, DetectorSettings, exposures
+from ptv.detect.frames import ChunkDetections, DetectedCentres, exposures
+from ptv.settings import DetectorSettings
 from simulator.particles import TracerFlow, double_frame, shared_start
 from simulator.render.camera_frames import ParticleLighting, record_particles
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig
-from validation.dataset.truth_file import TruthRun
+from validation.truth.truth_file import TruthRun
 
 #: Largest number of snapshots in a chunk.
 MAX_CHUNK = 10
@@ -142,7 +143,7 @@ class RenderedChunk:
     truth : list of K TruthRun
         The chunk's particles per Δt (``first`` = m0).
     detections : dict or None
-        :attr:`ptv.pipeline.frames.ChunkDetections.found` of the chunk (None without a detector).
+        :attr:`ptv.detect.frames.ChunkDetections.found` of the chunk (None without a detector).
     """
 
     snapshots: tuple[int, int]
@@ -259,7 +260,7 @@ def point_exposure(
     give of the lit particles at ``positions`` (P, 3), m, that ``camera`` images on its
     sensor: their exact centres (``camera.project``) plus white Gaussian noise, shuffled
     so that no order carries the particles' identities."""
-    lit = lighting.lit(positions[:, 2])
+    lit = lighting.lit_at(positions)
     xy = np.full((len(positions), 2), np.nan)
     if lit.any():
         xy[lit] = camera.project(positions[lit])
@@ -282,7 +283,7 @@ def _write_exposure(folder: Path, n_dt: int, k: int, camera: str, m: int, frame:
 
 
 def chunk_detections(chunk: RenderedChunk, job: ParticleJob, folder: Path) -> ChunkDetections:
-    """The detections of a rendered chunk as :class:`ptv.pipeline.frames.ChunkDetections` of the
+    """The detections of a rendered chunk as :class:`ptv.detect.frames.ChunkDetections` of the
     dataset at ``folder``."""
     return ChunkDetections(
         folder=folder,

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ptv.camera_model import CameraModel
+from ptv.detect.frames import ChunkDetections
 from ptv.detect.store import DetectionStore
 from ptv.pipeline.double_frame import (
     MatchedPoints,
@@ -25,9 +26,8 @@ from ptv.pipeline.double_frame import (
     measure_snapshots,
     run_particles,
 )
-from ptv.pipeline.frames import ChunkDetections
-from ptv.pipeline.options import PipelineSettings
-from ptv.pipeline.resolve import match_frame, resolve_settings
+from ptv.pipeline.resolve import MeasuredSettings, match_frame, resolve_settings
+from ptv.settings import PipelineSettings
 from ptv.stats.run_statistics import compute_statistics
 from validation.workflow.chunk_map import map_chunks
 from validation.workflow.parallel import Executor
@@ -116,22 +116,55 @@ def ptv_rung(
         name="ptv",
         progress=progress,
     )
-    n_dt = len(store.dt)
+    measured_chunks = [r.measured for r in results]
+    frame_a = [points for r in results for _, points in sorted(r.frame_a.items())]
+    result = rung_result(store, cameras, settings, measured_chunks, frame_a, measured)
+    return result, frame_a
+
+
+def rung_result(
+    source,
+    cameras: Sequence[CameraModel],
+    settings: PipelineSettings,
+    measured_chunks: Sequence[list[list[SnapshotMeasurement]]],
+    frame_a: Sequence[np.ndarray],
+    measured: MeasuredSettings,
+) -> PtvResult:
+    """A rung's links per Δt and their statistics, from its chunks' measurements.
+
+    Parameters
+    ----------
+    source : FrameDetections-like
+        What was measured (``folder``, ``cameras``, ``dt``, ``detector``,
+        ``shared_first_frame``).
+    cameras : sequence of CameraModel
+        Calibrations in the source's camera order.
+    settings : PipelineSettings
+        The resolved settings.
+    measured_chunks : sequence of list of K lists of SnapshotMeasurement
+        Per chunk, in snapshot order, its snapshots per Δt.
+    frame_a : sequence of ndarray, shape (N_m, 3)
+        The points of frame a of the first snapshots of Δt_0, m.
+    measured : MeasuredSettings
+        What was measured on the data to resolve the settings.
+
+    Returns
+    -------
+    PtvResult
+    """
     runs = [
         run_particles(
             k,
-            float(store.dt[k]),
-            [s for r in results for s in r.measured[k]],
+            float(source.dt[k]),
+            [s for chunk in measured_chunks for s in chunk[k]],
             len(cameras),
             settings,
             speed_measured=measured.link_speed is not None,
         )
-        for k in range(n_dt)
+        for k in range(len(source.dt))
     ]
     statistics = compute_statistics(
-        runs, settings.statistics, shared_first_frame=store.shared_first_frame
+        runs, settings.statistics, shared_first_frame=source.shared_first_frame
     )
-    frame_a = [points for r in results for _, points in sorted(r.frame_a.items())]
     matched = MatchedPoints.from_frames((0, m, 0, points) for m, points in enumerate(frame_a))
-    result = PtvResult(store, store.cameras, settings, runs, statistics, matched, measured=measured)
-    return result, frame_a
+    return PtvResult(source, source.cameras, settings, runs, statistics, matched, measured=measured)

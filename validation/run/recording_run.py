@@ -4,11 +4,11 @@ Stages (folders of ``out``, reused when their inputs are unchanged,
 :mod:`validation.workflow.stages`):
 
 ``dataset/``          the plate images and every recording, rendered
-                      (:func:`validation.dataset.recording.build_recording_dataset`)
+                      (:func:`validation.run.render_recording.build_recording_dataset`)
 ``calibrations/``     every calibration method from the plate images (as frame-pair
                       runs do)
 ``tracks/<variant>/`` per recording (``sequence<s>/``) the PTV of a lab
-                      (:func:`ptv.tracking.recording.run_recording`: detect, match,
+                      (:func:`ptv.pipeline.time_resolved.run_recording`: detect, match,
                       track, and the multi-Δt statistics of its frame pairs) with the
                       true cameras and with each calibration; then the tracks fitted,
                       scored against the true trajectories and the Lagrangian
@@ -24,20 +24,20 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from ptv.calibration.io import load_calibrations
+from ptv.detect.frames import ImageDetector
 from ptv.io.dataset import open_dataset
-from ptv.pipeline.frames import ImageDetector
 from ptv.pipeline.results import save_results
+from ptv.pipeline.time_resolved import run_recording
 from ptv.pipeline.track_csv import save_tracks_csv
-from ptv.tracking.recording import run_recording
-from validation.dataset.recording import (
+from validation.run.experiment import ExperimentRun
+from validation.run.recording_scores import score_sequences
+from validation.run.render_recording import (
     RecordingPlan,
     build_recording_dataset,
     sequence_folder,
 )
-from validation.dataset.recording_truth import read_recording_truth
-from validation.run.experiment import ExperimentRun
-from validation.run.recording_scores import score_sequences
 from validation.run.scenario import Scenario
+from validation.truth.recording_truth import read_recording_truth
 from validation.workflow.parallel import Executor, InProcess
 from validation.workflow.stages import StageOutcome
 
@@ -93,7 +93,7 @@ class RecordingRun:
                 target,
                 run.rig,
                 run.preset,
-                run.flow.dataset,
+                run.flow,
                 run.render,
                 self.plan,
                 executor=run.executor,

@@ -5,7 +5,7 @@ For the tracks of one variant (the true cameras or a calibration) over every rec
 1. the points are brought onto the truth (:mod:`validation.score.recorded_tracks`) and
    the recordings joined;
 2. the tracks are fitted as ``synptv ptv --tracks`` fits them
-   (:func:`ptv.tracking.track_fit.fit_recording`): those of five points or more
+   (:func:`ptv.pipeline.track_fit.fit_recording`): those of five points or more
    (shorter ones, mostly ghost matches that no later frame continues, are left as
    unlinked points), the points their fit does not explain taken out (a false point a
    track took where its particle was missed spoils the fits of its neighbours), the
@@ -30,11 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ptv.pipeline.track_fit import fit_recording
+from ptv.settings import TrackFitSettings
 from ptv.stats.lagrangian import acceleration_variance
 from ptv.stats.track_sample import track_sample
 from ptv.tracking.fitting import choose_window, fit_tracks
-from ptv.tracking.track_fit import TrackFitSettings, fit_recording
-from validation.dataset.recording_truth import RecordingTruth
 from validation.report.png import save_figure
 from validation.report.track_score_figures import (
     fit_window_figure,
@@ -55,6 +55,7 @@ from validation.score.trajectories import (
     pair_points,
     trajectory_scores,
 )
+from validation.truth.recording_truth import RecordingTruth
 
 #: Cameras that must image a particle for it to count as observed, where the matching's
 #: fewest cameras are not known.
@@ -161,7 +162,7 @@ def score_sequences(
     Parameters
     ----------
     sequences : sequence of (PtvResult, RecordingTruth)
-        The result of :func:`ptv.tracking.recording.run_recording` on each recording,
+        The result of :func:`ptv.pipeline.time_resolved.run_recording` on each recording,
         and its truth.
     tau_eta : float
         The flow's Kolmogorov time, s.

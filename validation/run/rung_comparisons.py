@@ -11,9 +11,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from validation.run.checks import compare_variant
-from validation.run.noise_prediction import predicted_noise
 from validation.run.scenario import Scenario, pipeline_settings
-from validation.run.tolerances import float_array
+from validation.score.noise_prediction import predicted_noise
+from validation.score.tolerances import float_array
 
 
 def _read(path: Path) -> dict:

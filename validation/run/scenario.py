@@ -13,13 +13,16 @@ Every length is in m, every time in s. A scenario file has ``name``, ``descripti
     [calibration]  planes, plate ("realistic" or "ideal"), brightness, methods
     [particles]    count, frames, electrons, diameter, shared_first_frame
     [sensor]       gain, read_noise, offset, full_well, bit_depth, background
-    [ptv]          methods, analysis_volume, r_range, bins, plateau, kolmogorov_c2,
-                   max_speed, tolerance, min_cameras, n_boot
+    [ptv]          methods, analysis_volume, r_min, r_max, n_bins, plateau, kolmogorov_c2,
+                   max_speed, tolerance, min_cameras, n_boot (the names of
+                   :mod:`ptv.settings`; the old r_range and bins are read, with a warning)
     [checks]       c1_r_min_eta, c1_r_max_l_int
     [output]       images, links
     [recording]    frames, sequences, frame_rate or tau_tau_eta, steps, fit_window: a
                    time-resolved recording instead of frame pairs
                    (:mod:`validation.run.recording_section`, docs/run.md §11)
+    [ipr]          methods, otf_regions, mapping_grid, outer_iterations: iterative
+                   particle reconstruction rungs (:mod:`validation.run.ipr_section`)
 
 Missing tables take their defaults; unknown tables or fields are errors that name the
 file and the field. A custom flow (:class:`FlowSection`), for example::
@@ -45,8 +48,7 @@ import numpy as np
 
 from ptv.calibration.methods import CALIBRATION_METHODS
 from ptv.names import FILE_NAME_RULE, is_file_name
-from ptv.pipeline.options import PipelineSettings
-from ptv.stats.run_statistics import StatisticsSettings
+from ptv.settings import PipelineSettings, StatisticsSettings
 from simulator.render.sensor import Sensor
 from simulator.rigs import RigFileError, load_rig, rig_presets
 from validation.run.derived_ptv import (
@@ -61,8 +63,9 @@ from validation.run.flow_section import (
     dns_eta,
     flow_section,
 )
+from validation.run.ipr_section import IprSection, check_ipr
 from validation.run.recording_section import RecordingSection, check_recording
-from validation.run.scenario_fields import ScenarioError, section
+from validation.run.scenario_fields import ScenarioError, renamed_keys, section
 
 
 @dataclass(frozen=True)
@@ -110,19 +113,20 @@ class PtvSection:
 
     ``methods`` are the calibrations the PTV runs with (the true cameras always run
     too, for the error budget); ``analysis_volume`` is the size of the centred box the
-    statistics use, m; ``r_range`` the outer edges of the ``bins`` log-spaced
+    statistics use, m; ``r_min`` and ``r_max`` the outer edges of the ``n_bins`` log-spaced
     separation bins, m; ``plateau`` the r range of the plateau ε, m; ``min_cameras``
     the fewest cameras a match must use (2 to the rig's camera count; left out, all but
     one of four or more, else 2); ``tolerance`` the matching tolerance on the ray
     distances, m, and ``max_speed`` the largest particle speed, m/s (left out, both
-    measured on the rig and the data). Left out, ``analysis_volume``, ``r_range`` and
+    measured on the rig and the data). Left out, ``analysis_volume``, ``r_min``, ``r_max`` and
     ``plateau`` follow the rig and the flow (:mod:`validation.run.derived_ptv`).
     """
 
     methods: tuple[str, ...] = ("model-free", "tsai")
     analysis_volume: tuple[float, float, float] = (0.07, 0.07, 0.008)
-    r_range: tuple[float, float] = (0.5e-3, 35e-3)
-    bins: int = 24
+    r_min: float = 0.5e-3
+    r_max: float = 35e-3
+    n_bins: int = 24
     plateau: tuple[float, float] = (2e-3, 20e-3)
     kolmogorov_c2: float = 2.0
     max_speed: float | None = None
@@ -187,14 +191,16 @@ class Scenario:
     checks: ChecksSection = field(default_factory=ChecksSection)
     output: OutputSection = field(default_factory=OutputSection)
     recording: RecordingSection | None = None
+    ipr: IprSection | None = None
 
     def as_dict(self) -> dict:
         """JSON-able form, the inverse of :func:`scenario_from_dict` (the fields its flow
-        does not use left out, and ``recording`` where there is none)."""
+        does not use left out, and ``recording`` and ``ipr`` where there are none)."""
         spec = asdict(self)
         spec["flow"] = self.flow.as_dict()
-        if self.recording is None:
-            del spec["recording"]
+        for optional in ("recording", "ipr"):
+            if getattr(self, optional) is None:
+                del spec[optional]
         return spec
 
     def with_seed(self, seed: int) -> "Scenario":
@@ -220,7 +226,7 @@ SIZE_LIMITS = {
     "planes": (3, 200, ""),
     "count": (1, 100_000, " (10⁵ tracers are 0.045 particles per pixel on 2048 × 1088)"),
     "frames": (2, 100_000, " (10⁵ frame pairs per Δt would take days)"),
-    "bins": (1, 1_000, ""),
+    "n_bins": (1, 1_000, ""),
 }
 
 
@@ -250,7 +256,7 @@ def _check(scenario: Scenario, source: str, given: set[str]) -> None:
         ("calibration.planes", scenario.calibration.planes, SIZE_LIMITS["planes"]),
         ("particles.count", scenario.particles.count, SIZE_LIMITS["count"]),
         ("particles.frames", scenario.particles.frames, SIZE_LIMITS["frames"]),
-        ("ptv.bins", scenario.ptv.bins, SIZE_LIMITS["bins"]),
+        ("ptv.n_bins", scenario.ptv.n_bins, SIZE_LIMITS["n_bins"]),
     ):
         if not minimum <= value <= maximum:
             fail(f"{where} must be from {minimum} to {maximum}{why}, got {value}")
@@ -272,26 +278,26 @@ def _check(scenario: Scenario, source: str, given: set[str]) -> None:
         if not value > 0:
             fail(f"{where} must be > 0, got {value}")
     for where, (lo, hi) in (
-        ("ptv.r_range", scenario.ptv.r_range),
+        ("ptv.r_min and ptv.r_max", (scenario.ptv.r_min, scenario.ptv.r_max)),
         ("ptv.plateau", scenario.ptv.plateau),
     ):
         if not 0 < lo < hi:
             fail(f"{where} must be [low, high] with 0 < low < high, m, got {[lo, hi]}")
-    if {"r_range", "plateau", "analysis_volume"} & given:  # the rest are derived, then checked
+    if {"r_min", "r_max", "plateau", "analysis_volume"} & given:  # else derived, checked later
         _check_separations(scenario, source)
     if scenario.flow.kind == "dns":
         half = dns_box_side(scenario.flow) / 2
-        missing = [name for name in ("r_range", "plateau") if name not in given]
+        missing = [name for name in ("r_min", "r_max", "plateau") if name not in given]
         if missing:
             fail(
                 f"ptv.{' and ptv.'.join(missing)}: a DNS must give them: its integral length "
                 f"is measured only once it runs, and half its box ({half * 1e3:.4g} mm, "
                 f"{half / dns_eta(scenario.flow):.0f}η) leaves no 40η … L_int/2 range to derive "
-                "them from (the dns-ci scenario gives r_range 1–25 mm, plateau 2–20 mm)"
+                "them from (the dns-ci scenario gives r_min 1 mm, r_max 25 mm, plateau 2–20 mm)"
             )
-        if scenario.ptv.r_range[1] > half:
+        if scenario.ptv.r_max > half:
             fail(
-                f"ptv.r_range reaches {scenario.ptv.r_range[1] * 1e3:g} mm, beyond half the DNS "
+                f"ptv.r_max reaches {scenario.ptv.r_max * 1e3:g} mm, beyond half the DNS "
                 f"box ({half * 1e3:.4g} mm), where the box's periodic images correlate the "
                 "pairs (docs/dns.md §8)"
             )
@@ -313,7 +319,9 @@ def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
         raise ScenarioError(f"{source}: a scenario needs a 'name' string")
     if not is_file_name(spec["name"]):
         raise ScenarioError(f"{source}: name must be {FILE_NAME_RULE}, got {spec['name']!r}")
-    unknown = sorted(set(spec) - {"name", "description", "seed", "recording", *_SECTIONS})
+    spec = renamed_keys(spec, source)
+    optional = {"recording", "ipr"}
+    unknown = sorted(set(spec) - {"name", "description", "seed", *optional, *_SECTIONS})
     if unknown:
         raise ScenarioError(
             f"{source}: unknown table(s) or field(s) {', '.join(map(repr, unknown))}"
@@ -332,6 +340,8 @@ def scenario_from_dict(spec: dict, *, source: str = "scenario") -> Scenario:
         raise ScenarioError(f"{source}: description must be a string, got {description!r}")
     if "recording" in spec:
         sections["recording"] = section(RecordingSection, spec["recording"], source, "recording")
+    if "ipr" in spec:
+        sections["ipr"] = section(IprSection, spec["ipr"], source, "ipr")
     scenario = Scenario(name=spec["name"], description=description, seed=seed, **sections)
     _check(scenario, source, set(spec.get("ptv", {})))
     if scenario.recording is not None:
@@ -351,8 +361,8 @@ def scenario_presets() -> list[str]:
     --------
     >>> import validation
     >>> validation.scenario_presets()
-    ['box-3cam', 'ci', 'default', 'dns', 'dns-ci', 'paper-10hz', 'paper-12hz', 'paper-8hz',
-     'slow-4cam', 'slow-dense', 'slow-unequal', 'tr', 'tr-ci', 'tr-dns']
+    ['box-3cam', 'ci', 'default', 'dense-ci', 'dns', 'dns-ci', 'paper-10hz', 'paper-12hz',
+     'paper-8hz', 'slow-4cam', 'slow-dense', 'slow-unequal', 'tr', 'tr-ci', 'tr-dns']
     """
     folder = resources.files("validation") / "scenarios"
     return sorted(
@@ -364,7 +374,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     """A preset scenario by name, or a scenario file by path.
 
     A rig given as a relative ``.toml`` path in a scenario file is taken relative to
-    that file. The PTV ranges a file leaves out (``[ptv]`` analysis_volume, r_range,
+    that file. The PTV ranges a file leaves out (``[ptv]`` analysis_volume, r_min, r_max,
     plateau) follow its rig and flow (:mod:`validation.run.derived_ptv`).
 
     Parameters
@@ -401,7 +411,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     >>> scenario = validation.load_scenario(path)
     >>> scenario.rig.name, scenario.particles.count, scenario.flow.label
     ('box-3cam', 500, 'lem-10hz')
-    >>> [round(r * 1e3, 2) for r in scenario.ptv.r_range]  # separations of the bins, mm
+    >>> [round(r * 1e3, 2) for r in (scenario.ptv.r_min, scenario.ptv.r_max)]  # bins' edges, mm
     [0.49, 35.0]
     >>> validation.load_scenario("fast")
     Traceback (most recent call last):
@@ -432,6 +442,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         spec = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ScenarioError(f"{source}: not valid TOML: {err}") from None
+    spec = renamed_keys(spec, source)
     scenario = scenario_from_dict(spec, source=source)
     rig = Path(scenario.rig.name)
     if path is not None and rig.suffix == ".toml" and not rig.is_absolute():
@@ -447,6 +458,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     except RigFileError as err:
         raise ScenarioError(f"{source}: rig.name: {err}") from None
     cameras = loaded.cameras
+    if scenario.ipr is not None:
+        check_ipr(scenario, source, len(cameras))
     given = set(spec.get("ptv", {}))
     if not given.issuperset(DERIVED_FIELDS):
         scales = None
@@ -478,7 +491,7 @@ def _check_separations(scenario: Scenario, source: str, eta: float | None = None
 
     diagonal = float(np.linalg.norm(scenario.ptv.analysis_volume))
     for where, (_, hi) in (
-        ("ptv.r_range", scenario.ptv.r_range),
+        ("ptv.r_max", (scenario.ptv.r_min, scenario.ptv.r_max)),
         ("ptv.plateau", scenario.ptv.plateau),
     ):
         if hi > diagonal:
@@ -495,7 +508,7 @@ def _check_separations(scenario: Scenario, source: str, eta: float | None = None
             else scenario.flow.as_preset().parameters.eta
         )
     for where, (lo, _) in (
-        ("ptv.r_range", scenario.ptv.r_range),
+        ("ptv.r_min", (scenario.ptv.r_min, scenario.ptv.r_max)),
         ("ptv.plateau", scenario.ptv.plateau),
     ):
         if lo < eta:
@@ -519,9 +532,9 @@ def _checked_field_file(scenario: Scenario, path: Path | None, source: str) -> S
         raise ScenarioError(f"{source}: flow.file: {err}") from None
     _check_separations(scenario, source, eta=run_flow.preset.parameters.eta)
     half = run_flow.scales["box_side"] / 2
-    if scenario.ptv.r_range[1] > half:
+    if scenario.ptv.r_max > half:
         raise ScenarioError(
-            f"{source}: ptv.r_range reaches {scenario.ptv.r_range[1] * 1e3:g} mm, beyond half "
+            f"{source}: ptv.r_max reaches {scenario.ptv.r_max * 1e3:g} mm, beyond half "
             f"the file's periodic box ({half * 1e3:.4g} mm), where its periodic images "
             "correlate the pairs (docs/dns.md §8)"
         )
@@ -538,9 +551,9 @@ def pipeline_settings(scenario: Scenario) -> PipelineSettings:
         min_cameras=p.min_cameras,
         statistics=StatisticsSettings(
             analysis_volume=(-half, half),
-            r_min=p.r_range[0],
-            r_max=p.r_range[1],
-            n_bins=p.bins,
+            r_min=p.r_min,
+            r_max=p.r_max,
+            n_bins=p.n_bins,
             plateau=p.plateau,
             kolmogorov_c2=p.kolmogorov_c2,
             n_boot=p.n_boot,

@@ -1,13 +1,59 @@
 """Reading a scenario's TOML tables into their dataclasses: typed fields, one error line
 naming the file and the field."""
 
+import logging
 import math
 from dataclasses import fields
 from typing import get_args
 
+log = logging.getLogger(__name__)
+
+#: Keys that a scenario's tables once had, read under the settings' names they now share
+#: (:mod:`ptv.settings`): table → old key → the new key, or the new keys that the old
+#: key's list of values is split into.
+RENAMED = {"ptv": {"r_range": ("r_min", "r_max"), "bins": ("n_bins",)}}
+
 
 class ScenarioError(ValueError):
     """A scenario file or name that cannot be used; the message names file and field."""
+
+
+def renamed_keys(spec: dict, source: str) -> dict:
+    """``spec`` with the old keys of its tables (:data:`RENAMED`) read under their new
+    names, each with a warning that names the old and the new keys.
+
+    Raises
+    ------
+    ScenarioError
+        An old key beside one of its new keys, or an old list of the wrong length.
+    """
+    spec = dict(spec)
+    for key, renamed in RENAMED.items():
+        table = spec.get(key)
+        if not isinstance(table, dict) or not renamed.keys() & table.keys():
+            continue
+        table = dict(table)
+        for old, new in renamed.items():
+            if old not in table:
+                continue
+            value = table.pop(old)
+            names = " and ".join(f"{key}.{n}" for n in new)
+            both = [n for n in new if n in table]
+            if both:
+                raise ScenarioError(
+                    f"{source}: {key}.{old} is the old name of {names}: give {key}.{both[0]} only"
+                )
+            if len(new) == 1:
+                table[new[0]] = value
+            elif isinstance(value, list | tuple) and len(value) == len(new):
+                table.update(zip(new, value, strict=True))
+            else:
+                raise ScenarioError(
+                    f"{source}: {key}.{old} must be a list of {len(new)} numbers, got {value!r}"
+                )
+            log.warning("%s: %s.%s is an old name, read as %s: write that", source, key, old, names)
+        spec[key] = table
+    return spec
 
 
 def typed(value: object, kind: type, where: str):

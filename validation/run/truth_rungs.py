@@ -21,16 +21,16 @@ from functools import reduce
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ptv.bins import LogBins
 from ptv.box import inside_box
 from ptv.camera_model import CameraModel
 from ptv.detect import FractionSums
-from ptv.pipeline.frames import FrameDetections
-from ptv.pipeline.options import PipelineSettings
+from ptv.detect.frames import FrameDetections
+from ptv.settings import PipelineSettings
 from ptv.stats.links import RunParticles
-from ptv.stats.pairs import LogBins
 from ptv.triangulate import triangulate
-from validation.dataset.truth_file import TruthFile, TruthRun
 from validation.truth.pair_noise import PairNoiseSums
+from validation.truth.truth_file import TruthFile, TruthRun
 
 #: Largest distance between a detection and the true image of its particle, px.
 ASSOCIATION_RADIUS = 1.0

@@ -24,7 +24,7 @@ import numpy as np
 
 from validation.run.checks import EPSILON_TOLERANCE
 from validation.run.derived_ptv import PLATEAU_MIN_ETA
-from validation.run.tolerances import FALSE_ALARM
+from validation.score.tolerances import FALSE_ALARM
 
 #: Matching in the analysis volume: the least yield and the most ghosts.
 YIELD_MIN = 0.90
@@ -37,6 +37,11 @@ PEAK_LOCKING_MAX_PX = 0.01
 #: Table 1 d of classic Tsai over the model-free calibration's, at least (claim #16).
 TSAI_OVER_MODEL_FREE_MIN = 3.0
 
+#: IPR, as the LPT Challenge's best codes do at a density (particles per pixel) up to
+#: the first number: the least found fraction, the most ghosts and the largest projected
+#: position error, px (None: not asked at that density).
+IPR_TARGETS = ((0.05, 0.99, 0.01, 0.1), (0.12, 0.97, 0.03, None))
+
 UNDER_TEST = "method under test"
 BASELINE = "baseline"
 RULE = (
@@ -44,6 +49,13 @@ RULE = (
     "first of [ptv] methods); synptv run exits with status 1 when one fails. The other "
     "methods are baselines: their checks run the same and are reported, and a FAIL "
     "there is a finding about that calibration, not a failure of the run."
+)
+IPR_RULE = (
+    "Must hold: the checks of the run and every check of the method under test (IPR "
+    "through the first of [ipr] methods); synptv run exits with status 1 when one fails. "
+    "The detect-and-match rungs of [ptv] methods are baselines: their checks run the same "
+    "and are reported, and a FAIL there is a finding about detecting and matching dense "
+    "images, not a failure of the run."
 )
 
 
@@ -57,6 +69,8 @@ PERCENT_CHECKS = frozenset(
         "stats.epsilon_matches_input_deficit",
         "stats.dt_subsets",
         "stats.sample_off_ensemble",
+        "ipr.found",
+        "ipr.ghosts",
     }
 )
 #: How a check's false-alarm rate is written beside its tolerance.
@@ -299,6 +313,49 @@ def rung_checks(comparison: dict, matching: dict) -> list[dict]:
     return rows
 
 
+def ipr_rows(reconstruction: dict) -> list[dict]:
+    """The checks of an IPR rung's reconstruction against the LPT Challenge's targets at
+    its density (:data:`IPR_TARGETS`; above the densest, informative rows).
+
+    Parameters
+    ----------
+    reconstruction : dict
+        The rung's ``reconstruction.json`` (:mod:`validation.truth.reconstruction`):
+        ``ppp``, ``found``, ``ghosts``, ``rms_px``.
+
+    Returns
+    -------
+    list of dict
+        ``id``, ``value``, ``tolerance``, ``passed`` (and ``informative``).
+    """
+    ppp = reconstruction["ppp"]
+    target = next((t for t in IPR_TARGETS if ppp <= t[0]), None)
+    found, ghosts, rms = (reconstruction[k] for k in ("found", "ghosts", "rms_px"))
+    if target is None:
+        note = f"{ppp:.3g} particles per pixel: beyond {IPR_TARGETS[-1][0]:g}, no target is set"
+        return [
+            _row("ipr.found", found, "reported", True, note),
+            _row("ipr.ghosts", ghosts, "reported", True, note),
+            _row("ipr.position_error_px", rms, "reported", True, note),
+        ]
+    up_to, found_min, ghosts_max, error_max = target
+    where = f"at {ppp:.3g} ≤ {up_to:g} particles per pixel (the LPT Challenge's best codes)"
+    rows = [
+        _row("ipr.found", found, f"≥ {found_min:g} {where}", found >= found_min),
+        _row("ipr.ghosts", ghosts, f"≤ {ghosts_max:g} {where}", ghosts <= ghosts_max),
+    ]
+    if error_max is not None:
+        rows.append(
+            _row(
+                "ipr.position_error_px",
+                rms,
+                f"≤ {error_max:g} px rms, projected, {where}",
+                rms is not None and rms <= error_max,
+            )
+        )
+    return rows
+
+
 def _linking_rows(comparison: dict) -> list[dict]:
     """The ambiguity of the links (none where they were not made by distance)."""
     linking = comparison.get("linking")
@@ -418,7 +475,9 @@ def dns_rows(dns: dict | None) -> list[dict]:
     return rows
 
 
-def verdict(run: list[dict], rungs: dict, methods, table1: dict) -> tuple[dict, list[dict]]:
+def verdict(
+    run: list[dict], rungs: dict, methods, table1: dict, *, rule: str = RULE
+) -> tuple[dict, list[dict]]:
     """The checks of the run and of every calibration rung, and which must hold.
 
     Parameters
@@ -428,9 +487,13 @@ def verdict(run: list[dict], rungs: dict, methods, table1: dict) -> tuple[dict, 
     rungs : dict
         ``{method: rung_checks(...)}`` for every method of ``[ptv] methods``.
     methods : sequence of str
-        ``[ptv] methods``; the first is the method under test.
+        The rungs judged, the method under test first: ``[ptv] methods``, led by the
+        IPR rungs of ``[ipr] methods`` where the scenario has them.
     table1 : dict
         ``table1.json``'s ``table1`` (the rungs' calibration errors, reported).
+    rule : str
+        What must hold, in words (:data:`RULE`, or :data:`IPR_RULE` where IPR rungs
+        lead ``methods``).
 
     Returns
     -------
@@ -459,7 +522,7 @@ def verdict(run: list[dict], rungs: dict, methods, table1: dict) -> tuple[dict, 
                 if "informative" not in c
             ]
     checks = {
-        "rule": RULE,
+        "rule": rule,
         "run": run,
         "rungs": per_rung,
         "passed": all(c["passed"] for c in must_hold),

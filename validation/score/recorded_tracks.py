@@ -16,9 +16,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from validation.dataset.recording_truth import RecordingTruth
 from validation.score.trajectories import TrackPoints, TrueTrajectories
 from validation.truth.matching import align_to_truth, rotation_angle_deg
+from validation.truth.recording_truth import RecordingTruth
 
 #: Frames left between joined recordings (more than any gap a tracker closes).
 SEQUENCE_SEPARATION = 1000

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ptv.box import Box, inside_box
-from validation.dataset.truth_file import TruthFile
 from validation.score.positions import Positions
 from validation.truth.matching import align_to_truth, match_frame, reference_particles
+from validation.truth.truth_file import TruthFile
 
 #: Snapshots of truth read at a time.
 TRUTH_CHUNK = 10

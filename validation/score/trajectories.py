@@ -62,7 +62,7 @@ class TrueTrajectories:
     --------
     A rendered recording's truth gives it through
     ``validation.score.recorded_tracks.true_trajectories(
-    validation.dataset.recording_truth.read_recording_truth(folder), min_cameras)``.
+    validation.truth.recording_truth.read_recording_truth(folder), min_cameras)``.
     Here, the exact trajectories of a recording of 10 frames at 2 kHz in a
     20 × 20 × 2 mm slab, every particle-frame observed:
 

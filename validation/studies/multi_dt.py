@@ -146,7 +146,7 @@ def _analyse(
         preset,
         measurement,
         region=region,
-        bins=ptv.bins,
+        bins=ptv.n_bins,
         inertial_range=tuple(ptv.plateau),
         kolmogorov_c2=ptv.kolmogorov_c2,
         spectrum=spectrum,

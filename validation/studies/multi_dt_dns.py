@@ -29,17 +29,16 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from ptv.stats.pairs import LogBins
+from ptv.bins import LogBins
 from simulator.dns.fieldfile import read_field_file_parameters
-from simulator.dns.flow import FIELD_FILE, DnsTracerFlow
+from simulator.dns.stationary_flow import FIELD_FILE, DnsTracerFlow
 from simulator.particles import Box, follow_snapshots
 from simulator.turbulence import TurbulenceParameters
-from validation.claims.statistics import dt3_gamma
 from validation.run.dns_checks import beta_over_s2
 from validation.run.flow_stage import dns_spec
 from validation.run.scenario import Scenario, scenario_from_dict
 from validation.studies.runner import Sweep, SweepPoint, seed_sequence
-from validation.truth.dt3_bias import at_separation, c1_bias
+from validation.truth.dt3_bias import at_separation, c1_bias, dt3_gamma
 
 #: Factors applied to the scenario's Δt set.
 RANGE_SCALES = (0.5, 1.0, 2.0, 4.0)
@@ -126,7 +125,7 @@ def dt_range_task(settings: dict, options: dict, point: dict) -> dict:
         region=region,
         rng=seed_sequence(scenario.seed, "dt-range", "flow"),
     )
-    bins = LogBins(scenario.ptv.r_range[0], scenario.ptv.r_range[1], scenario.ptv.bins)
+    bins = LogBins(scenario.ptv.r_min, scenario.ptv.r_max, scenario.ptv.n_bins)
     beta_of_r = beta_over_s2(folder)
     rows = []
     for noise_um in sorted({0.0, float(options["noise_um"])}):

@@ -12,11 +12,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ptv.stats.dissipation import DEFAULT_C2, dissipation_profile, plateau_epsilon
+from ptv.bins import LogBins
+from ptv.settings import DEFAULT_C2
+from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
 from ptv.stats.links import RunParticles
 from ptv.stats.mean_displacement import MeanDisplacement, mean_displacement
 from ptv.stats.multidt import dt_subsets
-from ptv.stats.pairs import LogBins, PairSums, pair_sums
+from ptv.stats.pairs import PairSums, pair_sums
 from ptv.stats.snapshots import SnapshotSums
 from ptv.stats.structure import StructureFunction, double_frame_sums, structure_function
 from simulator.particles import ANALYSIS_VOLUME, Box, DoubleFrameSample, KSFlow, double_frame

@@ -43,13 +43,13 @@ from ptv.triangulate import triangulate
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig, load_rig, rig_from_dict
 from validation.dataset.calibrate import dot_positions
-from validation.dataset.truth_file import TruthFile
 from validation.run.experiment import ExperimentRun, object_pixel
 from validation.run.scenario import OutputSection, Scenario
 from validation.studies.calibration_methods import MODEL_VOLUME, plane_subset, with_obliquity
 from validation.studies.multi_dt import R_OVER_ETA, spread_indices
-from validation.truth.flow import population_truth
+from validation.truth.flow_truth import population_truth
 from validation.truth.matching import rigid_fit
+from validation.truth.truth_file import TruthFile
 from validation.workflow.parallel import Executor
 
 #: Plane counts of the plane study (the scenario's traverse always included).

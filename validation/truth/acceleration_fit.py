@@ -3,7 +3,7 @@ DNS's acceleration code that shares none of it (docs/dns.md §13).
 
 The DNS writes, for every tracer of a shared-first-frame dataset, its exact position X
 at t and at t + τ_k for the scenario's Δt set (τ_1 … τ_K), all from one start, and its
-velocity v = u(X, t) (``truth.h5``, :mod:`validation.dataset.truth_file`). The positions
+velocity v = u(X, t) (``truth.h5``, :mod:`validation.truth.truth_file`). The positions
 come from the RK4 integration of dX/dt = u(X, t) on the solver's stage fields
 (:mod:`simulator.dns.tracers`): they never pass through the code that forms
 a = ∂u/∂t + (u·∇)u (``FlowFields.acceleration``, ``truth_at``). Their Taylor series,

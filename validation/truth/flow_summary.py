@@ -4,8 +4,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ptv.stats.pairs import LogBins
-from simulator.flow import DEFAULT_UNSTEADINESS
+from ptv.bins import LogBins
+from simulator.ks_field import DEFAULT_UNSTEADINESS
 from simulator.particles import ANALYSIS_VOLUME, Box, KSFlow, Progress, follow_snapshots
 from simulator.spectra import SPECTRA, Spectrum, discretise
 from simulator.truth import longitudinal_structure_function

@@ -23,9 +23,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ptv.box import Box, inside_box
-from ptv.pipeline.options import PipelineSettings
-from validation.dataset.truth_file import TruthRun
+from ptv.settings import PipelineSettings
 from validation.truth.sheet_regions import SheetRegions, region_counts, region_table
+from validation.truth.truth_file import TruthRun
 
 #: Nearest-neighbour distance within which pairs enter the rigid fit, m.
 _ALIGN_RADIUS = 0.5e-3

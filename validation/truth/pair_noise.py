@@ -3,7 +3,7 @@
 The multi-Δt fit's intercept c2(r) is the mean over the pairs of a separation bin of
 q = [(δ_j − δ_i)·e]², δ the error of a measured displacement ΔX against the true one
 and e = r/|r|. Predicting it from one displacement-noise variance per component
-(:class:`validation.run.noise_prediction.NoisePrediction`) assumes every particle
+(:class:`validation.score.noise_prediction.NoisePrediction`) assumes every particle
 equally noisy and errors independent between particles. On dense images neither holds exactly: two
 particles close in space are close on every image, so they are more often blended and
 their fitted centres share an error (a joint fit trades light between the two spots).
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ptv.stats.pairs import LogBins
+from ptv.bins import LogBins
 
 #: Particles per snapshot whose pairs are summed (about 5·10⁵ pairs at most).
 MAX_PARTICLES = 1000

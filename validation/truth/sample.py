@@ -7,7 +7,8 @@ removes the sampling noise of the particular realizations and isolates method er
 
 import numpy as np
 
-from ptv.stats.pairs import LogBins, PairSums, pair_sums
+from ptv.bins import LogBins
+from ptv.stats.pairs import PairSums, pair_sums
 from simulator.particles import Box
 
 

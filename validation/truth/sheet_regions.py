@@ -24,7 +24,7 @@ from itertools import pairwise
 import numpy as np
 
 from ptv.box import Box, inside_box
-from validation.dataset.truth_file import TruthFile
+from validation.truth.truth_file import TruthFile
 
 #: Upper edges of the depth bins, as fractions of the sheet's half thickness (a last
 #: bin holds the particles beyond it).

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ptv.calibration.experiment import find_traverse_dots, plate_setup
 from ptv.calibration.io import load_calibrations
+from ptv.calibration.plate_images import find_traverse_dots, plate_setup
 from ptv.triangulate import triangulate
 from simulator.rigs import load_rig
 from simulator.target import PlateDesign, build_plate, traverse_positions

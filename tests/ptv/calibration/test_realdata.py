@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ptv.calibration.experiment import find_traverse_dots, plate_setup
+from ptv.calibration.plate_images import find_traverse_dots, plate_setup
 
 EXAMPLE = Path(__file__).parents[3] / "examples" / "openptv-multiplane"
 

@@ -24,7 +24,7 @@ from ptv.calibration.targets import (
     find_dots,
     observations_from_images,
 )
-from ptv.io.experiment import description_problems
+from ptv.io.experiment_file import description_problems
 from simulator.render.plate import render_plate
 from simulator.render.sensor import Sensor
 from simulator.rigs import load_rig

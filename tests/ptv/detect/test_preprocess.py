@@ -8,9 +8,10 @@ import pytest
 import tifffile
 from scipy.special import erf
 
+from ptv.detect.frames import ImageDetector
 from ptv.detect.preprocess import invert, median_background, tophat
 from ptv.io.dataset import open_dataset
-from ptv.pipeline.frames import DetectorSettings, ImageDetector
+from ptv.settings import DetectorSettings
 
 SHAPE = (96, 128)
 

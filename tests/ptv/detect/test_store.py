@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from ptv.detect.frames import ChunkDetections, exposures
 from ptv.detect.store import (
     DetectionStore,
     StoreError,
@@ -15,7 +16,6 @@ from ptv.detect.store import (
     write_chunk,
     write_index,
 )
-from ptv.pipeline.frames import ChunkDetections, exposures
 
 CAMERAS = ("cam1", "cam2")
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from ptv.settings import DEFAULT_C2
 from ptv.stats.dissipation import (
-    DEFAULT_C2,
     dissipation_profile,
     epsilon_estimate,
     epsilon_paper_caption,

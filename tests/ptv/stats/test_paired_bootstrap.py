@@ -4,9 +4,10 @@ correlate, and paired between two measurements of the same snapshots."""
 import numpy as np
 import pytest
 
+from ptv.settings import ANALYSIS_VOLUME, StatisticsSettings
 from ptv.stats.eulerian import cell_sums, eulerian_fit, eulerian_moments, u_prime_replicates
 from ptv.stats.links import RunParticles
-from ptv.stats.run_statistics import ANALYSIS_VOLUME, StatisticsSettings, compute_statistics
+from ptv.stats.run_statistics import compute_statistics
 
 DT = np.array([1e-4, 2e-4, 3e-4, 4e-4, 5e-4])
 SETTINGS = StatisticsSettings(n_boot=80, r_min=2e-3, n_bins=10, plateau=(3e-3, 20e-3))

@@ -11,8 +11,9 @@ velocities at the measured positions.
 import numpy as np
 import pytest
 
+from ptv.bins import LogBins
 from ptv.stats.multidt import largest_dt, smallest_and_largest_dt
-from ptv.stats.pairs import LogBins, pair_sums
+from ptv.stats.pairs import pair_sums
 from ptv.stats.structure import double_frame_sums, structure_function, time_resolved_sums
 
 DT = np.array([1.0, 2.0, 3.0, 4.0, 5.0]) * 1e-3  # s

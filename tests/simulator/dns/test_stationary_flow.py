@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from simulator.dns.fieldfile import read_field_file, read_field_file_parameters
-from simulator.dns.flow import (
+from simulator.dns.stationary_flow import (
     FIELD_FILE,
     STATISTICS_FILE,
     DnsSpec,

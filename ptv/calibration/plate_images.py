@@ -1,7 +1,7 @@
 """Calibrate the cameras of a dataset folder from its plate images: no truth needed.
 
 What a real experiment provides is enough: experiment.json (checked against its schema
-up front, :mod:`ptv.io.experiment`) with the plate (``target``), the traverse readings
+up front, :mod:`ptv.io.experiment_file`) with the plate (``target``), the traverse readings
 (``traverse_z``), the plate images' pattern (``calibration_images``) and each camera's
 pixel pitch and focal length, optionally a mask per camera and seed dots (a CSV file,
 ``calibration_seeds``, :func:`read_seed_dots`) for plates without marks. Instead of
@@ -30,7 +30,7 @@ from ptv.calibration.plate import PlateDescription
 from ptv.calibration.targets import find_dots
 from ptv.camera_model import CameraModel
 from ptv.io.dataset import DatasetError, camera_masks
-from ptv.io.experiment import read_experiment
+from ptv.io.experiment_file import read_experiment
 from ptv.io.images import read_image
 
 __all__ = [
@@ -99,7 +99,7 @@ def plate_setup(folder: str | Path) -> PlateSetup:
     ------
     FileNotFoundError
         No experiment.json, or a plate image or dot list missing.
-    ptv.io.experiment.DescriptionError
+    ptv.io.experiment_file.DescriptionError
         experiment.json breaks its schema or lacks a field calibrating needs (all the
         problems in one line).
     DatasetError
@@ -207,7 +207,7 @@ def _file_paths(
     """The files of ``camera`` experiment.json's ``field`` names, one per traverse
     position, each present: by one ``pattern`` ({j} from ``first_j``), or by a list of
     patterns with {camera} only, one per position (checked to be as long as the traverse
-    by :func:`ptv.io.experiment.description_problems`)."""
+    by :func:`ptv.io.experiment_file.description_problems`)."""
     try:
         if isinstance(pattern, str):
             names = [pattern.format(camera=camera, j=first_j + j) for j in range(planes)]

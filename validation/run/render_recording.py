@@ -5,13 +5,13 @@ Layout of a recorded dataset folder (lengths in m, times in s)::
     experiment.json                     the calibration's description: cameras, the
                                         plate, its traverse, the plate images' layout
     calibration/<camera>/plane_<jj>.tif 16-bit plate image at traverse position j
-    truth.h5                            the plate's truth (:mod:`validation.dataset.truth_file`)
+    truth.h5                            the plate's truth (:mod:`validation.truth.truth_file`)
     sequence<s>/experiment.json         recording s as a time-resolved dataset that
                                         ``synptv ptv`` reads (``time_resolved``: frame
                                         rate, frame-number pattern, the multi-Δt steps)
     sequence<s>/images/<camera>/<nnnnnn>.tif   frame n of camera, 16-bit
     sequence<s>/truth.h5                every particle at every frame
-                                        (:mod:`validation.dataset.recording_truth`)
+                                        (:mod:`validation.truth.recording_truth`)
 
 Each sequence is one realization of the flow (:func:`simulator.recording.follow_recording`,
 seeded by the run's seed and s): tracers seeded uniformly in the sheet padded by how far
@@ -30,7 +30,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simulator.dns.flow import DnsTracerFlow
+from simulator.dns.stationary_flow import DnsTracerFlow
 from simulator.particles import KSFlow
 from simulator.presets import FlowPreset
 from simulator.recording import follow_periodic_recording, follow_recording
@@ -38,16 +38,16 @@ from simulator.render.camera_frames import ParticleLighting, record_particles, r
 from simulator.render.sensor import Sensor
 from simulator.rigs import Rig
 from simulator.target import build_plate, traverse_positions
-from validation.dataset.recording_truth import RecordingTruthWriter, frame_chunks
-from validation.dataset.render import (
-    DatasetFlow,
+from validation.run.particle_chunks import write_tiff
+from validation.run.render_dataset import (
     RenderSettings,
     calibration_description,
     truth_header,
     write_plates,
 )
-from validation.dataset.truth_file import TruthWriter
-from validation.run.particle_chunks import write_tiff
+from validation.run.run_flow import RunFlow
+from validation.truth.recording_truth import RecordingTruthWriter, frame_chunks
+from validation.truth.truth_file import TruthWriter
 from validation.workflow.parallel import Executor, InProcess
 
 #: Frames rendered in one task.
@@ -166,7 +166,7 @@ def _write_sequence(
     s: int,
     rig: Rig,
     preset: FlowPreset,
-    flow: DatasetFlow,
+    flow: RunFlow,
     settings: RenderSettings,
     plan: RecordingPlan,
     executor: Executor,
@@ -193,7 +193,7 @@ def _write_sequence(
     (folder / "experiment.json").write_text(json.dumps(description, indent=2))
 
 
-def _follow(flow: DatasetFlow, plan: RecordingPlan, settings: RenderSettings, rig: Rig, s: int):
+def _follow(flow: RunFlow, plan: RecordingPlan, settings: RenderSettings, rig: Rig, s: int):
     """The tracers of recording s: kinematic simulation, or a DNS's snapshot s with its
     periodic images (:mod:`simulator.recording`)."""
     rng = np.random.SeedSequence([settings.seed, 3, s])
@@ -234,7 +234,7 @@ def build_recording_dataset(
     target: Path,
     rig: Rig,
     preset: FlowPreset,
-    flow: DatasetFlow,
+    flow: RunFlow,
     settings: RenderSettings,
     plan: RecordingPlan,
     *,
@@ -251,7 +251,7 @@ def build_recording_dataset(
         Cameras and sheet.
     preset : FlowPreset
         The flow's scales (written to the truth).
-    flow : DatasetFlow
+    flow : RunFlow
         A kinematic-simulation flow, or a DNS's (recording s starts at its snapshot s).
     settings : RenderSettings
         Plate, traverse, tracers in the sheet, lighting, sensor, seed (``frames`` and
@@ -271,8 +271,8 @@ def build_recording_dataset(
     executor = InProcess() if executor is None else executor
     target.mkdir(parents=True, exist_ok=True)
     plate = build_plate(
-        settings.plate,
-        traverse_positions(settings.planes),
+        rig.plate,
+        traverse_positions(settings.planes, rig.plane_spacing),
         imperfections=settings.imperfections,
         rng=settings.seed,
     )

@@ -26,22 +26,15 @@ from typing import Protocol
 
 import numpy as np
 
-from ptv._checks import positive
 from ptv.detect import Detections, detect_particles
 from ptv.detect.background import BackgroundEstimate, estimate_background
-from ptv.detect.preprocess import (
-    BACKGROUND_REMOVALS,
-    invert,
-    median_background,
-    particles_left_by_median,
-    tophat,
-)
+from ptv.detect.preprocess import invert, median_background, particles_left_by_median, tophat
 from ptv.io.dataset import Dataset, DatasetError
+from ptv.settings import DetectorSettings
 
 __all__ = [
     "ChunkDetections",
     "DetectedCentres",
-    "DetectorSettings",
     "FrameDetections",
     "ImageDetector",
     "exposures",
@@ -64,7 +57,7 @@ class FrameDetections(Protocol):
     shared_first_frame : bool
         Snapshot m of every Δt shares its frame a.
     detector : dict
-        How the particles were detected (:meth:`DetectorSettings.as_dict`).
+        How the particles were detected (:meth:`ptv.settings.DetectorSettings.as_dict`).
     """
 
     folder: Path
@@ -86,107 +79,6 @@ class FrameDetections(Protocol):
 STILL_FRACTION = 0.25
 #: Fewest particle images on the frame for that check to speak.
 MIN_STILL_CHECK = 10
-
-
-@dataclass(frozen=True)
-class DetectorSettings:
-    """How particles are detected on a dataset's images (:mod:`ptv.detect.preprocess`
-    for the options real images need).
-
-    Attributes
-    ----------
-    threshold_sigmas : float
-        Detection threshold in noise units above background (default 6), > 0.
-    saturation : float or None
-        Saturation level of the images, DN (None: the dtype's maximum).
-    particles : {"bright", "dark"}
-        Bright particles on a dark background (laser sheet) or dark on bright
-        (back-lit): dark images are inverted, saturation − I, before detection.
-    background : {"none", "tophat", "median"}
-        Background removed before detection: none, a morphological top-hat of each
-        frame, or the per-pixel median of ``median_frames`` frames of the camera.
-    tophat_radius : int
-        Disc radius of the top-hat, px, >= 1 (above the largest particle image radius).
-    median_frames : int
-        Frames, spread over the recording, whose median is the background, >= 3.
-    min_peak : float
-        Particles whose brightest pixel is less than this above the background are
-        dropped, DN, >= 0.
-    min_size : int
-        Particles with fewer pixels above threshold are dropped, >= 1.
-    diameter : float or None
-        Expected particle image diameter, px (e⁻² diameter, σ = diameter/4), > 0; with
-        ``background = "tophat"``, at most 2·``tophat_radius``. None (default): spots of
-        about 3 px. From 6 px the detector works at the particles' scale
-        (:func:`ptv.detect.detect_particles`), so that a large particle is one
-        detection.
-
-    Examples
-    --------
-    Back-lit particles (shadows) on an unevenly lit background, 15 px across:
-
-    >>> import ptv
-    >>> settings = ptv.DetectorSettings(
-    ...     particles="dark", background="tophat", tophat_radius=8, diameter=15.0
-    ... )
-    >>> settings.raw, ptv.DetectorSettings().raw  # images prepared, or detected as recorded
-    (False, True)
-    >>> ptv.DetectorSettings(background="tophat", diameter=15.0)
-    Traceback (most recent call last):
-    ...
-    ValueError: diameter 15.0 px is wider than the top-hat's disc ... set tophat_radius >= 8
-    """
-
-    threshold_sigmas: float = 6.0
-    saturation: float | None = None
-    particles: str = "bright"
-    background: str = "none"
-    tophat_radius: int = 4
-    median_frames: int = 25
-    min_peak: float = 0.0
-    min_size: int = 1
-    diameter: float | None = None
-
-    def __post_init__(self) -> None:
-        positive("threshold_sigmas", self.threshold_sigmas)
-        if self.saturation is not None:
-            positive("saturation", self.saturation)
-        if self.particles not in ("bright", "dark"):
-            raise ValueError(f"particles must be 'bright' or 'dark', got {self.particles!r}")
-        if self.background not in BACKGROUND_REMOVALS:
-            raise ValueError(
-                f"background must be one of {', '.join(BACKGROUND_REMOVALS)}, got "
-                f"{self.background!r}"
-            )
-        for name, low in (("tophat_radius", 1), ("median_frames", 3), ("min_size", 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-        if isinstance(self.min_peak, bool) or not (
-            isinstance(self.min_peak, int | float) and self.min_peak >= 0
-        ):
-            raise ValueError(f"min_peak must be a number >= 0 (DN), got {self.min_peak!r}")
-        if self.diameter is not None:
-            positive("diameter", self.diameter)
-            if self.background == "tophat" and self.diameter > 2 * self.tophat_radius:
-                raise ValueError(
-                    f"diameter {self.diameter!r} px is wider than the top-hat's disc "
-                    f"(tophat_radius {self.tophat_radius} px), which would remove the "
-                    f"particles: set tophat_radius >= {math.ceil(self.diameter / 2)}"
-                )
-
-    @property
-    def raw(self) -> bool:
-        """Whether the images are detected as recorded (no inversion, no removal)."""
-        return self.particles == "bright" and self.background == "none"
-
-    def as_dict(self) -> dict:
-        """JSON-able form (what detections depend on besides the images); ``diameter``
-        only when given, so that the records of earlier runs stay as they were."""
-        fields = dataclasses.asdict(self)
-        if self.diameter is None:
-            del fields["diameter"]
-        return fields
 
 
 def exposures(

@@ -1,4 +1,5 @@
-"""Mutations of the simulator's flow and particles (``simulator.flow``, ``simulator.particles``).
+"""Mutations of the simulator's flow and particles (``simulator.ks_field``,
+``simulator.particles``).
 
 The statistics claims see them: their references come from the flow's prescribed
 spectrum (the exact D_LL, the input ε and its plateau deficit) and from the particles'
@@ -10,7 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from simulator.flow import draw_ks_field
+from simulator.ks_field import draw_ks_field
 from simulator.particles import Box, KSFlow
 from simulator.presets import flow_preset
 from simulator.spectra import PopeSpectrum
@@ -50,7 +51,7 @@ FLOW_MUTATIONS: tuple[Mutation, ...] = (
         "ks-amplitudes-five-percent-high",
         "every KS mode's amplitude 5 % above what its share of the spectrum's energy gives "
         "(u′ 5 %, the energy 10 % high)",
-        (Patch("simulator.flow:draw_ks_field", _louder),),
+        (Patch("simulator.ks_field:draw_ks_field", _louder),),
         ("stats.epsilon_recovered",),
         ("stats",),
         _velocity,

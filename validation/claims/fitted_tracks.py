@@ -4,7 +4,7 @@ velocity and acceleration, and the Lagrangian statistics with the noise removed.
 The recorded case (:mod:`validation.claims.recorded_case`) follows the default flow's
 tracers through the sheet at τ_η/10 per frame and measures their exact positions with
 5 µm of white noise; no image is rendered and the tracks are the particles' own, so the
-claims judge :mod:`ptv.tracking.fitting`, :mod:`ptv.tracking.track_fit` and
+claims judge :mod:`ptv.tracking.fitting`, :mod:`ptv.pipeline.track_fit` and
 :mod:`ptv.stats.lagrangian` alone (docs/lagrangian.md). The references
 (:mod:`validation.claims.recorded_scores`) are the least-squares fit's floor computed
 apart from the stack and the same estimator on the exact positions.
@@ -15,7 +15,7 @@ import numpy as np
 from validation.claims.base import Claim, ClaimResult, result
 from validation.claims.context import ClaimContext
 from validation.claims.recorded_scores import FitComparison
-from validation.run.tolerances import FALSE_ALARM, false_alarm_z
+from validation.score.tolerances import FALSE_ALARM, false_alarm_z
 
 
 def _fit(claim: Claim, ctx: ClaimContext, *, order: int) -> ClaimResult:

@@ -9,13 +9,12 @@ to ``run_log.json``), so the same scenario and seed give the same file.
 import html
 import json
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ptv.calibration.io import load_calibrations
 from simulator.rigs import load_rig
 from simulator.turbulence import TurbulenceParameters
-from validation.dataset.truth_file import TruthFile
 from validation.report.dns_report import dns_html
 from validation.report.html_parts import number, percent, table
 from validation.report.linking_table import linking_table
@@ -27,11 +26,13 @@ from validation.run.dns_checks import dns_section
 from validation.run.experiment import REFERENCE_VARIANTS, ExperimentStages, run_label
 from validation.run.rung_comparisons import compare_rungs
 from validation.run.scenario import Scenario
-from validation.run.tolerances import float_array
 from validation.run.verdict import (
+    IPR_RULE,
+    RULE,
     calibration_check,
     dns_rows,
     failed_rung_checks,
+    ipr_rows,
     plateau_row,
     run_checks,
     rung_checks,
@@ -40,6 +41,8 @@ from validation.run.verdict import (
     verdict,
     verdict_line,
 )
+from validation.score.tolerances import float_array
+from validation.truth.truth_file import TruthFile
 from validation.workflow.files import write_text_atomic
 
 #: What each rung of the error budget adds, and the rung it is compared with.
@@ -134,6 +137,10 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     check_range, noise_free = compared.check_range, compared.noise_free
     order = [(v, *_RUNGS[v]) for v in REFERENCE_VARIANTS]
     order += [(m, f"calibration ({m})", "true-cameras") for m in scenario.ptv.methods]
+    ipr = ipr_rungs(scenario, stages)
+    if ipr:
+        order.append(("ipr-true-cameras", "IPR in place of detect-and-match", "true-cameras"))
+        order += [(v, f"IPR, calibration ({v[4:]})", "ipr-true-cameras") for v in ipr.judged]
     main = scenario.ptv.methods[0]
     figures = out / "figures"
     figures.mkdir(exist_ok=True)
@@ -170,22 +177,33 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
             seed=scenario.seed,
         )
     notes = [sample_row(comparisons[main]), plateau_row(scenario.ptv.plateau, p["eta"])]
+    rungs = {
+        m: failed_rung_checks(failed[m])
+        if m in failed
+        else rung_checks(comparisons[m], matching[m])
+        for m in given.ptv.methods
+    }
+    rungs |= {
+        v: rung_checks(comparisons[v], matching[v]) + ipr_rows(ipr.scores[v]) for v in ipr.judged
+    }
+    detected = run_checks(
+        detection,
+        comparisons["detection"],
+        calibration_check(table1, load_rig(scenario.rig.name).spec),
+    )
+    if ipr:  # the method under test reconstructs instead of detecting
+        detected = [
+            {**row, "informative": IPR_DETECTION_NOTE} if _is_detection(row) else row
+            for row in detected
+        ]
     checks, must_hold = verdict(
-        run_checks(
-            detection,
-            comparisons["detection"],
-            calibration_check(table1, load_rig(scenario.rig.name).spec),
-        )
+        detected
         + dns_rows(dns)
         + [row for row in notes if row is not None],
-        {
-            m: failed_rung_checks(failed[m])
-            if m in failed
-            else rung_checks(comparisons[m], matching[m])
-            for m in given.ptv.methods
-        },
-        given.ptv.methods,
-        table1,
+        rungs,
+        (*ipr.judged, *given.ptv.methods),
+        {**table1, **{v: table1[v[4:]] for v in ipr.judged if v[4:] in table1}},
+        rule=IPR_RULE if ipr else RULE,
     )
     results = {
         "scenario": _portable(given),
@@ -205,7 +223,42 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     }
     if dns is not None:
         results["dns"] = dns
+    if ipr:
+        results["reconstruction"] = ipr.scores
     return results
+
+
+#: Why a run whose method under test is IPR reports its 2-D detection checks only.
+IPR_DETECTION_NOTE = (
+    "the method under test (IPR) does not detect particles in each image; the 2-D "
+    "detection is the detect-and-match baselines'"
+)
+
+
+def _is_detection(row: dict) -> bool:
+    """A check of the 2-D detection (its error, its peak locking, its noise term)."""
+    return row["id"].startswith("detection.") or row["id"].endswith("(detection)")
+
+
+@dataclass(frozen=True)
+class IprRungs:
+    """A run's IPR rungs: ``judged`` (through the calibrations of ``[ipr] methods``, the
+    first the method under test) and every IPR rung's ``reconstruction.json``."""
+
+    judged: tuple[str, ...] = ()
+    scores: dict = field(default_factory=dict)
+
+    def __bool__(self) -> bool:
+        return bool(self.scores)
+
+
+def ipr_rungs(scenario: Scenario, stages: ExperimentStages) -> IprRungs:
+    """The IPR rungs the run built (none without ``[ipr]``)."""
+    if scenario.ipr is None:
+        return IprRungs()
+    built = [v for v in scenario.ipr.variants() if v in stages.ptv]
+    scores = {v: _read(stages.ptv[v].folder / "reconstruction.json") for v in built}
+    return IprRungs(tuple(v for v in built if v != "ipr-true-cameras"), scores)
 
 
 def _img(path: str, caption: str) -> str:

@@ -1,6 +1,7 @@
 """Every option of ``synptv ptv`` in one TOML file (``--settings``; ``--print-settings``).
 
-Sections and the dataclass fields they fill (SI units: m, s, m/s, m/s²)::
+Sections and the fields of the :mod:`ptv.settings` dataclasses they fill, under the
+fields' own names (SI units: m, s, m/s, m/s²)::
 
     [detection]    DetectorSettings: threshold_sigmas, saturation, particles, background,
                    tophat_radius, median_frames, min_peak, min_size, diameter
@@ -30,12 +31,15 @@ import math
 import tomllib
 from pathlib import Path
 
-from ptv.pipeline.frames import DetectorSettings
-from ptv.pipeline.options import PipelineSettings
-from ptv.stats.run_statistics import StatisticsSettings
-from ptv.tracking.track_fit import TrackFitSettings
+from ptv.settings import (
+    DetectorSettings,
+    PipelineSettings,
+    PtvSettings,
+    StatisticsSettings,
+    TrackFitSettings,
+)
 
-__all__ = ["PtvSettings", "SettingsError", "load_settings", "settings_from_dict", "settings_toml"]
+__all__ = ["SettingsError", "load_settings", "settings_from_dict", "settings_toml"]
 
 #: Section → (settings class, fields of it that the section holds).
 SECTIONS = {
@@ -126,38 +130,6 @@ class SettingsError(ValueError):
     """A settings file that cannot be used; the message names file, section and field."""
 
 
-@dataclasses.dataclass(frozen=True)
-class PtvSettings:
-    """What ``synptv ptv`` needs besides the dataset and the calibration.
-
-    Attributes
-    ----------
-    detection : DetectorSettings
-        Particle detection on the images.
-    pipeline : PipelineSettings
-        Matching, linking, the snapshots processed and the statistics.
-    tracks : TrackFitSettings
-        How ``--tracks`` fits the tracks.
-
-    Examples
-    --------
-    The defaults, and the same with only the first 5 snapshots processed:
-
-    >>> import dataclasses
-    >>> import ptv
-    >>> settings = ptv.PtvSettings()
-    >>> settings.detection.threshold_sigmas, settings.pipeline.statistics.n_boot
-    (6.0, 200)
-    >>> pipeline = dataclasses.replace(settings.pipeline, snapshots=5)
-    >>> dataclasses.replace(settings, pipeline=pipeline).pipeline.snapshots
-    5
-    """
-
-    detection: DetectorSettings = dataclasses.field(default_factory=DetectorSettings)
-    pipeline: PipelineSettings = dataclasses.field(default_factory=PipelineSettings)
-    tracks: TrackFitSettings = dataclasses.field(default_factory=TrackFitSettings)
-
-
 def _value(name: str, value: object):
     """A TOML value as the settings field expects it (lists to tuples, false to None)."""
     if value is False and name in _OFF_WITH_FALSE:
@@ -244,7 +216,7 @@ def load_settings(path: str | Path) -> PtvSettings:
     >>> ptv.load_settings(path)
     Traceback (most recent call last):
     ...
-    ptv.pipeline.settings.SettingsError: ...: [linking] unknown field 'max_sped'; known: ...
+    ptv.pipeline.settings_file.SettingsError: ...: [linking] unknown field 'max_sped'; known: ...
     >>> tmp.cleanup()
     """
     path = Path(path)

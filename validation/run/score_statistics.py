@@ -20,22 +20,23 @@ from dataclasses import replace
 import numpy as np
 
 from ptv.pipeline.double_frame import SnapshotMeasurement, run_particles
-from ptv.pipeline.options import PipelineSettings, link_radius
+from ptv.pipeline.link_radii import link_radius
 from ptv.pipeline.resolve import LINK_SPEED_SNAPSHOTS, settings_with_measured_speed
 from ptv.pipeline.summary import statistics_summary
+from ptv.settings import PipelineSettings
 from ptv.stats.links import RunParticles
 from ptv.stats.run_statistics import compute_statistics
 from ptv.tracking.linking import link
 from ptv.tracking.outliers import median_test_outliers
-from validation.dataset.truth_file import TruthFile
 from validation.run.checks import compare_variant
-from validation.run.noise_prediction import predicted_noise
 from validation.run.particle_chunks import snapshot_chunks
 from validation.run.scenario import ChecksSection
 from validation.run.truth_rungs import in_volume, reference_run
+from validation.score.noise_prediction import predicted_noise
 from validation.score.positions import Positions
 from validation.score.reference import Scored
-from validation.truth.flow import flow_truth, population_truth
+from validation.truth.flow_truth import flow_truth, population_truth
+from validation.truth.truth_file import TruthFile
 
 
 def _pairs(positions: Positions, a: np.ndarray, b: np.ndarray, radius: float | None):
@@ -201,7 +202,7 @@ def score_statistics(
         :func:`validation.run.checks.compare_variant` (``c1``, ``epsilon``, ``c2``,
         ``raw_s2``, ``mean_linear``, ``subsets``, ``c1_over_truth``; ``c1_reference``:
         which sample truth c1 is compared with), ``sample_truth`` (the sample truth and
-        exact D_LL, :class:`validation.truth.flow.FlowTruth`), ``population`` and
+        exact D_LL, :class:`validation.truth.flow_truth.FlowTruth`), ``population`` and
         ``summary`` (:func:`ptv.pipeline.summary.statistics_summary`).
 
     Examples

@@ -5,7 +5,7 @@ import pytest
 from scipy import stats
 
 from simulator import ks_kernels
-from simulator.flow import KSField, draw_ks_field, random_unit_vectors
+from simulator.ks_field import KSField, draw_ks_field, random_unit_vectors
 from simulator.presets import flow_preset
 from simulator.spectra import KolmogorovBandSpectrum, PopeSpectrum
 from simulator.truth import longitudinal_structure_function

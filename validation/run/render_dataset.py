@@ -12,7 +12,7 @@ Layout of a dataset folder (all lengths in m, times in s)::
                                           is the same image for every k, hard-linked);
                                           only when the particle images are kept
     truth.h5                              the simulator's ground truth (ptv never reads
-                                          it; layout in :mod:`validation.dataset.truth_file`)
+                                          it; layout in :mod:`validation.truth.truth_file`)
 
 The plate images are rendered one task per camera and plane, the particles one task per
 chunk of snapshots (:mod:`validation.run.particle_chunks`), on any
@@ -36,9 +36,9 @@ import h5py
 import numpy as np
 
 from ptv.detect.store import chunk_name, write_chunk
-from ptv.pipeline.frames import DetectorSettings
-from simulator.flow import DEFAULT_UNSTEADINESS
-from simulator.particles import KSFlow, TracerFlow
+from ptv.settings import DetectorSettings
+from simulator.ks_field import DEFAULT_UNSTEADINESS
+from simulator.particles import KSFlow
 from simulator.presets import FlowPreset
 from simulator.render.camera_frames import ParticleLighting, rig_lighting
 from simulator.render.plate import render_plate
@@ -49,11 +49,9 @@ from simulator.target import (
     REALISTIC,
     Imperfections,
     PhysicalPlate,
-    PlateDesign,
     build_plate,
     traverse_positions,
 )
-from validation.dataset.truth_file import TruthWriter
 from validation.run.particle_chunks import (
     ParticleJob,
     chunk_detections,
@@ -61,6 +59,9 @@ from validation.run.particle_chunks import (
     snapshot_chunks,
     write_tiff,
 )
+from validation.run.run_flow import RunFlow
+from validation.truth.exact import SpectrumStructure
+from validation.truth.truth_file import TruthWriter
 from validation.workflow.parallel import Executor, InProcess
 
 #: Version of the dataset layout (experiment.json and truth.h5).
@@ -78,9 +79,8 @@ class RenderSettings:
     frames : int
         Frame pairs (independent snapshots) per Δt.
     planes : int
-        Traverse positions of the calibration plate, 1 mm apart, centred on Z = 0.
-    plate : PlateDesign
-        The calibration plate.
+        Traverse positions of the calibration plate, centred on Z = 0 (the rig gives
+        the plate and the traverse's step: :attr:`simulator.rigs.Rig.plate`).
     imperfections : Imperfections
         Deviations of the physical plate and traverse (truth kept in truth.h5).
     plate_brightness : float
@@ -92,7 +92,7 @@ class RenderSettings:
     n_modes : int
         KS modes.
     unsteadiness : float
-        λ of the KS frequencies ω_n = λ √(k_n³ E(k_n)) (:func:`simulator.flow.draw_ks_field`).
+        λ of the KS frequencies ω_n = λ √(k_n³ E(k_n)) (:func:`simulator.ks_field.draw_ks_field`).
     lighting : ParticleLighting
         Tracer size and laser sheet.
     sensor : Sensor
@@ -114,7 +114,6 @@ class RenderSettings:
 
     frames: int = 10
     planes: int = 13
-    plate: PlateDesign = field(default_factory=PlateDesign)
     imperfections: Imperfections = REALISTIC
     plate_brightness: float = 4000.0
     particles: int = 1000
@@ -166,7 +165,7 @@ def calibration_description(rig: Rig, plate, settings: RenderSettings) -> dict:
             }
             for name, camera in zip(rig.camera_names, rig.cameras, strict=True)
         },
-        "target": settings.plate.as_dict(),
+        "target": rig.plate.as_dict(),
         "traverse_z": [float(z) for z in plate.z_nominal],
         "calibration_images": "calibration/{camera}/plane_{j:02d}.tif",
         "bit_depth": settings.sensor.bit_depth,
@@ -192,43 +191,21 @@ def _experiment_description(
     }
 
 
-@dataclass(frozen=True)
-class DatasetFlow:
-    """The flow a dataset's particles follow, and what truth.h5 records of it.
-
-    Attributes
-    ----------
-    tracers : TracerFlow
-        What follows each snapshot's particles (:mod:`simulator.particles`).
-    attrs : dict
-        Attributes of ``/flow`` beside the scales (KS: spectrum, n_modes, unsteadiness).
-    datasets : dict of ndarray
-        Datasets of ``/flow`` (a DNS: ``shell_k``, ``shell_energy``, its exact D_LL).
-    """
-
-    tracers: TracerFlow
-    attrs: dict
-    datasets: dict = field(default_factory=dict)
-
-
-def ks_flow(preset: FlowPreset, settings: RenderSettings) -> DatasetFlow:
+def ks_flow(preset: FlowPreset, settings: RenderSettings) -> RunFlow:
     """Kinematic simulation of the settings' spectrum, modes and unsteadiness."""
     if settings.spectrum not in SPECTRA:
         raise ValueError(f"unknown spectrum {settings.spectrum!r}; known: {', '.join(SPECTRA)}")
-    tracers = KSFlow(
-        SPECTRA[settings.spectrum](preset.parameters),
-        n_modes=settings.n_modes,
-        unsteadiness=settings.unsteadiness,
-    )
+    spectrum = SPECTRA[settings.spectrum](preset.parameters)
+    tracers = KSFlow(spectrum, n_modes=settings.n_modes, unsteadiness=settings.unsteadiness)
     attrs = {
         "spectrum": settings.spectrum,
         "n_modes": settings.n_modes,
         "unsteadiness": settings.unsteadiness,
     }
-    return DatasetFlow(tracers, attrs)
+    return RunFlow(preset, tracers, attrs, SpectrumStructure(spectrum))
 
 
-def truth_header(rig: Rig, preset: FlowPreset, flow: DatasetFlow):
+def truth_header(rig: Rig, preset: FlowPreset, flow: RunFlow):
     """Writes the flow, the cameras and the rig into a new truth.h5."""
 
     def write(truth: h5py.File) -> None:
@@ -285,7 +262,7 @@ def particle_job(
     preset: FlowPreset,
     settings: RenderSettings,
     *,
-    flow: DatasetFlow | None = None,
+    flow: RunFlow | None = None,
     detector: DetectorSettings | None = None,
     images: Path | None = None,
 ) -> ParticleJob:
@@ -340,7 +317,7 @@ def write_plates(
         "z_nominal": plate.z_nominal,
         "z_actual": np.array([p.z_actual for p in plate.poses]),
         "dots_world": np.stack([plate.dot_centres(j) for j in range(len(plate.poses))]),
-        "dot_indices": settings.plate.indices,
+        "dot_indices": rig.plate.indices,
     }
     job = PlateJob(rig, plate, settings.plate_brightness, settings.sensor, settings.seed)
     for i, (image, *dot_truth) in executor.map(render_plate_image, todo, shared={"job": job}):
@@ -356,7 +333,7 @@ def build_dataset(
     preset: FlowPreset,
     settings: RenderSettings,
     *,
-    flow: DatasetFlow | None = None,
+    flow: RunFlow | None = None,
     images: bool = True,
     detections: DetectionOutput | None = None,
     executor: Executor | None = None,
@@ -375,7 +352,7 @@ def build_dataset(
         Flow and Δt set.
     settings : RenderSettings
         Sizes, plate, lighting, sensor and seed.
-    flow : DatasetFlow, optional
+    flow : RunFlow, optional
         The flow (default: the KS flow of ``settings``, :func:`ks_flow`).
     images : bool
         Write the particle images (the plate images and truth.h5 always are).
@@ -404,8 +381,8 @@ def build_dataset(
     )
     target.mkdir(parents=True, exist_ok=True)
     plate = build_plate(
-        settings.plate,
-        traverse_positions(settings.planes),
+        rig.plate,
+        traverse_positions(settings.planes, rig.plane_spacing),
         imperfections=settings.imperfections,
         rng=settings.seed,
     )

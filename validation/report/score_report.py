@@ -15,7 +15,7 @@ from validation.report.html_parts import number, table
 from validation.report.png import save_figure
 from validation.report.ptv_figures import mark_off_axis, plain_log_axis
 from validation.report.run_figures import BUDGET_AXIS
-from validation.run.tolerances import float_array
+from validation.score.tolerances import float_array
 from validation.workflow.files import write_json_atomic, write_text_atomic
 
 #: The files a report is made of.

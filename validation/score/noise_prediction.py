@@ -5,8 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ptv.stats.pairs import LogBins
-from validation.run.tolerances import float_array
+from ptv.bins import LogBins
+from validation.score.tolerances import float_array
 
 
 def direction_moments(bins: LogBins, box_size, *, points: int = 3000, rng: int = 0) -> np.ndarray:

@@ -20,14 +20,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ptv.settings import StatisticsSettings
 from ptv.stats.dissipation import dissipation_profile, plateau_epsilon
 from ptv.stats.pairs import PairSums, pair_sums
 from ptv.stats.resampling import SnapshotBootstrap, autocorrelation_time, block_length
-from ptv.stats.run_statistics import S2Population, StatisticsSettings
+from ptv.stats.run_statistics import S2Population
 from ptv.stats.snapshots import cluster_mean
 from simulator.particles import Box
 from simulator.turbulence import TurbulenceParameters
-from validation.dataset.truth_file import TruthFile
 from validation.truth.exact import ExactStructure
 from validation.truth.independent import (
     check_edges,
@@ -38,6 +38,7 @@ from validation.truth.independent import (
 )
 from validation.truth.pair_noise import PairNoiseSums
 from validation.truth.sample import sample_structure_function
+from validation.truth.truth_file import TruthFile
 
 #: The brute-force reference: particles per group, groups per snapshot, seed.
 REFERENCE_PARTICLES = 300
@@ -195,7 +196,7 @@ class PopulationTruth:
     def as_dict(self) -> dict:
         """JSON-able form (NaN → None); ``dt`` and ``displacement_noise_m`` as in
         ``detection.json``, so either feeds
-        :func:`validation.run.noise_prediction.predicted_noise`."""
+        :func:`validation.score.noise_prediction.predicted_noise`."""
 
         def listed(a):
             return [None if not np.isfinite(v) else float(v) for v in a]
@@ -349,7 +350,7 @@ def flow_truth(
     ----------
     snapshots : iterable of (ndarray (P, 3), ndarray (P, 3))
         Positions (m) and exact velocities (m/s) at t of every independent snapshot
-        (:meth:`validation.dataset.truth_file.TruthFile.snapshots_at_t`).
+        (:meth:`validation.truth.truth_file.TruthFile.snapshots_at_t`).
     parameters : TurbulenceParameters
         The flow.
     exact : ExactStructure

@@ -21,7 +21,7 @@ from validation.claims.image_scores import (
     matching_differences,
     position_errors,
 )
-from validation.run.tolerances import false_alarm_z
+from validation.score.tolerances import false_alarm_z
 from validation.truth.localisation_bound import least_squares_errors
 from validation.truth.noise_floor import object_pixel
 

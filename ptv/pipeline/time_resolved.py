@@ -37,12 +37,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ptv.camera_model import CameraModel
+from ptv.detect.frames import ChunkDetections, DetectedCentres, ImageDetector, exposures
 from ptv.errors import DatasetError
 from ptv.io.dataset import cameras_in_order
 from ptv.pipeline.double_frame import PtvResult, run_pipeline
-from ptv.pipeline.frames import ChunkDetections, DetectedCentres, ImageDetector, exposures
-from ptv.pipeline.options import PipelineSettings, link_radius
+from ptv.pipeline.link_radii import link_radius
 from ptv.pipeline.resolve import match_frame, resolve_matching
+from ptv.settings import PipelineSettings
 from ptv.tracking.linking import RecordingTracks, Tracks, track_frames
 from ptv.tracking.stitching import stitch_tracks
 

@@ -1,10 +1,10 @@
 """``truth.h5`` of a rendered recording: every particle at every frame (ptv never reads it).
 
-A recording's folder (``dataset/sequence<s>/``, :mod:`validation.dataset.recording`)
+A recording's folder (``dataset/sequence<s>/``, :mod:`validation.run.render_recording`)
 holds its truth beside its images. Layout (lengths in m, times in s, pixels as OpenCV)::
 
     /                       attrs: format_version, rig (the rig's JSON)
-    /flow, /cameras         as in :mod:`validation.dataset.truth_file`
+    /flow, /cameras         as in :mod:`validation.truth.truth_file`
     /recording              attrs: frame_rate, frames (F), sequence, seeds
         times (F,)                      frame times from 0
         frame_start (F + 1,)            rows of frame f: frame_start[f] … frame_start[f+1]
@@ -30,7 +30,7 @@ import numpy as np
 
 from simulator.recording import RecordedParticles
 from simulator.rigs import Rig, rig_from_dict
-from validation.dataset.truth_file import FORMAT_VERSION
+from validation.truth.truth_file import FORMAT_VERSION
 
 _PROGRESS = "progress"
 

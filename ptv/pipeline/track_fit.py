@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ptv.settings import TrackFitSettings
 from ptv.stats.lagrangian import (
     LagrangianStatistics,
     acceleration_variance,
@@ -27,7 +28,6 @@ from ptv.stats.lagrangian import (
 )
 from ptv.stats.track_sample import track_sample
 from ptv.tracking.fitting import (
-    MIN_FIT_POINTS,
     FittedTracks,
     WindowChoice,
     choose_window,
@@ -35,47 +35,7 @@ from ptv.tracking.fitting import (
     track_outliers,
 )
 
-__all__ = ["FittedRecording", "TrackFitSettings", "fit_recording"]
-
-
-@dataclass(frozen=True)
-class TrackFitSettings:
-    """How tracks are fitted (``[tracks]`` of ``synptv ptv --settings``).
-
-    Attributes
-    ----------
-    fit_window : int or None
-        Points per fit, odd, ≥ 5 (None: chosen from the noise and the tracks).
-    min_points : int
-        Fewest points of a track that is fitted, ≥ 5.
-
-    Examples
-    --------
-    >>> import ptv
-    >>> ptv.TrackFitSettings(fit_window=7)
-    TrackFitSettings(fit_window=7, min_points=5)
-    >>> ptv.TrackFitSettings(fit_window=6)
-    Traceback (most recent call last):
-    ...
-    ValueError: fit_window must be an odd integer >= 5, got 6
-    """
-
-    fit_window: int | None = None
-    min_points: int = MIN_FIT_POINTS
-
-    def __post_init__(self) -> None:
-        if self.fit_window is not None and not (
-            isinstance(self.fit_window, int)
-            and self.fit_window >= MIN_FIT_POINTS
-            and self.fit_window % 2 == 1
-        ):
-            raise ValueError(
-                f"fit_window must be an odd integer >= {MIN_FIT_POINTS}, got {self.fit_window!r}"
-            )
-        if not isinstance(self.min_points, int) or self.min_points < MIN_FIT_POINTS:
-            raise ValueError(
-                f"min_points must be an integer >= {MIN_FIT_POINTS}, got {self.min_points!r}"
-            )
+__all__ = ["FittedRecording", "fit_recording"]
 
 
 @dataclass(frozen=True, eq=False)

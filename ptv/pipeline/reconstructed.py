@@ -1,0 +1,249 @@
+"""Frames located by iterative particle reconstruction instead of detection and matching.
+
+Where particle images overlap (from about 0.03 particles per pixel), detecting them in
+each image and matching the detections loses particles and makes ghosts; iterative
+particle reconstruction (:mod:`ptv.reconstruct`) finds them from all the cameras' images
+at once. :func:`reconstruct_chunk` reconstructs every exposure of a range of snapshots
+of a dataset, and the :class:`ReconstructedChunk` it gives locates each frame's points
+for the double-frame stack (:func:`ptv.pipeline.double_frame.measure_snapshots`, its
+``locate``), which then links, tests and averages them as it does matched points.
+
+The OTF is measured once per camera on the images themselves
+(:func:`measure_run_otf`): on frame a of the first snapshot, from its isolated particle
+images and then per depth slab from the particles reconstructed there, as a laboratory
+calibrates it.
+"""
+
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ptv.box import Box
+from ptv.camera_model import CameraModel
+from ptv.detect.frames import exposures
+from ptv.io.dataset import Dataset
+from ptv.reconstruct import (
+    IPRSettings,
+    OpticalTransferFunction,
+    measure_otf,
+    reconstruct,
+    refine_otf,
+)
+
+logger = logging.getLogger(__name__)
+
+#: Outer iterations of the reconstruction with the OTF measured without depth, whose
+#: particles measure the OTF per depth slab: with that OTF the residuals of the oblique
+#: cameras keep peaks and IPR runs to its cap without converging; after 10 iterations
+#: the particles give the same OTF as after 60 (dense-ci's first snapshot, 7 s against
+#: 39 s).
+FLAT_OTF_ITERATIONS = 10
+
+
+@dataclass(frozen=True, eq=False)
+class ReconstructedChunk:
+    """Every exposure of snapshots m0 … m1 − 1, reconstructed.
+
+    Attributes
+    ----------
+    folder : Path
+        The dataset.
+    detector : dict
+        How the particles were located: ``method`` and the reconstruction's settings,
+        ``threshold_sigmas`` its peak threshold in background noise units (as a
+        detector's).
+    cameras : tuple of str
+        Camera names, in the calibrations' order.
+    dt : ndarray, shape (K,)
+        Frame separations, s.
+    frames : tuple of int
+        Frame pairs per Δt.
+    shared_first_frame : bool
+        Frame a of snapshot m shared by every Δt.
+    snapshots : (int, int)
+        m0, m1.
+    points : dict of (int, int, str) to ndarray, shape (N, 3)
+        Per exposure (k, m, frame), k = −1 for a shared frame a: the particles, m.
+    seen : dict of (int, int, str) to list of int
+        Per exposure, the particles each camera images.
+    seconds : dict of (int, int, str) to float
+        Per exposure, the reconstruction's wall time, s.
+    iterations : dict of (int, int, str) to int
+        Per exposure, the outer iterations run.
+    """
+
+    folder: Path
+    detector: dict
+    cameras: tuple[str, ...]
+    dt: np.ndarray
+    frames: tuple[int, ...]
+    shared_first_frame: bool
+    snapshots: tuple[int, int]
+    points: dict
+    seen: dict
+    seconds: dict
+    iterations: dict
+
+    @classmethod
+    def join(cls, chunks: Sequence["ReconstructedChunk"]) -> "ReconstructedChunk":
+        """Consecutive chunks of one run as one (snapshots from the first's m0 to the
+        last's m1)."""
+        first = chunks[0]
+        merged = {name: {} for name in ("points", "seen", "seconds", "iterations")}
+        for chunk in chunks:
+            for name, values in merged.items():
+                values.update(getattr(chunk, name))
+        snapshots = (first.snapshots[0], chunks[-1].snapshots[1])
+        return replace(first, snapshots=snapshots, **merged)
+
+    def key(self, k: int, m: int, frame: str) -> tuple[int, int, str]:
+        """The exposure of frame ``frame`` of snapshot m at Δt_k."""
+        return (-1 if frame == "a" and self.shared_first_frame else k, m, frame)
+
+    def locate(self, k: int, m: int, frame: str) -> tuple[list[int], np.ndarray]:
+        """Particles imaged per camera and points (N, 3), m, of one frame: the
+        ``locate`` of :func:`ptv.pipeline.double_frame.measure_snapshots`."""
+        key = self.key(k, m, frame)
+        try:
+            return self.seen[key], self.points[key]
+        except KeyError:
+            raise KeyError(f"no reconstruction of Δt_{k}, snapshot {m}, frame {frame}") from None
+
+
+def measure_run_otf(
+    dataset: Dataset,
+    cameras: Sequence[CameraModel],
+    box: Box,
+    settings: IPRSettings,
+    *,
+    regions: tuple[int, int] = (1, 1),
+    depth_slabs: int = 3,
+    min_per_cell: int = 10,
+) -> list[OpticalTransferFunction]:
+    """Each camera's OTF, measured on frame a of snapshot 0 at Δt_0, per depth slab.
+
+    As a laboratory calibrates it on its own particle images (Schanz et al. 2013): the
+    isolated particle images of each camera are fitted (:func:`ptv.reconstruct.measure_otf`),
+    the exposure is reconstructed with that OTF, and the isolated images of the
+    reconstructed particles are fitted again per depth slab
+    (:func:`ptv.reconstruct.refine_otf`): defocus widens the images away from the focal
+    plane, most in the cameras that look through the window most obliquely, and an OTF
+    without depth leaves their residual images full of peaks.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        The images.
+    cameras : sequence of C CameraModel
+        Calibrations in the dataset's camera order.
+    box : Box
+        The volume searched, (lower, upper) corners, m.
+    settings : IPRSettings
+        The reconstruction's options.
+    regions : (rows, columns)
+        Image regions the OTF is measured in; a dense image holds few isolated particle
+        images (at 0.05 particles per pixel about 2 % are 5 px from any other), so one
+        region is the default.
+    depth_slabs : int
+        Depth slabs of the refined OTF, >= 1.
+    min_per_cell : int
+        Fitted reconstructed particle images needed in every region and slab, >= 1.
+
+    Returns
+    -------
+    list of C OpticalTransferFunction
+
+    Raises
+    ------
+    ValueError
+        Too few isolated particle images in some region or slab (the message says how
+        many were found and how many are needed).
+    """
+    images = [dataset.read_frame(0, c, 0, "a") for c in dataset.cameras]
+    flat = measure_otf(images, regions=regions, saturation=dataset.saturation)
+    flat_settings = replace(
+        settings, outer_iterations=min(settings.outer_iterations, FLAT_OTF_ITERATIONS)
+    )
+    first = reconstruct(images, cameras, flat, box, settings=flat_settings)
+    return refine_otf(
+        images,
+        first.positions,
+        first.xy,
+        flat,
+        depth_slabs=depth_slabs,
+        min_per_cell=min_per_cell,
+    )
+
+
+def reconstruct_chunk(
+    dataset: Dataset,
+    snapshots: tuple[int, int],
+    *,
+    cameras: Sequence[CameraModel],
+    otfs: Sequence[OpticalTransferFunction],
+    box: Box,
+    settings: IPRSettings,
+) -> ReconstructedChunk:
+    """Reconstruct every exposure of snapshots m0 … m1 − 1 of a dataset.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        The images (C >= 3 cameras).
+    snapshots : (int, int)
+        m0, m1.
+    cameras : sequence of C CameraModel
+        Calibrations in the dataset's camera order.
+    otfs : sequence of C OpticalTransferFunction
+        Each camera's OTF (:func:`measure_run_otf`).
+    box : Box
+        The volume searched, (lower, upper) corners, m.
+    settings : IPRSettings
+        The reconstruction's options.
+
+    Returns
+    -------
+    ReconstructedChunk
+    """
+    m0, m1 = snapshots
+    points, seen, seconds, iterations = {}, {}, {}, {}
+    for k, m, frame in exposures(
+        dataset.frames, range(m0, m1), shared_first_frame=dataset.shared_first_frame
+    ):
+        images = [dataset.read_frame(max(k, 0), c, m, frame) for c in dataset.cameras]
+        t0 = time.perf_counter()
+        found = reconstruct(images, cameras, otfs, box, settings=settings)
+        key = (k, m, frame)
+        seconds[key] = time.perf_counter() - t0
+        points[key] = found.positions
+        seen[key] = np.isfinite(found.xy).all(axis=2).sum(axis=1).tolist()
+        iterations[key] = found.diagnostics.iterations
+        logger.debug(
+            "reconstructed Δt_%d snapshot %d frame %s: %d particles in %.1f s",
+            k,
+            m,
+            frame,
+            len(found.positions),
+            seconds[key],
+        )
+    return ReconstructedChunk(
+        dataset.folder,
+        {
+            "method": "iterative particle reconstruction",
+            "threshold_sigmas": settings.noise_threshold,
+            **asdict(settings),
+        },
+        tuple(dataset.cameras),
+        np.asarray(dataset.dt),
+        tuple(dataset.frames),
+        dataset.shared_first_frame,
+        (m0, m1),
+        points,
+        seen,
+        seconds,
+        iterations,
+    )

@@ -1,0 +1,102 @@
+"""Reconstructed particles scored against a truth built here: found, ghosts, errors."""
+
+import numpy as np
+import pytest
+
+from validation.run.verdict import ipr_rows
+from validation.truth.reconstruction import score_reconstruction
+from validation.truth.truth_file import TruthRun
+
+VOXEL = 60e-6
+
+
+class Orthographic:
+    """A camera looking along Z: x = X / 60 µm + 100 px, y = Y / 60 µm + 50 px."""
+
+    def project(self, points):
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        return np.column_stack([points[:, 0] / VOXEL + 100, points[:, 1] / VOXEL + 50])
+
+
+def truth_run(particles: np.ndarray, visible: np.ndarray) -> TruthRun:
+    """One snapshot whose frames a and b both hold ``particles`` (P, 3)."""
+    positions = np.stack([particles, particles])[None]  # (1, 2, P, 3)
+    exact = Orthographic().project(particles)
+    xy = np.stack([exact, exact])[None].astype(np.float32)
+    return TruthRun(
+        dt=1e-3,
+        positions=positions,
+        velocity=np.zeros((1, len(particles), 3)),
+        xy={"c1": xy, "c2": xy},
+        visible={
+            "c1": np.stack([visible, visible])[None],
+            "c2": np.ones((1, 2, len(particles)), bool),
+        },
+    )
+
+
+def test_found_ghosts_and_errors_are_counted_as_the_challenge_counts_them():
+    rng = np.random.default_rng(1)
+    particles = rng.uniform(-0.01, 0.01, (200, 3))
+    visible = np.ones(200, dtype=bool)
+    visible[:10] = False  # not imaged by c1: not a reference particle
+    offset = np.array([6e-6, -8e-6, 0.0])  # 10 µm; 0.1 px along X and 0.133 px along Y
+    points = particles[20:] + offset  # particles 0-19 missed (10 of them reference ones)
+    ghosts = particles[:5] + np.array([0.0, 0.0, 2 * VOXEL])  # two voxels off: ghosts
+    score = score_reconstruction(
+        {(-1, 0, "a"): np.vstack([points, ghosts])},
+        [truth_run(particles, visible)],
+        ["c1", "c2"],
+        [Orthographic(), Orthographic()],
+        voxel=VOXEL,
+        sensor_pixels=1000.0,
+        rotation=np.eye(3),
+        translation=np.zeros(3),
+    )
+    assert score.found == pytest.approx(180 / 190)
+    assert score.ghosts == pytest.approx(5 / 185)
+    assert score.rms_um == pytest.approx(10.0)
+    # the truth stores images as float32 (1e-4 px resolution, validation.truth.truth_file)
+    assert score.rms_px == pytest.approx(np.hypot(0.1, 8 / 60), abs=1e-4)
+    assert (score.particles, score.points, score.exposures) == (190, 185, 1)
+    assert score.ppp == pytest.approx((190 + 200) / (2 * 1000.0))
+
+
+def test_points_of_a_calibration_frame_are_moved_to_the_world_first():
+    rng = np.random.default_rng(2)
+    particles = rng.uniform(-0.01, 0.01, (50, 3))
+    shift = np.array([0.0, 0.0, 1e-3])  # a traverse origin 1 mm off: 17 voxels
+    score = score_reconstruction(
+        {(0, 0, "b"): particles - shift},
+        [truth_run(particles, np.ones(50, dtype=bool))],
+        ["c1", "c2"],
+        [Orthographic(), Orthographic()],
+        voxel=VOXEL,
+        sensor_pixels=1000.0,
+        rotation=np.eye(3),
+        translation=shift,
+    )
+    assert score.found == 1.0 and score.ghosts == 0.0
+    assert score.rms_um == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("ppp", "found", "ghosts", "rms_px", "failed"),
+    [
+        (0.05, 0.995, 0.005, 0.05, set()),
+        (0.05, 0.985, 0.005, 0.05, {"ipr.found"}),
+        (0.05, 0.995, 0.015, 0.05, {"ipr.ghosts"}),
+        (0.05, 0.995, 0.005, 0.15, {"ipr.position_error_px"}),
+        (0.08, 0.975, 0.025, 0.5, set()),
+        (0.08, 0.965, 0.035, 0.5, {"ipr.found", "ipr.ghosts"}),
+    ],
+)
+def test_ipr_checks_take_the_challenge_targets_of_their_density(ppp, found, ghosts, rms_px, failed):
+    rows = ipr_rows({"ppp": ppp, "found": found, "ghosts": ghosts, "rms_px": rms_px})
+    assert {r["id"] for r in rows if not r["passed"]} == failed
+    assert ("ipr.position_error_px" in {r["id"] for r in rows}) == (ppp <= 0.05)
+
+
+def test_beyond_the_densest_target_the_ipr_rows_are_reported_only():
+    rows = ipr_rows({"ppp": 0.16, "found": 0.5, "ghosts": 0.3, "rms_px": 1.0})
+    assert all(r["passed"] and "informative" in r for r in rows)

@@ -1,0 +1,87 @@
+"""A scenario's ``[ipr]``: iterative particle reconstruction rungs beside the
+detect-and-match stack.
+
+With ``[ipr]`` a run keeps its particle images and adds two kinds of rungs to its error
+budget: IPR through the true cameras (``ipr-true-cameras``: what the reconstruction
+alone costs) and IPR through each calibration of ``methods`` (``ipr-<method>``: what a
+laboratory gets), so that reconstruction and calibration errors separate. The first
+IPR rung of ``methods`` is then the method under test; the detect-and-match rungs of
+``[ptv] methods`` become baselines.
+
+Fields: ``methods`` (calibrations IPR runs through; each must be fitted, i.e. in
+``[calibration] methods``), ``otf_regions`` (rows, columns of image regions the OTF is
+measured in, on the images) and ``otf_depth_slabs`` (depth slabs it is then measured in,
+from the particles reconstructed there), ``mapping_grid`` (the step, in voxels, of the grid that
+interpolates a calibration's world → pixel mapping; 0 calls the calibration directly)
+and ``outer_iterations`` (at most).
+"""
+
+from dataclasses import dataclass
+
+from ptv.reconstruct import IPRSettings
+from validation.run.scenario_fields import ScenarioError
+
+#: Fewest cameras IPR needs: a candidate triangulated from two is checked in a third.
+MIN_CAMERAS = 3
+
+
+@dataclass(frozen=True)
+class IprSection:
+    """Iterative particle reconstruction rungs (module docstring)."""
+
+    methods: tuple[str, ...] = ("model-free",)
+    otf_regions: tuple[int, ...] = (1, 1)
+    otf_depth_slabs: int = 3
+    mapping_grid: float = 32.0
+    outer_iterations: int = 60
+
+    def settings(self) -> IPRSettings:
+        """The reconstruction's options."""
+        return IPRSettings(mapping_grid=self.mapping_grid, outer_iterations=self.outer_iterations)
+
+    def variants(self) -> tuple[str, ...]:
+        """The rungs' names: IPR through the true cameras, then through each method."""
+        return ("ipr-true-cameras", *(f"ipr-{m}" for m in self.methods))
+
+
+def check_ipr(scenario, source: str, cameras: int) -> None:
+    """Refuse an ``[ipr]`` that cannot run, naming the file and the field.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        With ``ipr``.
+    source : str
+        The scenario file, for the message.
+    cameras : int
+        The rig's cameras.
+
+    Raises
+    ------
+    ScenarioError
+    """
+    ipr = scenario.ipr
+
+    def fail(message: str):
+        raise ScenarioError(f"{source}: ipr.{message}")
+
+    if cameras < MIN_CAMERAS:
+        fail(
+            f"methods: IPR needs at least {MIN_CAMERAS} cameras (a candidate from two is "
+            f"checked in a third), the rig {scenario.rig.name!r} has {cameras}"
+        )
+    if scenario.recording is not None:
+        raise ScenarioError(f"{source}: [ipr] runs on frame pairs, not with [recording]")
+    if not ipr.methods:
+        fail("methods must name at least one calibration method")
+    missing = [m for m in ipr.methods if m not in scenario.calibration.methods]
+    if missing:
+        fail(f"methods {missing} are not in calibration.methods")
+    if len(ipr.otf_regions) != 2 or min(ipr.otf_regions) < 1:
+        fail(f"otf_regions must be [rows, columns], each >= 1, got {list(ipr.otf_regions)}")
+    if ipr.otf_depth_slabs < 1:
+        fail(f"otf_depth_slabs must be >= 1, got {ipr.otf_depth_slabs}")
+    try:
+        ipr.settings()
+    except ValueError as err:
+        fail(str(err))
