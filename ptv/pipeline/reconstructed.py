@@ -8,10 +8,9 @@ of a dataset, and the :class:`ReconstructedChunk` it gives locates each frame's 
 for the double-frame stack (:func:`ptv.pipeline.double_frame.measure_snapshots`, its
 ``locate``), which then links, tests and averages them as it does matched points.
 
-The OTF is measured once per camera on the images themselves
-(:func:`measure_run_otf`): on frame a of the first snapshot, from its isolated particle
-images and then per depth slab from the particles reconstructed there, as a laboratory
-calibrates it.
+The OTF is measured on the images themselves (:func:`measure_run_otf`; ``synptv run``
+measures it on frame a of the first snapshot): from the isolated particle images, then
+per depth slab from the particles reconstructed there, as a laboratory calibrates it.
 """
 
 import logging
@@ -115,7 +114,7 @@ class ReconstructedChunk:
 
 
 def measure_run_otf(
-    dataset: Dataset,
+    images: Sequence[np.ndarray],
     cameras: Sequence[CameraModel],
     box: Box,
     settings: IPRSettings,
@@ -123,8 +122,9 @@ def measure_run_otf(
     regions: tuple[int, int] = (1, 1),
     depth_slabs: int = 3,
     min_per_cell: int = 10,
+    saturation: float | None = None,
 ) -> list[OpticalTransferFunction]:
-    """Each camera's OTF, measured on frame a of snapshot 0 at Δt_0, per depth slab.
+    """Each camera's OTF, measured on one exposure's images, per depth slab.
 
     As a laboratory calibrates it on its own particle images (Schanz et al. 2013): the
     isolated particle images of each camera are fitted (:func:`ptv.reconstruct.measure_otf`),
@@ -136,10 +136,10 @@ def measure_run_otf(
 
     Parameters
     ----------
-    dataset : Dataset
-        The images.
+    images : sequence of C ndarray, shape (H_c, W_c)
+        One exposure, one image per camera (``synptv run``: frame a of snapshot 0).
     cameras : sequence of C CameraModel
-        Calibrations in the dataset's camera order.
+        Calibrations in the images' order.
     box : Box
         The volume searched, (lower, upper) corners, m.
     settings : IPRSettings
@@ -152,6 +152,8 @@ def measure_run_otf(
         Depth slabs of the refined OTF, >= 1.
     min_per_cell : int
         Fitted reconstructed particle images needed in every region and slab, >= 1.
+    saturation : float, optional
+        The images' saturation level (default: their dtype's maximum).
 
     Returns
     -------
@@ -163,8 +165,7 @@ def measure_run_otf(
         Too few isolated particle images in some region or slab (the message says how
         many were found and how many are needed).
     """
-    images = [dataset.read_frame(0, c, 0, "a") for c in dataset.cameras]
-    flat = measure_otf(images, regions=regions, saturation=dataset.saturation)
+    flat = measure_otf(images, regions=regions, saturation=saturation)
     flat_settings = replace(
         settings, outer_iterations=min(settings.outer_iterations, FLAT_OTF_ITERATIONS)
     )

@@ -5,13 +5,11 @@
 :data:`DIAMETER` uniform in its 20 × 25 × 30 mm volume, lit uniformly through its depth
 (its rig file's top-hat sheet and aperture, :func:`simulator.render.camera_frames.
 rig_lighting`), :data:`ELECTRONS` each, with the default sensor: about 0.05 particles
-per pixel on every camera. The stack then does what ``synptv run`` does on such images
-(:func:`ptv.pipeline.reconstructed.measure_run_otf`, with the same calls): the OTF of
-each camera from the isolated particle images of snapshot 0
-(:func:`ptv.reconstruct.measure_otf`, one image region), a reconstruction with it, and
-the OTF again per depth slab from the isolated images of the particles reconstructed
-there (:func:`ptv.reconstruct.refine_otf`, :data:`DEPTH_SLABS` slabs); then every
-snapshot is reconstructed with that OTF through the rig's true cameras and the default
+per pixel on every camera. The stack then does what ``synptv run`` does on such images:
+the OTF of each camera measured on snapshot 0 by the run's own function
+(:func:`ptv.pipeline.reconstructed.measure_run_otf`: from the isolated particle images,
+then per depth slab from the particles reconstructed there); then every snapshot is
+reconstructed with that OTF through the rig's true cameras and the default
 :class:`ptv.reconstruct.IPRSettings`.
 
 Apart from the stack:
@@ -33,12 +31,13 @@ Apart from the stack:
 """
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ptv.reconstruct import IPRSettings, measure_otf, reconstruct, refine_otf
+from ptv.pipeline.reconstructed import measure_run_otf
+from ptv.reconstruct import IPRSettings, reconstruct
 from simulator.render.camera_frames import ParticleLighting, record_particles, rig_lighting
 from simulator.render.sensor import Sensor
 from simulator.rigs import load_rig
@@ -55,17 +54,6 @@ PARTICLES = 9300
 DIAMETER = 20e-6
 #: Photo-electrons per tracer, e⁻ (the whole volume lit alike).
 ELECTRONS = 6000.0
-#: Image regions and depth slabs of the OTF, and the fitted images needed in every cell:
-#: ``synptv run``'s (:func:`ptv.pipeline.reconstructed.measure_run_otf`).
-REGIONS = (1, 1)
-DEPTH_SLABS = 3
-MIN_PER_CELL = 10
-#: Outer iterations of the first reconstruction, the one with the OTF without depth that
-#: only gives the depth of the isolated images: their particles are found in the first
-#: iterations (seed 0, five slabs: the same OTF to the last digit with 10 iterations as
-#: with the default 60, in 6.7 s against 39 s; with no depth the residual keeps peaks that
-#: the remaining iterations chase to the limit).
-OTF_PASS_ITERATIONS = 10
 #: A particle image is isolated when no other lit particle's image is this close, px (the
 #: stack's ``isolation``).
 ISOLATION_PX = 5.0
@@ -213,24 +201,9 @@ def ipr_scores(snapshots: int, *, seed: int) -> IprScores:
         exact_xy = [c.project(positions) for c in cameras]
         on_sensor = [_on_sensor(xy, im.shape, 0.0) for xy, im in zip(exact_xy, images, strict=True)]
         imaged += sum(int((lit & inside).sum()) for inside in on_sensor)
-        if otfs is None:
+        if otfs is None:  # the OTF as synptv run measures it
             saturation = float(2**sensor.bit_depth - 1)
-            flat = measure_otf(images, regions=REGIONS, saturation=saturation)
-            first = reconstruct(
-                images,
-                cameras,
-                flat,
-                box,
-                settings=replace(settings, outer_iterations=OTF_PASS_ITERATIONS),
-            )
-            otfs = refine_otf(
-                images,
-                first.positions,
-                first.xy,
-                flat,
-                depth_slabs=DEPTH_SLABS,
-                min_per_cell=MIN_PER_CELL,
-            )
+            otfs = measure_run_otf(images, cameras, box, settings, saturation=saturation)
             specified = [
                 _specification(c, im, positions, lit, lighting, otf.grid_z)
                 for c, im, otf in zip(cameras, images, otfs, strict=True)

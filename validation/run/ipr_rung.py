@@ -122,12 +122,13 @@ def ipr_rung(
     if len(cameras) < 3:
         raise ValueError(f"IPR needs at least three cameras, the dataset has {len(cameras)}")
     otfs = measure_run_otf(
-        dataset,
+        [dataset.read_frame(0, c, 0, "a") for c in dataset.cameras],
         cameras,
         rung.box,
         rung.settings,
         regions=rung.otf_regions,
         depth_slabs=rung.otf_depth_slabs,
+        saturation=dataset.saturation,
     )
     found = map_chunks(
         executor,
