@@ -9,7 +9,6 @@ from validation.mutations.runner import Outcome
 
 C2 = mutation("c2-1.5-in-estimator")  # expects stats.epsilon_recovered, stats.epsilon_convention
 ROUNDED = mutation("detections-rounded")  # expects image.* claims
-HALVED = mutation("ipr-ghost-threshold-halved")  # expects no claim
 REGISTERED = ("stats.epsilon_recovered", "stats.epsilon_convention", "stats.c2_positive")
 
 
@@ -31,7 +30,6 @@ def outcome(chosen, killed_by):
         (C2, [], "survived", False),
         (ROUNDED, [], "awaiting claims", True),
         (ROUNDED, ["stats.c2_positive"], "killed", True),
-        (HALVED, [], "out of scope", True),
     ],
 )
 def test_the_status_says_whether_the_expected_claims_caught_it(chosen, killed_by, status, ok):
