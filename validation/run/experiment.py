@@ -158,11 +158,13 @@ def rung_label(scenario: Scenario, variant: str, calibrations: Path | None = Non
     """The suptitle of a rung's figures: the run and the rung (a reference rung, or the
     PTV stack with a calibration method; ``calibrations``: its folder, named when it is
     not the run's own, e.g. a study's calibration from fewer planes)."""
+    method = variant.removeprefix(IPR_PREFIX)
+    stack = "IPR and the PTV stack" if method != variant else "the PTV stack"
     what = {
         "exact": "true trajectories (no detection, no calibration)",
         "detection": "detected centres, truth-paired, through the true cameras",
-        "true-cameras": "the PTV stack with the true cameras",
-    }.get(variant, f"the PTV stack with the {variant} calibration")
+        "true-cameras": f"{stack} with the true cameras",
+    }.get(method, f"{stack} with the {method} calibration")
     if variant not in REFERENCE_VARIANTS and calibrations is not None:
         if calibrations.name != "calibrations":
             what += f" ({calibrations.name})"

@@ -24,6 +24,7 @@ from validation.report.sheet_region_table import sheet_region_table
 from validation.run.checks import error_budget
 from validation.run.dns_checks import dns_section
 from validation.run.experiment import REFERENCE_VARIANTS, ExperimentStages, run_label
+from validation.run.ipr_stage import PREFIX as IPR_PREFIX
 from validation.run.rung_comparisons import compare_rungs
 from validation.run.scenario import Scenario
 from validation.run.verdict import (
@@ -140,7 +141,10 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
     ipr = ipr_rungs(scenario, stages)
     if ipr:
         order.append(("ipr-true-cameras", "IPR in place of detect-and-match", "true-cameras"))
-        order += [(v, f"IPR, calibration ({v[4:]})", "ipr-true-cameras") for v in ipr.judged]
+        order += [
+            (v, f"IPR, calibration ({v.removeprefix(IPR_PREFIX)})", "ipr-true-cameras")
+            for v in ipr.judged
+        ]
     main = scenario.ptv.methods[0]
     figures = out / "figures"
     figures.mkdir(exist_ok=True)
@@ -197,12 +201,13 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
             for row in detected
         ]
     checks, must_hold = verdict(
-        detected
-        + dns_rows(dns)
-        + [row for row in notes if row is not None],
+        detected + dns_rows(dns) + [row for row in notes if row is not None],
         rungs,
         (*ipr.judged, *given.ptv.methods),
-        {**table1, **{v: table1[v[4:]] for v in ipr.judged if v[4:] in table1}},
+        {
+            **table1,
+            **{v: table1[m] for v in ipr.judged if (m := v.removeprefix(IPR_PREFIX)) in table1},
+        },
         rule=IPR_RULE if ipr else RULE,
     )
     results = {
