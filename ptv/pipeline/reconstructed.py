@@ -28,6 +28,7 @@ from ptv.io.dataset import Dataset
 from ptv.reconstruct import (
     IPRSettings,
     OpticalTransferFunction,
+    grid_mappings,
     measure_otf,
     reconstruct,
     refine_otf,
@@ -211,6 +212,8 @@ def reconstruct_chunk(
     ReconstructedChunk
     """
     m0, m1 = snapshots
+    if settings.mapping_grid > 0:
+        cameras = grid_mappings(cameras, box, settings)
     points, seen, seconds, iterations = {}, {}, {}, {}
     for k, m, frame in exposures(
         dataset.frames, range(m0, m1), shared_first_frame=dataset.shared_first_frame

@@ -15,6 +15,7 @@ Only the camera protocol of :mod:`ptv.camera_model` is used.
 
 from ptv.reconstruct.background import BackgroundLevel, background_level
 from ptv.reconstruct.ipr import IPRDiagnostics, Reconstruction, reconstruct
+from ptv.reconstruct.mapping import grid_mappings
 from ptv.reconstruct.otf import OpticalTransferFunction
 from ptv.reconstruct.otf_measure import measure_camera_otf, measure_otf, refine_otf
 from ptv.reconstruct.peaks import find_peaks
@@ -30,6 +31,7 @@ __all__ = [
     "background_level",
     "draw_spots",
     "find_peaks",
+    "grid_mappings",
     "measure_camera_otf",
     "measure_otf",
     "projected_image",

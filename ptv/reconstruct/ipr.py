@@ -61,7 +61,7 @@ from ptv.camera_model import CameraModel
 from ptv.reconstruct._grid import point_grid
 from ptv.reconstruct._spots import add_spots
 from ptv.reconstruct.background import background_level
-from ptv.reconstruct.mapping import GridMapping, Mappings, voxel_size
+from ptv.reconstruct.mapping import GridMapping, Mappings, grid_mappings, volume_voxel
 from ptv.reconstruct.otf import OpticalTransferFunction, peak_fraction
 from ptv.reconstruct.peaks import find_peaks
 from ptv.reconstruct.shake import camera_intensities, shake_pass
@@ -288,7 +288,9 @@ def reconstruct(
     images : sequence of C ndarray, shape (H_c, W_c)
         One image per camera, integers (DN) or floats.
     cameras : sequence of C CameraModel
-        Their calibrations (``project`` and ``pixel_to_ray``), C >= 3.
+        Their calibrations (``project`` and ``pixel_to_ray``), C >= 3; with
+        ``settings.mapping_grid`` > 0 they may be the :func:`grid_mappings` of them,
+        built once for many exposures.
     otfs : sequence of C OpticalTransferFunction
         Each camera's particle image model, for images of its shape.
     box : Box
@@ -317,15 +319,12 @@ def reconstruct(
     if not isinstance(s, IPRSettings):
         raise ValueError(f"settings must be IPRSettings, got {type(s).__name__}")
     n_cams = len(cameras)
-    mappings = Mappings(cameras)
     lower, upper = (np.asarray(v) for v in box)
-    centre = 0.5 * (lower + upper)
-    voxel, motion = voxel_size(mappings, centre, step=1e-4 * float(np.max(upper - lower)))
-    if s.mapping_grid > 0:
-        outer = (lower - (s.margin + 2) * voxel, upper + (s.margin + 2) * voxel)
-        grids = [GridMapping(c, outer, spacing=s.mapping_grid * voxel) for c in cameras]
-        mappings = Mappings(grids)
-    else:
+    voxel, motion = volume_voxel(cameras, box)
+    if s.mapping_grid > 0 and not all(isinstance(c, GridMapping) for c in cameras):
+        cameras = grid_mappings(cameras, box, s)
+    mappings = Mappings(cameras)
+    if s.mapping_grid <= 0:
         _warn_if_slow(mappings, box)
     noise = np.empty(n_cams)
     base = np.zeros((n_cams, rows, cols))

@@ -16,7 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ptv.box import Box, check_box
 from ptv.camera_model import CameraModel
+from ptv.settings import IPRSettings
 
 logger = logging.getLogger(__name__)
 
@@ -210,6 +212,26 @@ def _tricubic(values, origin, step, points):  # pragma: no cover (compiled)
     return out
 
 
+def _extend_quadratically(values: np.ndarray) -> np.ndarray:
+    """Grid values (nx, ny, nz, 2) with their NaN nodes filled, where they can be, by
+    quadratic extrapolation from the three next nodes along an axis: v_i = 3 v_{i±1} −
+    3 v_{i±2} + v_{i±3}. Two sweeps over the axes also fill nodes beyond an edge and a
+    corner of the imaged region; the others stay NaN."""
+    out = values.copy()
+    for _sweep in range(2):
+        for axis in range(3):
+            v = np.moveaxis(out, axis, 0)  # a view: filling it fills out
+            inner = np.arange(v.shape[0] - 3)
+            for node, step in ((inner, 1), (inner + 3, -1)):
+                near = node + step
+                guess = 3.0 * v[near] - 3.0 * v[near + step] + v[near + 2 * step]
+                current = v[node]
+                fill = np.isnan(current) & np.isfinite(guess)
+                current[fill] = guess[fill]
+                v[node] = current
+    return out
+
+
 class GridMapping:
     """A camera whose ``project`` is interpolated from a regular grid of its own values.
 
@@ -218,9 +240,13 @@ class GridMapping:
     points. The camera's ``project`` is called once on the nodes of a grid covering the
     volume (with two nodes of margin), and points are then projected by cubic
     convolution (Catmull–Rom, tricubic; error O(h³): below 10⁻³ px for a few-mm grid
-    on smooth mappings, refraction through flat windows included). Where the stencil
-    leaves the grid or touches a node that is not imaged (near the edge of the view),
-    the camera itself is asked. ``pixel_to_ray`` is the camera's.
+    on smooth mappings, refraction through flat windows included). Nodes the camera
+    does not image (beyond its sensor, or beyond the pixels a model-free calibration
+    covers) are extended quadratically from the three next nodes along an axis, so that
+    the stencils of points near the edge of the view stay whole and keep the O(h³)
+    error (cubic convolution reproduces quadratics). Only a point with a corner of its
+    own grid cell not imaged, or whose stencil leaves the grid, asks the camera itself.
+    ``pixel_to_ray`` is the camera's.
 
     Parameters
     ----------
@@ -245,7 +271,9 @@ class GridMapping:
         values = np.asarray(camera.project(nodes), dtype=np.float64)
         self.seconds_grid = time.perf_counter() - t0
         self.camera = camera
-        self.values = np.ascontiguousarray(values.reshape(*n, 2))
+        values = values.reshape(*n, 2)
+        self.imaged = np.isfinite(values).all(axis=-1)
+        self.values = np.ascontiguousarray(_extend_quadratically(values))
         self.origin = origin
         self.step = step
         self.fallback = 0
@@ -256,12 +284,64 @@ class GridMapping:
         """Pixels (N, 2) of world points (N, 3) m; NaN where not imaged."""
         points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         xy = _tricubic(self.values, self.origin, self.step, points)
-        missing = np.flatnonzero(np.isnan(xy[:, 0]) & np.isfinite(points).all(axis=1))
+        unsure = np.isnan(xy[:, 0]) | ~self._cell_imaged(points)
+        missing = np.flatnonzero(unsure & np.isfinite(points).all(axis=1))
         if missing.size:
             self.fallback += missing.size
             xy[missing] = self.camera.project(points[missing])
         return xy
 
+    def _cell_imaged(self, points: np.ndarray) -> np.ndarray:
+        """Whether all 8 corners of each point's grid cell are imaged, (N,) bool."""
+        with np.errstate(invalid="ignore"):
+            index = np.floor((points - self.origin) / self.step)
+        shape = np.array(self.imaged.shape)
+        inside = np.all((index >= 0) & (index <= shape - 2), axis=1)
+        i, j, k = np.where(inside[:, None], index, 0).astype(np.int64).T
+        imaged = inside.copy()
+        for di in (0, 1):
+            for dj in (0, 1):
+                for dk in (0, 1):
+                    imaged &= self.imaged[i + di, j + dj, k + dk]
+        return imaged
+
     def pixel_to_ray(self, xy: np.ndarray):
         """The camera's rays."""
         return self.camera.pixel_to_ray(xy)
+
+
+def grid_mappings(
+    cameras: Sequence[CameraModel], box: Box, settings: IPRSettings
+) -> list[GridMapping]:
+    """The cameras interpolated on grids of ``settings.mapping_grid`` voxels over the
+    volume and its margin, as :func:`ptv.reconstruct.reconstruct` builds them: build them once to
+    reconstruct many exposures through a slow calibration.
+
+    Parameters
+    ----------
+    cameras : sequence of C CameraModel
+        The calibrations.
+    box : Box
+        The measurement volume, (lower, upper) corners, m.
+    settings : IPRSettings
+        ``mapping_grid`` (> 0) and ``margin``.
+
+    Returns
+    -------
+    list of C GridMapping
+    """
+    if settings.mapping_grid <= 0:
+        raise ValueError(f"mapping_grid must be > 0 voxels, got {settings.mapping_grid}")
+    lower, upper = (np.asarray(v, dtype=np.float64) for v in check_box("box", box))
+    voxel, _ = volume_voxel(cameras, box)
+    outer = (lower - (settings.margin + 2) * voxel, upper + (settings.margin + 2) * voxel)
+    return [GridMapping(c, outer, spacing=settings.mapping_grid * voxel) for c in cameras]
+
+
+def volume_voxel(cameras: Sequence[CameraModel], box: Box) -> tuple[float, np.ndarray]:
+    """:func:`voxel_size` at the volume's centre, through the cameras themselves (their
+    grids unwrapped): the voxel (m) and the image motion per axis (px/m)."""
+    lower, upper = (np.asarray(v, dtype=np.float64) for v in box)
+    step = 1e-4 * float(np.max(upper - lower))
+    exact = [c.camera if isinstance(c, GridMapping) else c for c in cameras]
+    return voxel_size(Mappings(exact), 0.5 * (lower + upper), step=step)

@@ -99,7 +99,7 @@ def test_a_study_runs_on_an_existing_scheduler(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["nope"], "unknown study 'nope'; known: planes, obliquity, dt, noise, seeding"),
+        (["nope"], "unknown study 'nope'; known: planes, obliquity, dt, noise, seeding, density"),
         (["dt", "--scenario", "nope"], "unknown scenario 'nope'"),
         (["dt", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "not allowed with"),
         (["dt", "--workers", "0"], "--workers must be an integer >= 1"),
@@ -111,6 +111,11 @@ def test_a_study_runs_on_an_existing_scheduler(tmp_path, capsys):
         (["dt", "--planes", "3,5"], "--planes is an option of the planes study"),
         (["planes", "--seeds", "0"], "--seeds must be an integer >= 1"),
         (["noise", "--scheduler", "127.0.0.1"], "host:port"),
+        (["density"], "scenario 'default' has no [ipr] table"),
+        (["density", "--scenario", "dense-ci", "--ppp", "0.05,0.5"], "--ppp must be densities"),
+        (["density", "--scenario", "dense-ci", "--ppp", "a"], "cannot read the values 'a'"),
+        (["density", "--scenario", "dense-ci", "--chain", "ideal"], "rendered images only"),
+        (["planes", "--ppp", "0.05"], "--ppp is an option of the density study"),
     ],
 )
 def test_bad_input_is_reported_in_one_line(tmp_path, capsys, extra, message):

@@ -1,5 +1,7 @@
 """The noise terms predicted for the multi-Δt fit from the measured noise."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -77,3 +79,21 @@ def test_the_c2_margin_follows_the_error_of_the_median_where_it_is_larger():
     assert c2_margin(np.array([0.02, 0.03, 0.04]), 4.0) == pytest.approx(0.12)
     assert c2_margin(np.full(9, 0.01)) == C2_MARGIN
     assert c2_margin(np.full(3, np.nan)) == C2_MARGIN
+
+
+def test_bins_without_a_prediction_are_left_out_of_the_comparison_and_written_as_null():
+    """Dense images: the truth-paired detections leave some bins without pairs at some
+    Δt, so their prediction is NaN. The comparison takes the other bins, and the entry
+    stays valid JSON (no NaN)."""
+    bins = 5
+    noise = np.array([24e-12, np.nan, 24e-12, np.nan, 24e-12])
+    prediction = NoisePrediction(noise, noise, np.zeros(bins))
+    sel = np.ones(bins, dtype=bool)
+    c2 = np.array([24e-12, 1.0, 24e-12, 1.0, 24e-12])  # the unpredicted bins far off
+    entry = _c2_check(c2, prediction, sel, None)
+    assert entry["median_over_prediction"] == pytest.approx(1.0)
+    assert entry["consistent"]
+    assert entry["prediction_m2"][1] is None and entry["prediction_m2"][3] is None
+    json.dumps(entry, allow_nan=False)
+    unknown = NoisePrediction(np.full(bins, np.nan), np.full(bins, np.nan), np.zeros(bins))
+    assert "consistent" not in _c2_check(c2, unknown, sel, None)

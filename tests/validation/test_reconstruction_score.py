@@ -100,3 +100,65 @@ def test_ipr_checks_take_the_challenge_targets_of_their_density(ppp, found, ghos
 def test_beyond_the_densest_target_the_ipr_rows_are_reported_only():
     rows = ipr_rows({"ppp": 0.16, "found": 0.5, "ghosts": 0.3, "rms_px": 1.0})
     assert all(r["passed"] and "informative" in r for r in rows)
+
+
+def _moving_run(a: np.ndarray, b: np.ndarray) -> TruthRun:
+    """One snapshot whose particles move from ``a`` to ``b`` (P, 3), seen by both."""
+    xy = np.stack([Orthographic().project(a), Orthographic().project(b)])[None]
+    seen = np.ones((1, 2, len(a)), bool)
+    return TruthRun(
+        dt=1e-3,
+        positions=np.stack([a, b])[None],
+        velocity=np.zeros((1, len(a), 3)),
+        xy={"c1": xy.astype(np.float32), "c2": xy.astype(np.float32)},
+        visible={"c1": seen, "c2": seen},
+    )
+
+
+def test_depth_neighbour_and_displacement_scores_follow_where_the_errors_were_put():
+    """Particles on a line of images 0.5 px apart at one end (overlapping) and 10 px
+    apart elsewhere, at depths spread over 20 mm; the points of the deepest fifth are
+    off by 12 µm, the overlapping particles are missed, one ghost lies in the shallowest
+    slab, and frame b's points are off by 6 µm along X: each shows where it was put."""
+    n = 100
+    x = np.concatenate([np.arange(10) * 0.5, 20 + np.arange(n - 10) * 10.0]) * VOXEL
+    z = np.linspace(-0.01, 0.01, n)
+    a = np.column_stack([x, np.zeros(n), z])
+    b = a + np.array([30e-6, 0.0, 0.0])
+    deep = z > 0.006
+    err = np.where(deep[:, None], [0.0, 12e-6, 0.0], 0.0)
+    kept = np.arange(n) >= 10  # the ten overlapping particles are missed
+    ghost = np.array([[0.5, 0.5, -0.0099]])  # far from every particle, shallowest slab
+    points = {
+        (-1, 0, "a"): np.vstack([(a + err)[kept], ghost]),
+        (0, 0, "b"): (b + err + np.array([6e-6, 0.0, 0.0]))[kept],
+    }
+    score = score_reconstruction(
+        points,
+        [_moving_run(a, b)],
+        ["c1", "c2"],
+        [Orthographic(), Orthographic()],
+        voxel=VOXEL,
+        sensor_pixels=1000.0,
+        rotation=np.eye(3),
+        translation=np.zeros(3),
+    )
+    depth = score.by_depth
+    assert len(depth) == 5
+    assert depth[0]["z_mm"][0] == pytest.approx(-10.0) and depth[-1]["z_mm"][1] == pytest.approx(
+        10.0
+    )
+    # the deepest slab (6-10 mm) holds exactly the 12 µm errors (frame a: 12, b: 12 and 6)
+    assert depth[-1]["rms_um"] == pytest.approx(np.sqrt((144 + 144 + 36) / 2))
+    assert depth[1]["rms_um"] == pytest.approx(np.sqrt(36 / 2))
+    assert depth[0]["ghosts"] == pytest.approx(1 / depth[0]["points"])
+    assert all(row["ghosts"] == 0.0 for row in depth[1:])
+    # the overlapping images (0.5 px apart) are the missed ones; every other one found
+    close, *rest = score.by_neighbour
+    assert close["distance_px"] == [0.0, 1.0]
+    assert close["particles"] == 2 * 10 and close["found"] == 0.0
+    assert sum(row["particles"] for row in rest) == 2 * (n - 10)
+    assert all(row["found"] == 1.0 for row in rest if row["particles"])
+    # (b − a) against the truth: the 6 µm of frame b, found in both frames
+    assert score.displacement_pairs == n - 10
+    assert score.displacement_rms_um == pytest.approx(6.0)

@@ -13,16 +13,19 @@ from validation.workflow.progress import say_interrupted
 
 
 def _values(text: str | None, study: str) -> list | None:
-    """--planes "3,5,7,13" or --dt-subsets "0,1,2,3,4;2,3,4;0,4" as a list."""
+    """--planes "3,5,7,13", --dt-subsets "0,1,2,3,4;2,3,4;0,4" or --ppp "0.01,0.05" as a
+    list."""
     if text is None:
         return None
     try:
         if study == "planes":
             return [int(v) for v in text.split(",")]
+        if study == "density":
+            return [float(v) for v in text.split(",")]
         return [[int(v) for v in part.split(",")] for part in text.split(";")]
     except ValueError:
         raise ValueError(
-            f"cannot read the values {text!r}: integers separated by , (and ;)"
+            f"cannot read the values {text!r}: numbers separated by , (and ;)"
         ) from None
 
 
@@ -31,10 +34,10 @@ def run_study_command(args) -> int:
     settings = StudySettings(
         dot_noise_px=args.noise, position_noise_um=args.position_noise, snapshots=args.snapshots
     )
-    given = {"planes": args.planes, "dt": args.dt_subsets}
+    given = {"planes": args.planes, "dt": args.dt_subsets, "density": args.ppp}
     extra = [name for name, v in given.items() if v is not None and name != args.study]
     if extra:
-        option = "--planes" if "planes" in extra else "--dt-subsets"
+        option = {"planes": "--planes", "dt": "--dt-subsets", "density": "--ppp"}[extra[0]]
         raise ValueError(f"{option} is an option of the {extra[0]} study, not of {args.study}")
     check_output_folder(args.out)
     try:
@@ -101,6 +104,10 @@ def add_study_parser(subparsers) -> None:
     study.add_argument(
         "--dt-subsets",
         help="Δt index subsets of the dt study, e.g. '0,1,2,3,4;2,3,4;0,4' (rendered chain)",
+    )
+    study.add_argument(
+        "--ppp",
+        help="densities of the density study, particles per pixel, e.g. 0.01,0.05,0.08",
     )
     study.add_argument(
         "--noise", type=float, default=0.05, help="dot-centre noise, px (planes, obliquity)"

@@ -17,6 +17,8 @@ from simulator.rigs import load_rig
 from simulator.turbulence import TurbulenceParameters
 from validation.report.dns_report import dns_html
 from validation.report.html_parts import number, percent, table
+from validation.report.ipr_report import FIGURE as IPR_FIGURE
+from validation.report.ipr_report import ipr_html, judged_rungs, reconstruction_figure
 from validation.report.linking_table import linking_table
 from validation.report.png import save_figure
 from validation.report.run_figures import budget_figure, noise_figure
@@ -145,13 +147,15 @@ def build_results(scenario: Scenario, stages: ExperimentStages, out: Path) -> di
             (v, f"IPR, calibration ({v.removeprefix(IPR_PREFIX)})", "ipr-true-cameras")
             for v in ipr.judged
         ]
-    main = scenario.ptv.methods[0]
+    main = ipr.judged[0] if ipr.judged else scenario.ptv.methods[0]  # the method under test
     figures = out / "figures"
     figures.mkdir(exist_ok=True)
     r = float_array(truth["r"])
     ratios = {v: float_array(c["c1_over_truth"]) for v, c in comparisons.items()}
     label = run_label(scenario)
     save_figure(budget_figure(r, ratios, check_range, label=label), figures / "error_budget.png")
+    if ipr:
+        save_figure(reconstruction_figure(ipr.scores, label=label), out / IPR_FIGURE)
     c2 = {
         v: (float_array(sf["noise"]), float_array(sf["se_noise"]))
         for v, s in summaries.items()
@@ -495,9 +499,14 @@ def _detection_section(results: dict, scenario: Scenario) -> list[str]:
     return parts + sheet_region_table(results)
 
 
+def _under_test(results: dict, scenario: Scenario) -> str:
+    """The rung of the method under test: IPR through its first calibration where the
+    scenario has ``[ipr]``, else the PTV stack through the first ``[ptv]`` method."""
+    return (*judged_rungs(results), scenario.ptv.methods[0])[0]
+
+
 def _statistics_section(results: dict, scenario: Scenario) -> list[str]:
     """The particles each S2 used, and Figs. 5 and 6 of every PTV run."""
-    main = scenario.ptv.methods[0]
     parts = ["<h2>Statistics (Fig. 5, Fig. 6)</h2>"]
     rows = []
     for variant, entry in results["ptv"].items():
@@ -516,8 +525,11 @@ def _statistics_section(results: dict, scenario: Scenario) -> list[str]:
             "measurement misses does not count as its error.</p>"
         )
     parts += linking_table(results)
-    for variant in (main, *[m for m in scenario.ptv.methods if m != main]):
-        parts.append(f"<h3>PTV with the {html.escape(variant)} calibration</h3>")
+    judged = judged_rungs(results)
+    for variant in (*judged, *scenario.ptv.methods):
+        how = "IPR" if variant in judged else "PTV"
+        method = variant.removeprefix(IPR_PREFIX)
+        parts.append(f"<h3>{how} with the {html.escape(method)} calibration</h3>")
         for fig, caption in (
             ("fig5a_raw_s2.png", "Fig. 5a: raw S2 per Δt"),
             ("fig5b_q_vs_dt2.png", "Fig. 5b: ⟨q⟩ against Δt² and the fits"),
@@ -530,7 +542,7 @@ def _statistics_section(results: dict, scenario: Scenario) -> list[str]:
 
 def _table3_section(results: dict, scenario: Scenario) -> list[str]:
     """Table 3: the recovered flow against the input and the reference."""
-    main = scenario.ptv.methods[0]
+    main = _under_test(results, scenario)
     parts = ["<h2>Table 3: recovered against truth</h2>"]
     rows = [
         (t["quantity"], number(t["recovered"]), number(t["input"]), number(t["reference"]))
@@ -597,7 +609,7 @@ def _budget_section(results: dict, scenario: Scenario) -> list[str]:
 
 def _noise_section(results: dict, scenario: Scenario) -> list[str]:
     """The noise term c2 against the noise measured against the truth."""
-    main = scenario.ptv.methods[0]
+    main = _under_test(results, scenario)
     parts = ["<h2>Noise</h2>"]
     c = results["ptv"][main]["checks"]
     ratio_detection = results["ptv"]["detection"]["checks"]["c2"].get("median_over_prediction")
@@ -627,6 +639,7 @@ _SECTIONS = (
     _flow_section,
     _calibration_section,
     _detection_section,
+    lambda results, scenario: ipr_html(results.get("reconstruction", {})),
     _statistics_section,
     _table3_section,
     _budget_section,

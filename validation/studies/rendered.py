@@ -17,8 +17,9 @@ studies of one output folder too), and
   on the pairs of every Δt's particles ("every dt": the paper's subset study);
 - ``noise`` renders the flow and the plate once and renders the particle images again
   for each read noise of the camera (the detection noise follows);
-- ``seeding`` (tracers in the sheet) and ``obliquity`` (the windows' obliquity, every
-  calibration method of the scenario) render each point anew.
+- ``seeding`` (tracers in the sheet), ``obliquity`` (the windows' obliquity, every
+  calibration method of the scenario) and ``density`` (:mod:`validation.studies.density`:
+  IPR beside detect-and-match) render each point anew.
 
 Every point gives, per calibration method: the Table 1 metric d of the calibration
 against the nominal dot positions (µm, every plane); the model error at random points
@@ -46,6 +47,13 @@ from validation.dataset.calibrate import dot_positions
 from validation.run.experiment import ExperimentRun, object_pixel
 from validation.run.scenario import OutputSection, Scenario
 from validation.studies.calibration_methods import MODEL_VOLUME, plane_subset, with_obliquity
+from validation.studies.density import (
+    DENSITIES_PPP,
+    PPP_RANGE,
+    density_scores,
+    particles_at,
+    statistics_reach,
+)
 from validation.studies.multi_dt import R_OVER_ETA, spread_indices
 from validation.truth.flow_truth import population_truth
 from validation.truth.matching import rigid_fit
@@ -109,21 +117,22 @@ def study_points(
     Parameters
     ----------
     study : str
-        planes, dt, noise, seeding or obliquity.
+        planes, dt, noise, seeding, obliquity or density.
     scenario : Scenario
         The base scenario.
     seeds : int
         Independent repetitions.
     values : list, optional
-        The values to sweep instead of the defaults: plane counts (planes), or lists of
-        Δt indices (dt).
+        The values to sweep instead of the defaults: plane counts (planes), lists of
+        Δt indices (dt), or densities in particles per pixel (density).
 
     Raises
     ------
     ValueError
         An unknown study, values given to another study, values out of range (fewer
         than 2 or more planes than the traverse has; fewer than 2, repeated or unknown
-        Δt indices).
+        Δt indices; densities outside 10⁻⁴–0.3), a density study of a scenario without
+        ``[ipr]``.
     """
     if values is not None:
         _check_values(study, scenario, values)
@@ -149,6 +158,11 @@ def _check_values(study: str, scenario: Scenario, values: list) -> None:
                 raise ValueError(f"a Δt subset needs two or more distinct indices, got {subset}")
             if not all(0 <= i < k for i in subset):
                 raise ValueError(f"unknown Δt index in {subset}: the indices are 0 … {k - 1}")
+    elif study == "density":
+        low, high = PPP_RANGE
+        bad = [v for v in values if not low <= v <= high]
+        if bad or not values:
+            raise ValueError(f"--ppp must be densities from {low:g} to {high:g}, got {values}")
     else:
         raise ValueError(f"the {study} study takes no list of values")
 
@@ -203,6 +217,19 @@ def _points(study: str, scenario: Scenario, values: list | None) -> list[Rendere
             )
             for n in TRACERS
         ]
+    if study == "density":
+        if scenario.ipr is None:
+            raise ValueError(
+                f"the density study compares IPR with detect-and-match: scenario "
+                f"{scenario.name!r} has no [ipr] table (the dense-ci scenario has one)"
+            )
+        points = []
+        for ppp in DENSITIES_PPP if values is None else sorted(set(values)):
+            n = particles_at(ppp, scenario.rig.name)
+            tag = f"density-{ppp:g}-seed-{seed}"
+            dense = replace(scenario, particles=replace(scenario.particles, count=n))
+            points.append(RenderedPoint(tag, {"ppp": ppp, "tracers": n}, dense, tag))
+        return points
     if study == "obliquity":
         return [
             RenderedPoint(
@@ -287,6 +314,9 @@ def evaluate_point(
     truth_dict = json.loads((truth_stage.folder / "truth.json").read_text())
     table1 = json.loads((calibrations.folder / "table1.json").read_text())["table1"]
     rows = []
+    if "ppp" in point.params:
+        rows = _density_rows(point, run, builder, detections, calibrations, truth_dict, truth)
+        methods = scenario.ptv.methods[:1]
     for method in methods:
         stage = run.rung(method, builder, detections, calibrations)
         cameras = load_calibrations(calibrations.folder / f"{method}.h5")
@@ -294,11 +324,39 @@ def evaluate_point(
             "table1_d_um": table1[method]["nominal"]["d_um"],
             "model_error_um": model_error(cameras, truth, dataset.folder) * 1e6,
         }
+        reach = statistics_reach(stage.folder) if "ppp" in point.params else {}
         for scores in _rung_scores(stage.folder, truth_dict, run, truth, point.dt):
             if point.dt is None:
                 scores.pop("dt_population")
             rows.append(
-                {"seed": scenario.seed, **point.params, "method": method, **calibration, **scores}
+                {
+                    "seed": scenario.seed,
+                    **point.params,
+                    "method": method,
+                    **calibration,
+                    **scores,
+                    **reach,
+                }
+            )
+    return rows
+
+
+def _density_rows(point, run, builder, detections, calibrations, truth_dict, truth) -> list:
+    """The rows of a density point's IPR rungs (:mod:`validation.studies.density`)."""
+    rows = []
+    for variant in run.ipr_variants:
+        stage = run.rung(variant, builder, detections, calibrations)
+        for scores in _rung_scores(stage.folder, truth_dict, run, truth, None):
+            scores.pop("dt_population")
+            rows.append(
+                {
+                    "seed": point.scenario.seed,
+                    **point.params,
+                    "method": variant,
+                    **scores,
+                    **density_scores(stage.folder),
+                    **statistics_reach(stage.folder),
+                }
             )
     return rows
 

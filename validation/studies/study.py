@@ -159,7 +159,20 @@ STUDIES = {
         _multi_dt_figure,
         "250-2000 particles per snapshot in the analysis volume, fixed snapshots",
     ),
+    "density": _Study(
+        lambda sc, s: _rendered_only("density"),
+        _same,
+        _multi_dt_figure,
+        "the LPT Challenge's 0.005-0.16 particles per pixel: IPR beside detect-and-match "
+        "(a scenario with [ipr]; rendered chain)",
+    ),
 }
+
+
+def _rendered_only(study: str):
+    """The sweep of a study that exists on the rendered chain only."""
+    raise ValueError(f"the {study} study runs on rendered images only (--chain rendered)")
+
 
 _OPTION_LABELS = {
     "noise_px": "dot noise {:g} px",
@@ -398,6 +411,8 @@ def _study_chain(study: str, scenario: Scenario, chain: str | None) -> str:
     simulation are refused."""
     if chain not in (None, "rendered", "ideal"):
         raise ValueError(f"--chain must be 'rendered' or 'ideal', got {chain!r}")
+    if study == "density" and chain == "ideal":
+        _rendered_only(study)
     if scenario.flow.kind == "ks":
         return chain or "rendered"
     kind = scenario.flow.kind
@@ -475,7 +490,8 @@ def run_study(
     seeds : int
         Independent repetitions of every point (seeds scenario.seed, +1, …).
     values : list, optional
-        The swept values to run (rendered chain): plane counts, or Δt index lists.
+        The swept values to run (rendered chain): plane counts, Δt index lists, or
+        densities (particles per pixel of the volume's image).
     settings : StudySettings
         Noise levels and sizes of the ideal chain.
     workers : int or None
@@ -514,7 +530,7 @@ def run_study(
     >>> validation.run_study("speed", "ci", pathlib.Path(tmp.name))
     Traceback (most recent call last):
     ...
-    ValueError: unknown study 'speed'; known: planes, obliquity, dt, noise, seeding
+    ValueError: unknown study 'speed'; known: planes, obliquity, dt, noise, seeding, density
     >>> tmp.cleanup()
     """
     check_parallel_options(workers, scheduler)

@@ -4,7 +4,10 @@ One row per point, seed and calibration method, with the swept parameter and
 
     table1_d_um, model_error_um      calibration: Table 1 d against the nominal dot
                                      positions, and the model error at random points, µm
-    yield, ghosts                    stereo matching against the true particles
+    yield, ghosts                    stereo matching against the true particles (the
+                                     density study's IPR rows: found and ghosts of the
+                                     reconstruction; its columns in
+                                     ``validation.studies.density``)
     c1_rel_err, c1_rel_se            {"10", "40", "100"}: c₁/sample truth − 1 and its
                                      standard error at those r/η
     epsilon_rel_err, epsilon_rel_se  plateau ε over the estimator on the exact D_LL − 1
@@ -34,7 +37,15 @@ PARAMETERS = {
     "noise": ("read_noise_e", "read noise of the particle images (e⁻ rms)", False),
     "seeding": ("tracers", "tracers in the laser sheet", False),
     "obliquity": ("obliquity_deg", "window obliquity (°)", False),
+    "density": ("ppp", "particles per pixel of the volume's image", False),
 }
+#: The first panel of a study's figure (the calibration's error, or for the density
+#: study the position error of what the stacks located): label, scale, columns.
+FIRST_PANEL = {
+    "density": ("position error, 3-D rms (µm)", 1.0, ("position_rms_um",)),
+}
+CALIBRATION_PANEL = ("calibration error (µm)", 1.0, ("table1_d_um", "model_error_um"))
+SECOND_PANEL = {"density": "found (IPR) or matching yield, and ghosts (%)"}
 R_KEYS = ("10", "40", "100")
 
 
@@ -123,10 +134,18 @@ def study_figure(study: str, rows: Sequence[Mapping], *, title: str = "") -> Fig
     categories = list(dict.fromkeys(r[x_key] for r in rows)) if categorical else None
     figure, axes = plt.subplots(2, 2, figsize=(11.0, 8.0), layout="constrained")
     scalar = {
-        axes[0, 0]: ("calibration error (µm)", 1.0, ("table1_d_um", "model_error_um")),
-        axes[0, 1]: ("matching yield and ghosts (%)", 100.0, ("yield", "ghosts")),
+        axes[0, 0]: FIRST_PANEL.get(study, CALIBRATION_PANEL),
+        axes[0, 1]: (
+            SECOND_PANEL.get(study, "matching yield and ghosts (%)"),
+            100.0,
+            ("yield", "ghosts"),
+        ),
     }
-    names = {"table1_d_um": "Table 1 d", "model_error_um": "model error"}
+    names = {
+        "table1_d_um": "Table 1 d",
+        "model_error_um": "model error",
+        "position_rms_um": "position error",
+    }
     for ax, (ylabel, scale, keys) in scalar.items():
         for colour, (name, group) in enumerate(groups.items()):
             for style, key in zip(_STYLES, keys, strict=False):

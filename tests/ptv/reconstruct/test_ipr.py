@@ -126,3 +126,18 @@ def test_three_cameras_work_and_a_given_otf_is_accepted(rig_factory, renderer):
     found, ghosts, _ = _score(truth, result.positions, result.diagnostics.voxel)
     assert found > 0.95
     assert ghosts < 0.03
+
+
+def test_grid_mappings_built_once_reconstruct_as_built_each_time(rig_and_box, otfs, renderer):
+    from ptv.reconstruct import grid_mappings
+
+    rig, box = rig_and_box
+    _truth, frames = renderer(rig, box, 300, seed=5)
+    images = [f.image for f in frames]
+    settings = IPRSettings(mapping_grid=16, outer_iterations=3)
+    each = reconstruct(images, rig.cameras, otfs, box, settings=settings)
+    grids = grid_mappings(rig.cameras, box, settings)
+    once = reconstruct(images, grids, otfs, box, settings=settings)
+    assert len(once.positions) > 250
+    assert np.array_equal(each.positions, once.positions)
+    assert np.array_equal(each.intensities, once.intensities)
