@@ -48,6 +48,7 @@ from scipy.spatial import cKDTree
 
 from benchmarks.machine import machine
 from ptv.reconstruct import IPRSettings, measure_otf, reconstruct, refine_otf
+from validation.studies.density import image_area
 
 DENSITIES = (0.005, 0.025, 0.05, 0.08, 0.12, 0.16)
 QUICK_DENSITIES = (0.005, 0.05, 0.12)
@@ -85,19 +86,6 @@ def lpt_rig(*, quick: bool = False, f_number: float = 16.0):
     }
     half = 0.5 * np.asarray(volume)
     return rig_from_dict(spec), (tuple(-half), tuple(half))
-
-
-def footprint_area(cameras, box, *, rng, samples: int = 200_000, block: int = 8) -> float:
-    """Mean over the cameras of the image area the volume projects onto, px²."""
-    lower, upper = (np.asarray(v) for v in box)
-    pts = rng.uniform(lower, upper, (samples, 3))
-    areas = []
-    for cam in cameras:
-        xy = cam.project(pts)
-        xy = xy[np.isfinite(xy).all(axis=1)]
-        cells = np.unique(np.floor(xy / block).astype(np.int64), axis=0)
-        areas.append(len(cells) * block * block)
-    return float(np.mean(areas))
 
 
 def lighting():
@@ -218,7 +206,7 @@ def calibrate_otf(rig, box, area: float, *, quick: bool) -> list:
 def run(quick: bool, densities: tuple[float, ...] | None = None) -> dict:
     rig, box = lpt_rig(quick=quick)
     rng = np.random.default_rng(1)
-    area = footprint_area(rig.cameras, box, rng=rng)
+    area = image_area(rig.cameras, box, rng=rng)
     otfs = calibrate_otf(rig, box, area, quick=quick)
     settings = IPRSettings()
     # (the kernels were compiled by the calibration's reconstruction)

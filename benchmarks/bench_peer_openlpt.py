@@ -18,7 +18,7 @@ wall, particles in water: refraction), and ``no window``, the same rig with
    are reported.
 2. One sparse snapshot (0.005 particles per pixel) and one snapshot per density,
    particles uniform in the lit volume, N = ppp × the mean image area the volume covers
-   (:func:`benchmarks.bench_ipr.footprint_area`), bench_ipr's tracers, light level and
+   (:func:`validation.studies.density.image_area`), bench_ipr's tracers, light level and
    sensor; the same images for both codes.
 3. **synptv**: :func:`ptv.reconstruct.reconstruct` with the default
    :class:`ptv.reconstruct.IPRSettings` through the true cameras, and through the plate
@@ -72,7 +72,7 @@ from pathlib import Path
 import numpy as np
 import tifffile
 
-from benchmarks.bench_ipr import OTF_PPP, footprint_area, lighting, score
+from benchmarks.bench_ipr import OTF_PPP, lighting, score
 from benchmarks.machine import machine
 from ptv.reconstruct import IPRSettings, measure_otf, reconstruct, refine_otf
 from validation.export.openlpt import (
@@ -92,6 +92,7 @@ from validation.export.openlpt_cameras import (
     view_volume,
 )
 from validation.export.openlpt_driver import DRIVER
+from validation.studies.density import image_area
 
 QUICK_DENSITIES = (0.01, 0.05)
 DENSITIES = (0.01, 0.025, 0.05, 0.08)
@@ -326,7 +327,7 @@ def run_variant(variant: str, densities, python: Path, work: Path) -> dict:
     box = (volume.lower, volume.upper)
     half = np.asarray(rig.sheet.size) / 2
     sheet = (np.asarray(rig.sheet.centre) - half, np.asarray(rig.sheet.centre) + half)
-    area = footprint_area(rig.cameras, sheet, rng=np.random.default_rng(1))
+    area = image_area(rig.cameras, sheet, rng=np.random.default_rng(1))
     _, sparse = render(rig, sheet, int(OTF_PPP * area), np.random.default_rng(2))
     otfs = {key: synptv_otf(sparse, cams, box) for key, cams in cameras.items()}
     truths, snapshots = [], []

@@ -314,8 +314,8 @@ def grid_mappings(
     cameras: Sequence[CameraModel], box: Box, settings: IPRSettings
 ) -> list[GridMapping]:
     """The cameras interpolated on grids of ``settings.mapping_grid`` voxels over the
-    volume and its margin, as :func:`ptv.reconstruct.reconstruct` builds them: build them once to
-    reconstruct many exposures through a slow calibration.
+    volume and its margin, as :func:`ptv.reconstruct.reconstruct` builds them: built
+    once, they reconstruct many exposures through a slow calibration.
 
     Parameters
     ----------

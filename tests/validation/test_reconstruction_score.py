@@ -35,6 +35,21 @@ def truth_run(particles: np.ndarray, visible: np.ndarray) -> TruthRun:
     )
 
 
+def _scored(points: dict, run: TruthRun, translation=(0.0, 0.0, 0.0)):
+    """:func:`score_reconstruction` of ``points`` against one truth run, two
+    orthographic cameras c1 and c2, 1000 px sensors, no rotation."""
+    return score_reconstruction(
+        points,
+        [run],
+        ["c1", "c2"],
+        [Orthographic(), Orthographic()],
+        voxel=VOXEL,
+        sensor_pixels=1000.0,
+        rotation=np.eye(3),
+        translation=np.asarray(translation),
+    )
+
+
 def test_found_ghosts_and_errors_are_counted_as_the_challenge_counts_them():
     rng = np.random.default_rng(1)
     particles = rng.uniform(-0.01, 0.01, (200, 3))
@@ -43,16 +58,7 @@ def test_found_ghosts_and_errors_are_counted_as_the_challenge_counts_them():
     offset = np.array([6e-6, -8e-6, 0.0])  # 10 µm; 0.1 px along X and 0.133 px along Y
     points = particles[20:] + offset  # particles 0-19 missed (10 of them reference ones)
     ghosts = particles[:5] + np.array([0.0, 0.0, 2 * VOXEL])  # two voxels off: ghosts
-    score = score_reconstruction(
-        {(-1, 0, "a"): np.vstack([points, ghosts])},
-        [truth_run(particles, visible)],
-        ["c1", "c2"],
-        [Orthographic(), Orthographic()],
-        voxel=VOXEL,
-        sensor_pixels=1000.0,
-        rotation=np.eye(3),
-        translation=np.zeros(3),
-    )
+    score = _scored({(-1, 0, "a"): np.vstack([points, ghosts])}, truth_run(particles, visible))
     assert score.found == pytest.approx(180 / 190)
     assert score.ghosts == pytest.approx(5 / 185)
     assert score.rms_um == pytest.approx(10.0)
@@ -66,14 +72,9 @@ def test_points_of_a_calibration_frame_are_moved_to_the_world_first():
     rng = np.random.default_rng(2)
     particles = rng.uniform(-0.01, 0.01, (50, 3))
     shift = np.array([0.0, 0.0, 1e-3])  # a traverse origin 1 mm off: 17 voxels
-    score = score_reconstruction(
+    score = _scored(
         {(0, 0, "b"): particles - shift},
-        [truth_run(particles, np.ones(50, dtype=bool))],
-        ["c1", "c2"],
-        [Orthographic(), Orthographic()],
-        voxel=VOXEL,
-        sensor_pixels=1000.0,
-        rotation=np.eye(3),
+        truth_run(particles, np.ones(50, dtype=bool)),
         translation=shift,
     )
     assert score.found == 1.0 and score.ghosts == 0.0
@@ -133,16 +134,7 @@ def test_depth_neighbour_and_displacement_scores_follow_where_the_errors_were_pu
         (-1, 0, "a"): np.vstack([(a + err)[kept], ghost]),
         (0, 0, "b"): (b + err + np.array([6e-6, 0.0, 0.0]))[kept],
     }
-    score = score_reconstruction(
-        points,
-        [_moving_run(a, b)],
-        ["c1", "c2"],
-        [Orthographic(), Orthographic()],
-        voxel=VOXEL,
-        sensor_pixels=1000.0,
-        rotation=np.eye(3),
-        translation=np.zeros(3),
-    )
+    score = _scored(points, _moving_run(a, b))
     depth = score.by_depth
     assert len(depth) == 5
     assert depth[0]["z_mm"][0] == pytest.approx(-10.0) and depth[-1]["z_mm"][1] == pytest.approx(
