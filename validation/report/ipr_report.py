@@ -49,10 +49,8 @@ def reconstruction_figure(scores: Mapping[str, dict], *, label: str = "") -> Fig
         if depth:
             z = np.array([np.mean(row["z_mm"]) for row in depth])
             found_ax.plot(z, _column(depth, "found"), "o-", color=f"C{i}", label=f"{rung}: found")
-            found_ax.plot(
-                z, 1 - _column(depth, "ghosts"), "s--", color=f"C{i}", mfc="none",
-                label=f"{rung}: 1 − ghosts",
-            )  # fmt: skip
+            kept = 1 - _column(depth, "ghosts")
+            found_ax.plot(z, kept, "s--", color=f"C{i}", mfc="none", label=f"{rung}: 1 − ghosts")
             error_ax.plot(z, _column(depth, "rms_px"), "o-", color=f"C{i}", label=rung)
         near = [row for row in score.get("by_neighbour") or [] if row["particles"]]
         if near:

@@ -392,9 +392,11 @@ def _run_rendered(
     table = [row for _, result in sorted(rows, key=lambda r: order[r[0]]) for row in result]
     if study == "planes":
         table = _relative_to_most_planes(table)
+    count = scenario.particles.count
+    tracers = "tracers from the density" if study == "density" else f"{count} tracers"
     title = (
         f"study {study} on rendered images: scenario {scenario.name} "
-        f"(flow {scenario.flow.label}, {scenario.particles.count} tracers, "
+        f"(flow {scenario.flow.label}, {tracers}, "
         f"{scenario.particles.frames} frame pairs per Δt), "
         + (
             f"seed {scenario.seed}"
