@@ -9,13 +9,14 @@ for the double-frame stack (:func:`ptv.pipeline.double_frame.measure_snapshots`,
 ``locate``), which then links, tests and averages them as it does matched points.
 
 The OTF is measured on the images themselves (:func:`measure_run_otf`; ``synptv run``
-measures it on frame a of the first snapshot): from the isolated particle images, then
-per depth slab from the particles reconstructed there, as a laboratory calibrates it.
+measures it on frame a of the first snapshot, and on as many further exposures as a
+dense recording needs): from the isolated particle images, then per depth slab from the
+particles reconstructed there, as a laboratory calibrates it.
 """
 
 import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -28,10 +29,11 @@ from ptv.io.dataset import Dataset
 from ptv.reconstruct import (
     IPRSettings,
     OpticalTransferFunction,
+    TooFewIsolatedImages,
     grid_mappings,
     measure_otf,
     reconstruct,
-    refine_otf,
+    refine_otf_pooled,
 )
 
 logger = logging.getLogger(__name__)
@@ -42,6 +44,11 @@ logger = logging.getLogger(__name__)
 #: the particles give the same OTF as after 60 (dense-ci's first snapshot, 7 s against
 #: 39 s).
 FLAT_OTF_ITERATIONS = 10
+
+#: Exposures :func:`measure_run_otf` pools at most: at 0.08 particles per pixel a ±30°
+#: camera of dense-ci holds 3 isolated particle images per exposure in the middle of
+#: three depth slabs (70 and 64 in the outer ones), 10 needed.
+OTF_MAX_EXPOSURES = 16
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,7 +122,7 @@ class ReconstructedChunk:
 
 
 def measure_run_otf(
-    images: Sequence[np.ndarray],
+    exposures: Iterable[Sequence[np.ndarray]],
     cameras: Sequence[CameraModel],
     box: Box,
     settings: IPRSettings,
@@ -124,21 +131,30 @@ def measure_run_otf(
     depth_slabs: int = 3,
     min_per_cell: int = 10,
     saturation: float | None = None,
+    max_exposures: int = OTF_MAX_EXPOSURES,
 ) -> list[OpticalTransferFunction]:
-    """Each camera's OTF, measured on one exposure's images, per depth slab.
+    """Each camera's OTF, measured on a recording's images, per depth slab.
 
     As a laboratory calibrates it on its own particle images (Schanz et al. 2013): the
     isolated particle images of each camera are fitted (:func:`ptv.reconstruct.measure_otf`),
-    the exposure is reconstructed with that OTF, and the isolated images of the
+    the exposures are reconstructed with that OTF, and the isolated images of the
     reconstructed particles are fitted again per depth slab
-    (:func:`ptv.reconstruct.refine_otf`): defocus widens the images away from the focal
-    plane, most in the cameras that look through the window most obliquely, and an OTF
-    without depth leaves their residual images full of peaks.
+    (:func:`ptv.reconstruct.refine_otf_pooled`): defocus widens the images away from the
+    focal plane, most in the cameras that look through the window most obliquely, and an
+    OTF without depth leaves their residual images full of peaks.
+
+    Each stage starts from the first exposure and pools the next ones only while some
+    cell holds too few isolated images: a dense image holds few (at 0.05 particles per
+    pixel about 2 % are 5 px from any other; at 0.12, a few per mille). An inner depth
+    slab that ``max_exposures`` exposures would still leave short, at the rate of those
+    pooled so far, takes σ from the defocus law instead
+    (:func:`ptv.reconstruct.refine_otf_pooled`, ``fill_inner``).
 
     Parameters
     ----------
-    images : sequence of C ndarray, shape (H_c, W_c)
-        One exposure, one image per camera (``synptv run``: frame a of snapshot 0).
+    exposures : iterable of (sequence of C ndarray, shape (H_c, W_c))
+        Exposures, one image per camera each, in the order they are pooled; read only as
+        far as needed (``synptv run``: frame a of each snapshot first).
     cameras : sequence of C CameraModel
         Calibrations in the images' order.
     box : Box
@@ -146,15 +162,15 @@ def measure_run_otf(
     settings : IPRSettings
         The reconstruction's options.
     regions : (rows, columns)
-        Image regions the OTF is measured in; a dense image holds few isolated particle
-        images (at 0.05 particles per pixel about 2 % are 5 px from any other), so one
-        region is the default.
+        Image regions the OTF is measured in; one region is the default.
     depth_slabs : int
         Depth slabs of the refined OTF, >= 1.
     min_per_cell : int
         Fitted reconstructed particle images needed in every region and slab, >= 1.
     saturation : float, optional
         The images' saturation level (default: their dtype's maximum).
+    max_exposures : int
+        Exposures pooled at most, >= 1.
 
     Returns
     -------
@@ -162,23 +178,59 @@ def measure_run_otf(
 
     Raises
     ------
-    ValueError
-        Too few isolated particle images in some region or slab (the message says how
-        many were found and how many are needed).
+    TooFewIsolatedImages
+        Too few isolated particle images in some region or slab even pooled over
+        ``max_exposures`` exposures, or all there are (the message says how many were
+        found and how many are needed).
     """
-    flat = measure_otf(images, regions=regions, saturation=saturation)
-    flat_settings = replace(
+    if not (isinstance(max_exposures, int) and max_exposures >= 1):
+        raise ValueError(f"max_exposures must be an integer >= 1, got {max_exposures!r}")
+    source = iter(exposures)
+    taken: list[list[np.ndarray]] = []
+
+    def pool_another(error: TooFewIsolatedImages | None) -> None:
+        nxt = next(source, None) if len(taken) < max_exposures else None
+        if nxt is None:
+            if error is None:
+                raise ValueError("measuring the OTF needs at least one exposure")
+            raise TooFewIsolatedImages(f"{error} [pooled over {len(taken)} exposures]")
+        taken.append([np.asarray(image) for image in nxt])
+
+    pool_another(None)
+    while True:
+        try:
+            stacks = [np.stack(images) for images in zip(*taken, strict=True)]
+            flat = measure_otf(stacks, regions=regions, saturation=saturation)
+            break
+        except TooFewIsolatedImages as error:
+            pool_another(error)
+    first_settings = replace(
         settings, outer_iterations=min(settings.outer_iterations, FLAT_OTF_ITERATIONS)
     )
-    first = reconstruct(images, cameras, flat, box, settings=flat_settings)
-    return refine_otf(
-        images,
-        first.positions,
-        first.xy,
-        flat,
-        depth_slabs=depth_slabs,
-        min_per_cell=min_per_cell,
-    )
+    reconstructed = []
+    fill_inner = False
+    while True:
+        for images in taken[len(reconstructed) :]:
+            first = reconstruct(images, cameras, flat, box, settings=first_settings)
+            reconstructed.append((images, first.positions, first.xy))
+        try:
+            otfs = refine_otf_pooled(
+                reconstructed,
+                flat,
+                depth_slabs=depth_slabs,
+                min_per_cell=min_per_cell,
+                fill_inner=fill_inner,
+            )
+        except TooFewIsolatedImages as error:
+            # an inner slab that even max_exposures would leave short: the defocus law
+            fill_inner = error.inner_only and (
+                error.poorest * max_exposures < min_per_cell * len(taken)
+            )
+            if not fill_inner:
+                pool_another(error)
+            continue
+        logger.info("OTF measured on %d exposures", len(taken))
+        return otfs
 
 
 def reconstruct_chunk(

@@ -17,7 +17,13 @@ from ptv.reconstruct.background import BackgroundLevel, background_level
 from ptv.reconstruct.ipr import IPRDiagnostics, Reconstruction, reconstruct
 from ptv.reconstruct.mapping import grid_mappings
 from ptv.reconstruct.otf import OpticalTransferFunction
-from ptv.reconstruct.otf_measure import measure_camera_otf, measure_otf, refine_otf
+from ptv.reconstruct.otf_measure import (
+    TooFewIsolatedImages,
+    measure_camera_otf,
+    measure_otf,
+    refine_otf,
+    refine_otf_pooled,
+)
 from ptv.reconstruct.peaks import find_peaks
 from ptv.reconstruct.projection import draw_spots, projected_image, residual_image
 from ptv.settings import IPRSettings
@@ -28,6 +34,7 @@ __all__ = [
     "IPRSettings",
     "OpticalTransferFunction",
     "Reconstruction",
+    "TooFewIsolatedImages",
     "background_level",
     "draw_spots",
     "find_peaks",
@@ -37,5 +44,6 @@ __all__ = [
     "projected_image",
     "reconstruct",
     "refine_otf",
+    "refine_otf_pooled",
     "residual_image",
 ]

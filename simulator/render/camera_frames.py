@@ -209,6 +209,7 @@ def record_particles(
     lighting: ParticleLighting,
     sensor: Sensor,
     rng: np.random.Generator | int | None = None,
+    brightness: np.ndarray | None = None,
 ) -> ParticleFrame:
     """Render and record the particles at ``positions`` as ``camera`` sees them.
 
@@ -224,6 +225,10 @@ def record_particles(
         Noise, gain and bit depth.
     rng : numpy.random.Generator, int or None
         Sensor noise.
+    brightness : ndarray, shape (P,), optional
+        Light each tracer scatters relative to one of ``lighting.particle_diameter``,
+        >= 0 (a polydisperse seeding: about (d / d_p)² for the sizes here); None: all
+        alike.
 
     Returns
     -------
@@ -255,6 +260,12 @@ def record_particles(
     positions = np.asarray(positions, dtype=float)
     if positions.ndim != 2 or positions.shape[1] != 3 or not np.isfinite(positions).all():
         raise ValueError(f"positions must be finite with shape (P, 3), got {positions.shape}")
+    if brightness is not None:
+        brightness = np.asarray(brightness, dtype=float)
+        if brightness.shape != (len(positions),) or not (brightness >= 0).all():
+            raise ValueError(
+                f"brightness must be >= 0 with shape ({len(positions)},), got {brightness.shape}"
+            )
     lens = camera.lens
     lit = lighting.lit_at(positions)
     xy = np.full((len(positions), 2), np.nan)
@@ -286,6 +297,8 @@ def record_particles(
             electrons_at_reference=lighting.electrons_at_reference,
             reference_diameter=lighting.particle_diameter,
         )
+        if brightness is not None:
+            electrons[lit] *= brightness[lit]
     shape = (lens.sensor_size[1], lens.sensor_size[0])
     drawn = lit & np.isfinite(xy).all(axis=1)
     spots = render_particles(np.where(drawn[:, None], xy, np.nan), sigma, electrons, shape=shape)

@@ -4,7 +4,12 @@ import json
 
 import pytest
 
-from validation.run.ipr_section import IprSection
+from validation.run.ipr_section import (
+    IPR_BYTES_PER_PARTICLE,
+    WORKER_BYTES,
+    IprSection,
+    check_ipr_memory,
+)
 from validation.run.scenario import ScenarioError, load_scenario, scenario_from_dict
 
 FOUR_CAMERAS = (
@@ -50,3 +55,14 @@ def test_an_ipr_that_cannot_run_is_refused_naming_file_and_field(tmp_path, body,
     with pytest.raises(ScenarioError, match=r"s\.toml") as error:
         load_scenario(write(tmp_path, body))
     assert message in str(error.value)
+
+
+def test_the_memory_estimate_refuses_a_density_before_any_work():
+    """Half the machine's memory is the bar: the dense scenario's 9300 tracers on two
+    workers fit one that could hold a bit more than the plan, and fail one that cannot."""
+    scenario = load_scenario("dense")
+    pixels = 4 * 512 * 512
+    plan = 2 * (WORKER_BYTES + 9300 * IPR_BYTES_PER_PARTICLE + pixels * 16)
+    check_ipr_memory(scenario, "dense", pixels, workers=2, memory=2.01 * plan)
+    with pytest.raises(ScenarioError, match=r"^dense: particles\.count: .* 9300 tracers"):
+        check_ipr_memory(scenario, "dense", pixels, workers=2, memory=1.99 * plan)

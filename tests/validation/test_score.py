@@ -128,6 +128,17 @@ def test_a_perturbed_truth_scores_as_perturbed(run, tmp_path, capsys):
     assert statistics["computed"] and statistics["linked_by"] == "tracks"
     assert statistics["c1"]["bins"] > 0 and statistics["epsilon"]["value"] > 0
     assert result["alignment"]["rotation_deg"] < 1e-3
+    # as the LPT Challenge scores it, over the whole volume and every exposure
+    challenge = result["reconstruction"]
+    ghost_rows = sum(row[6] >= 10**6 for row in rows)
+    assert challenge["found"] == pytest.approx(1 - DROPPED, abs=0.01)
+    assert challenge["ghosts"] == pytest.approx(ghost_rows / len(rows), abs=0.005)
+    assert challenge["rms_um"] == pytest.approx(np.sqrt(3) * NOISE * 1e6, rel=0.1)
+    assert challenge["points"] == len(rows)
+    assert sum(row["particles"] for row in challenge["by_depth"]) == challenge["particles"]
+    for row in challenge["by_neighbour"]:  # dropped alike wherever a particle's images lie
+        if row["particles"] > 1000:
+            assert row["found"] == pytest.approx(1 - DROPPED, abs=0.03)
     assert sorted(p.name for p in out.iterdir()) == ["report.html", "score.json", "score.png"]
     assert json.loads((out / "score.json").read_text()) == result
     assert matplotlib.image.imread(out / "score.png").shape[1] > 800

@@ -173,6 +173,12 @@ AUDITED: tuple[Audited, ...] = (
         (),
         reason="read by IPR's OTF only (claim #55, after the last audit): not perturbed yet",
     ),
+    Audited(
+        "ptv.pipeline.reconstructed:OTF_MAX_EXPOSURES",
+        "not run",
+        (),
+        reason="a cap on the exposures the OTF pools: the claims' dense case needs one",
+    ),
     Audited("ptv.tracking.link_prediction:MISS_SIGMAS", "not run", (), reason=_SHARED),
     Audited("ptv.tracking.link_prediction:MIN_MISSES", "not run", (), reason=_SHARED),
     Audited("ptv.stats.resampling:RESOLVED_RHO1", "not run", (), reason=_INDEPENDENT),

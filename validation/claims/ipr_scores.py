@@ -4,8 +4,11 @@
 512 × 512 px, a voxel of 60 µm, f/16) records :data:`PARTICLES` tracers of
 :data:`DIAMETER` uniform in its 20 × 25 × 30 mm volume, lit uniformly through its depth
 (its rig file's top-hat sheet and aperture, :func:`simulator.render.camera_frames.
-rig_lighting`), :data:`ELECTRONS` each, with the default sensor: about 0.05 particles
-per pixel on every camera. The stack then does what ``synptv run`` does on such images:
+rig_lighting`), with the default sensor: about 0.05 particles per pixel on every
+camera. The seeding is polydisperse, as a laboratory's is: each tracer scatters a
+brightness drawn uniformly from :data:`BRIGHTNESS` times :data:`ELECTRONS` (diameters of
+about 14–24 µm), so that IPR must keep the faint real particles while it removes the
+faint ghosts. The stack then does what ``synptv run`` does on such images:
 the OTF of each camera measured on snapshot 0 by the run's own function
 (:func:`ptv.pipeline.reconstructed.measure_run_otf`: from the isolated particle images,
 then per depth slab from the particles reconstructed there); then every snapshot is
@@ -52,8 +55,12 @@ RIG = "lpt-challenge-small"
 PARTICLES = 9300
 #: Tracer diameter, m (their images are set by diffraction: σ ≈ 0.6–0.8 px).
 DIAMETER = 20e-6
-#: Photo-electrons per tracer, e⁻ (the whole volume lit alike).
+#: Photo-electrons per tracer of :data:`DIAMETER`, e⁻ (the whole volume lit alike).
 ELECTRONS = 6000.0
+#: Range of each tracer's brightness relative to :data:`ELECTRONS` (uniform): the
+#: faintest real particle is half the typical one, above IPR's ghost threshold (0.35)
+#: by a margin and below twice it.
+BRIGHTNESS = (0.5, 1.5)
 #: A particle image is isolated when no other lit particle's image is this close, px (the
 #: stack's ``isolation``).
 ISOLATION_PX = 5.0
@@ -193,8 +200,11 @@ def ipr_scores(snapshots: int, *, seed: int) -> IprScores:
     err_px, err_um, seconds = [], [], 0.0
     for _ in range(snapshots):
         positions = rng.uniform(box[0], box[1], (PARTICLES, 3))
+        brightness = rng.uniform(*BRIGHTNESS, PARTICLES)
         images = [
-            record_particles(c, positions, lighting=lighting, sensor=sensor, rng=rng).image
+            record_particles(
+                c, positions, lighting=lighting, sensor=sensor, rng=rng, brightness=brightness
+            ).image
             for c in cameras
         ]
         lit = lighting.lit_at(positions)
@@ -203,7 +213,7 @@ def ipr_scores(snapshots: int, *, seed: int) -> IprScores:
         imaged += sum(int((lit & inside).sum()) for inside in on_sensor)
         if otfs is None:  # the OTF as synptv run measures it
             saturation = float(2**sensor.bit_depth - 1)
-            otfs = measure_run_otf(images, cameras, box, settings, saturation=saturation)
+            otfs = measure_run_otf([images], cameras, box, settings, saturation=saturation)
             specified = [
                 _specification(c, im, positions, lit, lighting, otf.grid_z)
                 for c, im, otf in zip(cameras, images, otfs, strict=True)

@@ -156,8 +156,34 @@ def score(args: argparse.Namespace) -> tuple[dict, np.ndarray]:
             "rows": len(positions.k),
         },
     }
+    result["reconstruction"] = _reconstruction_scores(positions, truth, voxel, scored)
     errors = np.concatenate([f.error[f.tp_in] for f in scored.frames])
     return as_json(result), errors
+
+
+def _reconstruction_scores(positions, truth, voxel: float, scored) -> dict:
+    """The LPT Challenge's scores of every exposure the file holds positions for, over
+    the whole volume (validation.truth.reconstruction: found among the particles every
+    camera images, ghosts, errors in µm and projected px, the displacement between the
+    frames of a pair, and each by depth and by the nearest other particle image)."""
+    from validation.truth.reconstruction import score_reconstruction
+
+    keys = np.stack([positions.k, positions.snapshot, positions.frame], axis=1)
+    points = {
+        (int(k), int(m), "ab"[f]): positions.xyz[(keys == (k, m, f)).all(axis=1)]
+        for k, m, f in np.unique(keys, axis=0)
+    }
+    lens = truth.rig.cameras[0].lens
+    return score_reconstruction(
+        points,
+        truth.runs(0, truth.frames),
+        truth.rig.camera_names,
+        truth.rig.cameras,
+        voxel=voxel,
+        sensor_pixels=float(np.prod(lens.sensor_size)),
+        rotation=scored.rotation,
+        translation=scored.translation,
+    ).as_dict()
 
 
 #: Effective independent snapshots below which a verdict is too weak to mean much: at
@@ -233,6 +259,14 @@ def _print(result: dict, out: Path) -> None:
             f"links: {tracks['links']}, correct {tracks['correct']}, wrong {tracks['wrong']}; "
             f"broken {tracks['broken']} of {tracks['found_in_both']} particles found in both frames"
         )
+    r = result["reconstruction"]
+    rms = "–" if r["rms_um"] is None else f"{r['rms_um']:.3g} um ({r['rms_px']:.3g} px)"
+    print(
+        f"as the LPT Challenge scores it (whole volume, {r['exposures']} exposures, "
+        f"{r['ppp']:.3g} particles per pixel): found {r['found']:.4f} of {r['particles']}, "
+        f"ghosts {r['ghosts']:.4f} of {r['points']}, rms {rms}; by depth and by image "
+        "overlap in score.json"
+    )
     statistics = result["statistics"]
     if statistics["computed"]:
         for line in _statistics_lines(statistics, result["snapshots_per_dt"]):

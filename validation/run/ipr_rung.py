@@ -10,7 +10,7 @@ OTF is measured once, on the images, before the chunks.
 """
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,7 +18,8 @@ import numpy as np
 
 from ptv.box import Box
 from ptv.camera_model import CameraModel
-from ptv.io.dataset import open_dataset
+from ptv.detect.frames import exposures
+from ptv.io.dataset import Dataset, open_dataset
 from ptv.pipeline.double_frame import PtvResult, measure_snapshots
 from ptv.pipeline.reconstructed import ReconstructedChunk, measure_run_otf, reconstruct_chunk
 from ptv.pipeline.resolve import resolve_settings
@@ -122,7 +123,7 @@ def ipr_rung(
     if len(cameras) < 3:
         raise ValueError(f"IPR needs at least three cameras, the dataset has {len(cameras)}")
     otfs = measure_run_otf(
-        [dataset.read_frame(0, c, 0, "a") for c in dataset.cameras],
+        _exposures_for_otf(dataset),
         cameras,
         rung.box,
         rung.settings,
@@ -163,3 +164,14 @@ def ipr_rung(
         float(np.mean([len(p) for p in joined.points.values()])),
     )
     return result, frame_a, joined, otfs
+
+
+def _exposures_for_otf(dataset: Dataset) -> Iterator[list[np.ndarray]]:
+    """The dataset's exposures in the order the OTF pools them: frame a of each
+    snapshot first (the particles of frame b have barely moved), then the frames b."""
+    order = exposures(
+        dataset.frames, range(max(dataset.frames)), shared_first_frame=dataset.shared_first_frame
+    )
+    order.sort(key=lambda exposure: exposure[2] == "b")
+    for k, m, frame in order:
+        yield [dataset.read_frame(max(k, 0), c, m, frame) for c in dataset.cameras]

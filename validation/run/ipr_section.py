@@ -16,13 +16,25 @@ interpolates a calibration's world → pixel mapping; 0 calls the calibration di
 and ``outer_iterations`` (at most).
 """
 
+import os
 from dataclasses import dataclass
 
 from ptv.reconstruct import IPRSettings
+from validation.run.recording_section import MEMORY_SHARE, machine_memory
 from validation.run.scenario_fields import ScenarioError
 
 #: Fewest cameras IPR needs: a candidate triangulated from two is checked in a third.
 MIN_CAMERAS = 3
+#: Memory one exposure's reconstruction adds per particle in the volume and per sensor
+#: pixel of all the cameras, bytes (its particles, their images, candidates and shaking
+#: buffers; the images, residuals and projections in float64). benchmarks/
+#: bench_peer_openlpt measured the peak grow by 17 MiB at 1865 particles and 37 MiB at
+#: 9326 on four 512 × 512 cameras: 2.8 kB per particle and 12 B per pixel, rounded up.
+IPR_BYTES_PER_PARTICLE = 4000
+IPR_BYTES_PER_PIXEL = 16
+#: Resident memory of a worker before it reconstructs (Python with NumPy, SciPy and the
+#: compiled kernels: 330-430 MiB measured), bytes.
+WORKER_BYTES = 512 * 2**20
 
 
 @dataclass(frozen=True)
@@ -85,3 +97,54 @@ def check_ipr(scenario, source: str, cameras: int) -> None:
         ipr.settings()
     except ValueError as err:
         fail(str(err))
+
+
+def sensor_pixels(cameras) -> int:
+    """Pixels of all the cameras' sensors together (each camera's ``lens.sensor_size``)."""
+    return sum(int(c.lens.sensor_size[0]) * int(c.lens.sensor_size[1]) for c in cameras)
+
+
+def ipr_memory(particles: int, pixels: int, workers: int) -> float:
+    """Bytes the reconstructions of a run plan to take at their peak: every worker
+    reconstructing one exposure of ``particles`` tracers on cameras of ``pixels`` pixels
+    in all (the constants above)."""
+    exposure = particles * IPR_BYTES_PER_PARTICLE + pixels * IPR_BYTES_PER_PIXEL
+    return workers * (WORKER_BYTES + exposure)
+
+
+def check_ipr_memory(
+    scenario,
+    source: str,
+    pixels: int,
+    *,
+    workers: int | None = None,
+    memory: float | None = None,
+) -> None:
+    """Refuse a density whose reconstructions would not fit in memory, before any work.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        With ``ipr``.
+    source : str
+        The scenario file (or study point), for the message.
+    pixels : int
+        Pixels of all the rig's sensors together (:func:`sensor_pixels`).
+    workers : int, optional
+        Worker processes reconstructing at once (default: one per CPU).
+    memory : float, optional
+        The machine's memory, bytes (default :func:`machine_memory`).
+
+    Raises
+    ------
+    ScenarioError
+    """
+    workers = (os.cpu_count() or 1) if workers is None else workers
+    memory = machine_memory() if memory is None else memory
+    need = ipr_memory(scenario.particles.count, pixels, workers)
+    if need > MEMORY_SHARE * memory:
+        raise ScenarioError(
+            f"{source}: particles.count: reconstructing {scenario.particles.count} tracers "
+            f"on {workers} workers takes about {need / 2**30:.3g} GiB, more than half this "
+            f"machine's {memory / 2**30:.3g} GiB: seed fewer tracers or use fewer workers"
+        )

@@ -63,7 +63,7 @@ from validation.run.flow_section import (
     dns_eta,
     flow_section,
 )
-from validation.run.ipr_section import IprSection, check_ipr
+from validation.run.ipr_section import IprSection, check_ipr, check_ipr_memory, sensor_pixels
 from validation.run.recording_section import RecordingSection, check_recording
 from validation.run.scenario_fields import ScenarioError, renamed_keys, section
 
@@ -361,8 +361,9 @@ def scenario_presets() -> list[str]:
     --------
     >>> import validation
     >>> validation.scenario_presets()
-    ['box-3cam', 'ci', 'default', 'dense-ci', 'dns', 'dns-ci', 'paper-10hz', 'paper-12hz',
-     'paper-8hz', 'slow-4cam', 'slow-dense', 'slow-unequal', 'tr', 'tr-ci', 'tr-dns']
+    ['box-3cam', 'ci', 'default', 'dense', 'dense-ci', 'dns', 'dns-ci', 'paper-10hz',
+     'paper-12hz', 'paper-8hz', 'slow-4cam', 'slow-dense', 'slow-unequal', 'tr', 'tr-ci',
+     'tr-dns']
     """
     folder = resources.files("validation") / "scenarios"
     return sorted(
@@ -460,6 +461,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     cameras = loaded.cameras
     if scenario.ipr is not None:
         check_ipr(scenario, source, len(cameras))
+        check_ipr_memory(scenario, source, sensor_pixels(cameras))
     given = set(spec.get("ptv", {}))
     if not given.issuperset(DERIVED_FIELDS):
         scales = None

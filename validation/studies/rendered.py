@@ -45,6 +45,7 @@ from simulator.render.sensor import Sensor
 from simulator.rigs import Rig, load_rig, rig_from_dict
 from validation.dataset.calibrate import dot_positions
 from validation.run.experiment import ExperimentRun, object_pixel
+from validation.run.ipr_section import check_ipr_memory, sensor_pixels
 from validation.run.scenario import OutputSection, Scenario
 from validation.studies.calibration_methods import MODEL_VOLUME, plane_subset, with_obliquity
 from validation.studies.density import (
@@ -224,10 +225,12 @@ def _points(study: str, scenario: Scenario, values: list | None) -> list[Rendere
                 f"{scenario.name!r} has no [ipr] table (the dense-ci scenario has one)"
             )
         points = []
+        pixels = sensor_pixels(load_rig(scenario.rig.name).cameras)
         for ppp in DENSITIES_PPP if values is None else sorted(set(values)):
             n = particles_at(ppp, scenario.rig.name)
             tag = f"density-{ppp:g}-seed-{seed}"
             dense = replace(scenario, particles=replace(scenario.particles, count=n))
+            check_ipr_memory(dense, f"{scenario.name} at {ppp:g} ppp", pixels)
             points.append(RenderedPoint(tag, {"ppp": ppp, "tracers": n}, dense, tag))
         return points
     if study == "obliquity":

@@ -48,6 +48,21 @@ def test_spots_sit_at_the_projected_centres_with_the_optics_size_and_sheet_brigh
     assert frame.image.sum() == pytest.approx(total, abs=5 * np.sqrt(total))
 
 
+def test_a_polydisperse_seeding_scales_each_tracers_light_and_nothing_else(camera):
+    positions = np.array([[0.0, 0.0, 0.0], [2e-3, 1e-3, 1e-3], [-2e-3, 0.0, -1e-3]])
+    lighting = ParticleLighting()
+    alike = record_particles(camera, positions, lighting=lighting, sensor=NOISELESS, rng=1)
+    brightness = np.array([0.5, 1.0, 1.5])
+    spread = record_particles(
+        camera, positions, lighting=lighting, sensor=NOISELESS, rng=1, brightness=brightness
+    )
+    assert np.allclose(spread.electrons, brightness * alike.electrons, rtol=1e-12)
+    assert np.array_equal(spread.xy, alike.xy) and np.array_equal(spread.sigma, alike.sigma)
+    for bad in (np.ones(2), np.array([1.0, -0.1, 1.0]), np.array([1.0, np.nan, 1.0])):
+        with pytest.raises(ValueError, match="brightness"):
+            record_particles(camera, positions, lighting=lighting, sensor=NOISELESS, brightness=bad)
+
+
 def test_magnification_matches_a_tenth_of_a_millimetre_per_pixel(camera):
     m = local_magnification(camera, np.zeros((1, 3)))
     assert m[0] * 1e-4 / camera.lens.pixel_pitch == pytest.approx(1.0, rel=0.05)
