@@ -529,7 +529,8 @@ def _defocus_fill(tables, short, fitted, depth, cy, cx, edges_z) -> None:
 
 
 def _checked_exposure(images, positions, xy, otfs):
-    """One exposure of :func:`refine_otf_pooled` as float arrays, its shapes checked."""
+    """One exposure of :func:`refine_otf_pooled`, its positions and xy as float arrays
+    and its shapes checked."""
     positions = np.asarray(positions, dtype=np.float64)
     xy = np.asarray(xy, dtype=np.float64)
     n_cams = len(images)
