@@ -23,7 +23,7 @@ def test_the_slow_flow_gets_ranges_from_its_eta_and_integral_length(tmp_path):
     # η = (ν³/ε)^(1/4) = 177.8 µm, L_int = u′³/ε = 125 mm; the sheet 100 × 100 × 10 mm
     eta, l_int = (1e-18 / 1e-3) ** 0.25, 0.05**3 / 1e-3
     width, height, thickness = load_rig("box-4cam").sheet.size
-    assert np.allclose(scenario.ptv.analysis_volume, (0.7 * width, 0.7 * height, 0.8 * thickness))
+    assert np.allclose(scenario.ptv.analysis_size, (0.7 * width, 0.7 * height, 0.8 * thickness))
     r_max = min(0.35 * min(width, height), l_int)  # half the volume's smaller side: 35 mm
     assert np.allclose((scenario.ptv.r_min, scenario.ptv.r_max), (10 * eta, r_max))
     assert np.allclose(scenario.ptv.plateau, (40 * eta, min(l_int / 2, 0.6 * r_max)))
@@ -40,7 +40,7 @@ def test_given_ranges_are_kept(tmp_path):
 def test_the_paper_scenarios_keep_the_paper_ranges():
     for name in ("default", "ci", "paper-8hz", "paper-10hz", "paper-12hz"):
         ptv = load_scenario(name).ptv
-        assert (ptv.analysis_volume, (ptv.r_min, ptv.r_max), ptv.plateau) == (
+        assert (ptv.analysis_size, (ptv.r_min, ptv.r_max), ptv.plateau) == (
             (0.07, 0.07, 0.008),
             (0.5e-3, 35e-3),
             (2e-3, 20e-3),

@@ -86,25 +86,39 @@ def test_any_valid_scenario_round_trips_through_json(
 def test_missing_tables_and_fields_take_the_defaults(tmp_path):
     scenario = load_scenario(write(tmp_path / "minimal.toml", 'name = "minimal"\n'))
     assert scenario.seed == 0 and scenario.description == ""
-    derived = ("analysis_volume", "r_min", "r_max", "plateau")  # test_derived_ptv.py
+    derived = ("analysis_size", "r_min", "r_max", "plateau")  # test_derived_ptv.py
     assert replace(scenario.ptv, **{k: getattr(PtvSection(), k) for k in derived}) == PtvSection()
     assert json_round_trip(scenario) == scenario
 
 
 def test_the_ptv_table_names_its_settings_as_the_settings_do():
     settings = {f.name for cls in (PipelineSettings, StatisticsSettings) for f in fields(cls)}
-    assert {f.name for f in fields(PtvSection)} - settings == {"methods"}
+    # analysis_size: a centred box's sizes, where StatisticsSettings.analysis_volume is corners
+    assert {f.name for f in fields(PtvSection)} - settings == {"methods", "analysis_size"}
+
+
+def test_the_ptv_table_defaults_are_the_settings_defaults():
+    pipeline = PipelineSettings()
+    shared = {f.name for f in fields(PtvSection)} - {"methods", "analysis_size"}
+    for name in shared:
+        owner = pipeline if name in {f.name for f in fields(pipeline)} else pipeline.statistics
+        assert getattr(PtvSection(), name) == getattr(owner, name), name
 
 
 def test_the_old_ptv_keys_are_read_under_their_new_names_with_a_warning(tmp_path, caplog):
-    body = 'name = "s"\n[ptv]\nr_range = [1.0e-3, 30.0e-3]\nbins = 12\n'
+    body = (
+        'name = "s"\n[ptv]\nr_range = [1.0e-3, 30.0e-3]\nbins = 12\n'
+        "analysis_volume = [0.06, 0.06, 0.006]\n"
+    )
     with caplog.at_level(logging.WARNING):
         ptv = load_scenario(write(tmp_path / "s.toml", body)).ptv
     assert (ptv.r_min, ptv.r_max, ptv.n_bins) == (1e-3, 30e-3, 12)
+    assert ptv.analysis_size == (0.06, 0.06, 0.006)
     old = [r.getMessage() for r in caplog.records if "is an old name" in r.getMessage()]
     assert [message.split(".toml: ")[1] for message in old] == [
         "ptv.r_range is an old name, read as ptv.r_min and ptv.r_max: write that",
         "ptv.bins is an old name, read as ptv.n_bins: write that",
+        "ptv.analysis_volume is an old name, read as ptv.analysis_size: write that",
     ]
 
 
@@ -138,7 +152,7 @@ def test_an_integer_is_accepted_for_a_float_field(tmp_path):
         ("[calibration]\nplanes = 2\n", "calibration.planes"),
         ("[particles]\nframes = 1\n", "particles.frames"),
         ("[particles]\ndiameter = 0.0\n", "particles.diameter"),
-        ("[ptv]\nanalysis_volume = [0.07, 0.07]\n", "ptv.analysis_volume"),
+        ("[ptv]\nanalysis_size = [0.07, 0.07]\n", "ptv.analysis_size"),
         ("[ptv]\nr_min = 35e-3\nr_max = 0.5e-3\n", "ptv.r_min and ptv.r_max"),
         ("[ptv]\nr_min = 0.0\n", "ptv.r_min and ptv.r_max"),
         ("[ptv]\nr_min = -1e-3\n", "ptv.r_min and ptv.r_max"),

@@ -160,6 +160,27 @@ def test_the_same_columns_in_hdf5_score_the_same(run, tmp_path, capsys):
         assert from_csv[key] == from_h5[key]
 
 
+def test_the_old_analysis_volume_option_is_read_as_analysis_size(run, tmp_path, capsys):
+    rows = perturbed_truth(run / "dataset" / "truth.h5", seed=2)[:3000]
+    positions = str(write_csv(tmp_path / "positions.csv", rows))
+    argv = ["--dataset", str(run / "dataset"), "--positions", positions]
+    new = score(capsys, *argv, "--analysis-size", "0.05,0.05,0.006", "--out", str(tmp_path / "n"))
+    old_name = ("--analysis-volume", "0.05,0.05,0.006", "--out", str(tmp_path / "o"))
+    code = main(["score", *argv, *old_name, "--json"])
+    printed = capsys.readouterr()
+    assert code == 0
+    assert printed.err.strip() == (
+        "synptv score: --analysis-volume is an old name, read as --analysis-size: write that"
+    )
+    old = json.loads(printed.out)
+    size = [0.05, 0.05, 0.006]
+    assert new["settings"]["analysis_size_m"] == old["settings"]["analysis_size_m"] == size
+    assert (new["yield"], new["n_reference"]) == (old["yield"], old["n_reference"])
+    both = ("--analysis-size", "0.05,0.05,0.006", "--analysis-volume", "0.05,0.05,0.006")
+    err = bad(capsys, tmp_path, run, positions, *both)
+    assert "--analysis-volume is the old name of --analysis-size" in err
+
+
 def test_synptv_matched_points_score_as_synptv_run_reports(run, tmp_path, capsys):
     """The model-free rung's results.h5 keeps the matched points synptv run scored."""
     rung = run / "ptv" / "model-free"

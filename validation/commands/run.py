@@ -51,7 +51,7 @@ def run_experiment(args: argparse.Namespace) -> int:
         return run_recorded(args, scenario, out)
     p = scenario.ptv
     print(
-        f"analysis: volume {' x '.join(f'{v * 1e3:.4g}' for v in p.analysis_volume)} mm, "
+        f"analysis: volume {' x '.join(f'{v * 1e3:.4g}' for v in p.analysis_size)} mm, "
         f"r {p.r_min * 1e3:.3g}-{p.r_max * 1e3:.3g} mm in {p.n_bins} bins, plateau "
         f"{p.plateau[0] * 1e3:.3g}-{p.plateau[1] * 1e3:.3g} mm, matching tolerance "
         + ("measured" if p.tolerance is None else f"{p.tolerance * 1e6:g} µm (given)")

@@ -83,18 +83,35 @@ def add_score_parser(sub) -> None:
         help="cameras a reference particle is imaged by, at least (default 2)",
     )
     score.add_argument(
-        "--analysis-volume",
+        "--analysis-size",
         type=_box_size,
-        default=PtvSection().analysis_volume,
         metavar="LX,LY,LZ",
-        help="sizes of the centred analysis volume, m (default synptv run's, 0.07,0.07,0.008)",
+        help="sizes of the centred analysis volume, m (default synptv run's, 0.07,0.07,0.008; "
+        "a scenario's [ptv] analysis_size)",
+    )
+    score.add_argument(
+        "--analysis-volume", type=_box_size, dest="old_analysis_size", help=argparse.SUPPRESS
     )
     score.set_defaults(run=run_score)
 
 
+def _analysis_size(args: argparse.Namespace) -> tuple[float, float, float]:
+    """``--analysis-size``, read from its old name ``--analysis-volume`` with a warning, or
+    synptv run's default; raises ValueError when both names are given."""
+    if args.old_analysis_size is None:
+        return args.analysis_size or PtvSection().analysis_size
+    if args.analysis_size is not None:
+        raise ValueError("--analysis-volume is the old name of --analysis-size: give that only")
+    print(
+        "synptv score: --analysis-volume is an old name, read as --analysis-size: write that",
+        file=sys.stderr,
+    )
+    return args.old_analysis_size
+
+
 def _settings(size: tuple[float, float, float]):
     """synptv run's default PTV settings with the analysis volume of ``size``."""
-    return pipeline_settings(Scenario("score", ptv=PtvSection(analysis_volume=size)))
+    return pipeline_settings(Scenario("score", ptv=PtvSection(analysis_size=size)))
 
 
 def _truth(dataset: str):
@@ -128,9 +145,10 @@ def score(args: argparse.Namespace) -> tuple[dict, np.ndarray]:
         raise ValueError(
             f"--min-cameras {args.min_cameras}: must be 1 to the dataset's {cameras} cameras"
         )
+    size = _analysis_size(args)
     positions = read_positions(args.positions, tracks=args.tracks)
     check_positions(positions, n_dt=len(truth.dt), snapshots=truth.frames, sheet=truth.rig.sheet)
-    settings = _settings(args.analysis_volume)
+    settings = _settings(size)
     box = settings.statistics.analysis_volume
     voxel = object_pixel(truth.rig) if args.voxel is None else args.voxel
     scored = score_positions(positions, truth, voxel=voxel, min_cameras=args.min_cameras, box=box)
@@ -152,7 +170,7 @@ def score(args: argparse.Namespace) -> tuple[dict, np.ndarray]:
             "positions": str(args.positions),
             "voxel_m": voxel,
             "min_cameras": args.min_cameras,
-            "analysis_volume_m": list(args.analysis_volume),
+            "analysis_size_m": list(size),
             "rows": len(positions.k),
         },
     }

@@ -67,7 +67,7 @@ def _statistics_html(statistics: dict) -> list[str]:
 def render_html(result: dict) -> str:
     """The report page of a score (``score.png`` beside it)."""
     settings, alignment = result["settings"], result["alignment"]
-    box = " × ".join(f"{1e3 * v:g}" for v in settings["analysis_volume_m"])
+    box = " × ".join(f"{1e3 * v:g}" for v in settings["analysis_size_m"])
     parts = [
         "<!doctype html><html><head><meta charset='utf-8'>",
         f"<title>synptv score: {html.escape(settings['positions'])}</title>{_STYLE}</head><body>",

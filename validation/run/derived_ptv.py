@@ -1,6 +1,6 @@
 """The PTV analysis ranges a scenario leaves out, derived from its rig and its flow.
 
-A scenario that gives no ``[ptv] analysis_volume``, ``r_min``, ``r_max`` or ``plateau`` gets them
+A scenario that gives no ``[ptv] analysis_size``, ``r_min``, ``r_max`` or ``plateau`` gets them
 from the rig's laser sheet (width W, height H, thickness T) and the flow's Kolmogorov
 length η and integral length L_int = u′³/ε:
 
@@ -38,7 +38,7 @@ __all__ = ["DERIVED_FIELDS", "derive_ptv_ranges", "independent_pair_ambiguity"]
 log = logging.getLogger(__name__)
 
 #: The [ptv] fields derived when a scenario leaves them out.
-DERIVED_FIELDS = ("analysis_volume", "r_min", "r_max", "plateau")
+DERIVED_FIELDS = ("analysis_size", "r_min", "r_max", "plateau")
 #: Analysis volume as fractions of the sheet's width, height and thickness.
 SHEET_FRACTION = (0.7, 0.7, 0.8)
 #: r_min and the plateau's start, in η.
@@ -77,11 +77,11 @@ def derive_ptv_ranges(scenario, given: set[str], sheet_size, scales: dict | None
     """
     ptv = scenario.ptv
     values = {}
-    if "analysis_volume" not in given:
-        values["analysis_volume"] = tuple(
+    if "analysis_size" not in given:
+        values["analysis_size"] = tuple(
             round(float(f * s), 9) for f, s in zip(SHEET_FRACTION, sheet_size, strict=True)
         )
-    volume = values.get("analysis_volume", ptv.analysis_volume)
+    volume = values.get("analysis_size", ptv.analysis_size)
     missing = [name for name in ("r_min", "r_max", "plateau") if name not in given]
     if scales is None:
         for name in missing:

@@ -171,7 +171,7 @@ def _dt3_bias(folder, truth: TruthFile, ptv, seed: int, eta: float) -> dict | No
             start,
             velocity,
             columns,
-            region=Box(ptv.analysis_volume),
+            region=Box(ptv.analysis_size),
             bins=LogBins(ptv.r_min, ptv.r_max, ptv.n_bins),
             binning=binning,
             n_boot=ptv.n_boot,

@@ -13,7 +13,10 @@ Fields: ``methods`` (calibrations IPR runs through; each must be fitted, i.e. in
 measured in, on the images) and ``otf_depth_slabs`` (depth slabs it is then measured in,
 from the particles reconstructed there), ``mapping_grid`` (the step, in voxels, of the grid that
 interpolates a calibration's world → pixel mapping; 0 calls the calibration directly)
-and ``outer_iterations`` (at most).
+and ``outer_iterations`` (at most; the default is :class:`ptv.reconstruct.IPRSettings`'). The
+scenario's ``mapping_grid`` (32 voxels) differs from ``IPRSettings``' (0) on purpose: a run
+interpolates every calibration alike, where a caller of :func:`ptv.reconstruct.reconstruct`
+may give the cameras themselves.
 """
 
 import os
@@ -45,7 +48,7 @@ class IprSection:
     otf_regions: tuple[int, ...] = (1, 1)
     otf_depth_slabs: int = 3
     mapping_grid: float = 32.0
-    outer_iterations: int = 60
+    outer_iterations: int = IPRSettings().outer_iterations
 
     def settings(self) -> IPRSettings:
         """The reconstruction's options."""

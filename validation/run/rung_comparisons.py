@@ -83,7 +83,7 @@ def compare_rungs(
         scenario.checks.c1_r_min_eta * p["eta"],
         scenario.checks.c1_r_max_l_int * p["L_int"],
     )
-    box = scenario.ptv.analysis_volume
+    box = scenario.ptv.analysis_size
     noise = {"detection": predicted_noise(detection, settings.bins, box)}
     noise_source = {"detection": "detection"}  # whose particles' noise each prediction is
     summaries, comparisons, matching, populations = {}, {}, {}, {}

@@ -13,7 +13,7 @@ Every length is in m, every time in s. A scenario file has ``name``, ``descripti
     [calibration]  planes, plate ("realistic" or "ideal"), brightness, methods
     [particles]    count, frames, electrons, diameter, shared_first_frame
     [sensor]       gain, read_noise, offset, full_well, bit_depth, background
-    [ptv]          methods, analysis_volume, r_min, r_max, n_bins, plateau, kolmogorov_c2,
+    [ptv]          methods, analysis_size, r_min, r_max, n_bins, plateau, kolmogorov_c2,
                    max_speed, tolerance, min_cameras, n_boot (the names of
                    :mod:`ptv.settings`; the old r_range and bins are read, with a warning)
     [checks]       c1_r_min_eta, c1_r_max_l_int
@@ -107,32 +107,41 @@ class ParticlesSection:
     shared_first_frame: bool = True
 
 
+#: The stack's defaults (:mod:`ptv.settings`), which a scenario's [ptv] table shares.
+_PIPELINE = PipelineSettings()
+_STATISTICS = _PIPELINE.statistics
+
+
 @dataclass(frozen=True)
 class PtvSection:
     """The PTV analysis.
 
     ``methods`` are the calibrations the PTV runs with (the true cameras always run
-    too, for the error budget); ``analysis_volume`` is the size of the centred box the
+    too, for the error budget); ``analysis_size`` is the size of the centred box the
     statistics use, m; ``r_min`` and ``r_max`` the outer edges of the ``n_bins`` log-spaced
     separation bins, m; ``plateau`` the r range of the plateau ε, m; ``min_cameras``
     the fewest cameras a match must use (2 to the rig's camera count; left out, all but
     one of four or more, else 2); ``tolerance`` the matching tolerance on the ray
     distances, m, and ``max_speed`` the largest particle speed, m/s (left out, both
-    measured on the rig and the data). Left out, ``analysis_volume``, ``r_min``, ``r_max`` and
-    ``plateau`` follow the rig and the flow (:mod:`validation.run.derived_ptv`).
+    measured on the rig and the data). Left out, ``analysis_size``, ``r_min``, ``r_max`` and
+    ``plateau`` follow the rig and the flow (:mod:`validation.run.derived_ptv`). The
+    other fields' defaults are the stack's (:class:`ptv.settings.StatisticsSettings`,
+    :class:`ptv.settings.PipelineSettings`); ``analysis_size`` is the size of a box
+    centred on the origin, which ``StatisticsSettings.analysis_volume`` gives by its
+    corners.
     """
 
     methods: tuple[str, ...] = ("model-free", "tsai")
-    analysis_volume: tuple[float, float, float] = (0.07, 0.07, 0.008)
-    r_min: float = 0.5e-3
-    r_max: float = 35e-3
-    n_bins: int = 24
-    plateau: tuple[float, float] = (2e-3, 20e-3)
-    kolmogorov_c2: float = 2.0
-    max_speed: float | None = None
-    tolerance: float | None = None
-    min_cameras: int | None = None
-    n_boot: int = 200
+    analysis_size: tuple[float, float, float] = (0.07, 0.07, 0.008)
+    r_min: float = _STATISTICS.r_min
+    r_max: float = _STATISTICS.r_max
+    n_bins: int = _STATISTICS.n_bins
+    plateau: tuple[float, float] = _STATISTICS.plateau
+    kolmogorov_c2: float = _STATISTICS.kolmogorov_c2
+    max_speed: float | None = _PIPELINE.max_speed
+    tolerance: float | None = _PIPELINE.tolerance
+    min_cameras: int | None = _PIPELINE.min_cameras
+    n_boot: int = _STATISTICS.n_boot
 
 
 @dataclass(frozen=True)
@@ -170,7 +179,7 @@ class Scenario:
     ('paper-stereo', 'lem-10hz', 0)
     >>> scenario.particles.count, scenario.particles.frames, scenario.calibration.planes
     (2000, 40, 7)
-    >>> scenario.ptv.methods, scenario.ptv.analysis_volume  # calibrations the PTV uses; m
+    >>> scenario.ptv.methods, scenario.ptv.analysis_size  # calibrations the PTV uses; m
     (('model-free',), (0.07, 0.07, 0.008))
     >>> scenario.with_seed(3).seed  # the same experiment, other random draws
     3
@@ -269,8 +278,8 @@ def _check(scenario: Scenario, source: str, given: set[str]) -> None:
             fail(f"{where} must be > 0, got {value}")
     if scenario.ptv.min_cameras is not None and scenario.ptv.min_cameras < 2:
         fail(f"ptv.min_cameras must be at least 2, got {scenario.ptv.min_cameras}")
-    if len(scenario.ptv.analysis_volume) != 3 or min(scenario.ptv.analysis_volume) <= 0:
-        fail(f"ptv.analysis_volume must be 3 sizes > 0, m, got {scenario.ptv.analysis_volume}")
+    if len(scenario.ptv.analysis_size) != 3 or min(scenario.ptv.analysis_size) <= 0:
+        fail(f"ptv.analysis_size must be 3 sizes > 0, m, got {scenario.ptv.analysis_size}")
     for where, value in (
         ("checks.c1_r_min_eta", scenario.checks.c1_r_min_eta),
         ("checks.c1_r_max_l_int", scenario.checks.c1_r_max_l_int),
@@ -283,7 +292,7 @@ def _check(scenario: Scenario, source: str, given: set[str]) -> None:
     ):
         if not 0 < lo < hi:
             fail(f"{where} must be [low, high] with 0 < low < high, m, got {[lo, hi]}")
-    if {"r_min", "r_max", "plateau", "analysis_volume"} & given:  # else derived, checked later
+    if {"r_min", "r_max", "plateau", "analysis_size"} & given:  # else derived, checked later
         _check_separations(scenario, source)
     if scenario.flow.kind == "dns":
         half = dns_box_side(scenario.flow) / 2
@@ -375,7 +384,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     """A preset scenario by name, or a scenario file by path.
 
     A rig given as a relative ``.toml`` path in a scenario file is taken relative to
-    that file. The PTV ranges a file leaves out (``[ptv]`` analysis_volume, r_min, r_max,
+    that file. The PTV ranges a file leaves out (``[ptv]`` analysis_size, r_min, r_max,
     plateau) follow its rig and flow (:mod:`validation.run.derived_ptv`).
 
     Parameters
@@ -491,7 +500,7 @@ def _check_separations(scenario: Scenario, source: str, eta: float | None = None
     def fail(message: str):
         raise ScenarioError(f"{source}: {message}")
 
-    diagonal = float(np.linalg.norm(scenario.ptv.analysis_volume))
+    diagonal = float(np.linalg.norm(scenario.ptv.analysis_size))
     for where, (_, hi) in (
         ("ptv.r_max", (scenario.ptv.r_min, scenario.ptv.r_max)),
         ("ptv.plateau", scenario.ptv.plateau),
@@ -499,7 +508,7 @@ def _check_separations(scenario: Scenario, source: str, eta: float | None = None
         if hi > diagonal:
             fail(
                 f"{where} reaches {hi * 1e3:g} mm, beyond the {diagonal * 1e3:.4g} mm diagonal "
-                "of ptv.analysis_volume: no pair is that far apart"
+                "of ptv.analysis_size: no pair is that far apart"
             )
     if eta is None:
         if scenario.flow.kind == "grid":
@@ -546,7 +555,7 @@ def _checked_field_file(scenario: Scenario, path: Path | None, source: str) -> S
 def pipeline_settings(scenario: Scenario) -> PipelineSettings:
     """The PTV options of a scenario (analysis box centred on the origin)."""
     p = scenario.ptv
-    half = np.asarray(p.analysis_volume) / 2
+    half = np.asarray(p.analysis_size) / 2
     return PipelineSettings(
         max_speed=p.max_speed,
         tolerance=p.tolerance,

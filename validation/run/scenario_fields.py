@@ -11,7 +11,13 @@ log = logging.getLogger(__name__)
 #: Keys that a scenario's tables once had, read under the settings' names they now share
 #: (:mod:`ptv.settings`): table → old key → the new key, or the new keys that the old
 #: key's list of values is split into.
-RENAMED = {"ptv": {"r_range": ("r_min", "r_max"), "bins": ("n_bins",)}}
+RENAMED = {
+    "ptv": {
+        "r_range": ("r_min", "r_max"),
+        "bins": ("n_bins",),
+        "analysis_volume": ("analysis_size",),
+    }
+}
 
 
 class ScenarioError(ValueError):

@@ -56,7 +56,7 @@ def study_sizes(scenario: Scenario, snapshots: int | None) -> tuple[int, int]:
     if snapshots is not None and snapshots < 2:
         raise ValueError(f"--snapshots must be >= 2 (the bootstrap needs two), got {snapshots}")
     sheet = load_rig(scenario.rig.name).sheet
-    inside = np.prod(np.minimum(scenario.ptv.analysis_volume, sheet.size))
+    inside = np.prod(np.minimum(scenario.ptv.analysis_size, sheet.size))
     particles = max(2, round(scenario.particles.count * inside / sheet.volume))
     if snapshots is None:
         snapshots = min(scenario.particles.frames, MAX_SNAPSHOTS)
@@ -114,7 +114,7 @@ def _flow(scenario: Scenario) -> tuple[FlowPreset, Spectrum, Box]:
     """The scenario's flow, its spectrum and the analysis box."""
     preset = scenario.flow.as_preset()
     spectrum = SPECTRA[scenario.flow.spectrum](preset.parameters)
-    return preset, spectrum, Box(scenario.ptv.analysis_volume)
+    return preset, spectrum, Box(scenario.ptv.analysis_size)
 
 
 def _simulate(

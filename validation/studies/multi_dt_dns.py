@@ -116,7 +116,7 @@ def dt_range_task(settings: dict, options: dict, point: dict) -> dict:
     base = np.asarray(preset.dt, dtype=float)
     sets = [scale * base for scale in point["scales"]]
     times = np.unique(np.concatenate([[0.0], *sets]))
-    region = Box(scenario.ptv.analysis_volume)
+    region = Box(scenario.ptv.analysis_size)
     sample = follow_snapshots(
         DnsTracerFlow(spec, folder / FIELD_FILE, field_scales.u_rms),
         times,
