@@ -137,7 +137,7 @@ _EXPORTS = {
     "flat_window": ("simulator.optics.interfaces", "flat_window"),
     "focus_on_plane": ("simulator.optics.scheimpflug", "focus_on_plane"),
     # rendering
-    "render_particles": ("simulator.render.particles", "render_particles"),
+    "render_particles": ("simulator.render.particle_images", "render_particles"),
     "Sensor": ("simulator.render.sensor", "Sensor"),
     "ParticleLighting": ("simulator.render.camera_frames", "ParticleLighting"),
     "rig_lighting": ("simulator.render.camera_frames", "rig_lighting"),

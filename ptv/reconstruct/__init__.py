@@ -2,7 +2,7 @@
 
 Modules (one job each): :mod:`~ptv.reconstruct.otf` (the particle-image model per camera
 and image region), :mod:`~ptv.reconstruct.otf_measure` (its measurement on particle
-images), :mod:`~ptv.reconstruct.background` (background level of dense images),
+images), :mod:`~ptv.reconstruct.dense_background` (background level of dense images),
 :mod:`~ptv.reconstruct.projection` (projected and residual images),
 :mod:`~ptv.reconstruct.peaks` (peaks of residual images),
 :mod:`~ptv.reconstruct.triangulation` (candidates from the peaks of all cameras),
@@ -13,7 +13,7 @@ and :mod:`~ptv.reconstruct.ipr` (the outer loop; its options,
 Only the camera protocol of :mod:`ptv.camera_model` is used.
 """
 
-from ptv.reconstruct.background import BackgroundLevel, background_level
+from ptv.reconstruct.dense_background import BackgroundLevel, background_level
 from ptv.reconstruct.ipr import IPRDiagnostics, Reconstruction, reconstruct
 from ptv.reconstruct.mapping import grid_mappings
 from ptv.reconstruct.otf import OpticalTransferFunction

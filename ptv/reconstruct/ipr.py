@@ -4,8 +4,9 @@ Input: one image per camera, the cameras (the protocol of :mod:`ptv.camera_model
 each camera's OTF (:mod:`ptv.reconstruct.otf`) and the measurement volume. Output: the
 3-D particles, their intensities and what each iteration did.
 
-The images, less their background level (:func:`ptv.reconstruct.background.background_level`
-per image unless given), are the starting residual R_c. Each outer iteration:
+The images, less their background level
+(:func:`ptv.reconstruct.dense_background.background_level` per image unless given), are
+the starting residual R_c. Each outer iteration:
 
 1. Peaks of every residual image (:func:`ptv.reconstruct.peaks.find_peaks`) above
    max(``peak_threshold`` × a typical particle's peak, ``noise_threshold`` × noise).
@@ -60,7 +61,7 @@ from ptv.box import Box, check_box
 from ptv.camera_model import CameraModel
 from ptv.reconstruct._grid import point_grid
 from ptv.reconstruct._spots import add_spots
-from ptv.reconstruct.background import background_level
+from ptv.reconstruct.dense_background import background_level
 from ptv.reconstruct.mapping import GridMapping, Mappings, grid_mappings, volume_voxel
 from ptv.reconstruct.otf import OpticalTransferFunction, peak_fraction
 from ptv.reconstruct.peaks import find_peaks

@@ -3,7 +3,7 @@
 Per camera (:func:`measure_camera_otf`):
 
 1. Background level and noise from the image's darkest pixels
-   (:func:`ptv.reconstruct.background.background_level`).
+   (:func:`ptv.reconstruct.dense_background.background_level`).
 2. Particles detected with :func:`ptv.detect.detect_particles` (least-squares Gaussian
    centres, blends split).
 3. Isolated particles kept: a clean detection (no flag: not saturated, not on the
@@ -35,7 +35,7 @@ from scipy.spatial import cKDTree
 
 from ptv.detect import detect_particles
 from ptv.reconstruct._fit import N_PARAMS, fit_spots
-from ptv.reconstruct.background import BackgroundLevel, background_level
+from ptv.reconstruct.dense_background import BackgroundLevel, background_level
 from ptv.reconstruct.otf import OpticalTransferFunction, peak_fraction
 
 logger = logging.getLogger(__name__)

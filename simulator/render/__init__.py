@@ -2,13 +2,13 @@
 
 - :mod:`simulator.render.spot`: particle-image size (diffraction, geometry, defocus,
   Gaussian σ convention) and brightness (Mie ∝ d_p², laser-sheet profile).
-- :mod:`simulator.render.particles`: pixel-integrated Gaussian spots in per-particle
+- :mod:`simulator.render.particle_images`: pixel-integrated Gaussian spots in per-particle
   ROIs, with the truth of every particle.
 - :mod:`simulator.render.sensor`: shot noise, read noise, full well, gain, offset and
   bit depth.
 """
 
-from simulator.render.particles import ParticleImage, fraction_on_sensor, render_particles
+from simulator.render.particle_images import ParticleImage, fraction_on_sensor, render_particles
 from simulator.render.sensor import Sensor
 from simulator.render.spot import (
     LaserSheet,

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from simulator.optics import Camera, defocus_blur
-from simulator.render.particles import render_particles
+from simulator.render.particle_images import render_particles
 from simulator.render.sensor import Sensor
 from simulator.render.spot import LaserSheet, SpotOptics, gaussian_sigma, particle_electrons
 

@@ -13,7 +13,7 @@ from scipy import ndimage
 
 from simulator.optics import Lens, look_at_camera
 from simulator.pyrender_view import check_plain_pinhole, opengl_pose, render_spheres
-from simulator.render.particles import render_particles
+from simulator.render.particle_images import render_particles
 from simulator.rigs import load_rig
 
 SENSOR = (320, 240)

@@ -31,7 +31,7 @@ from scipy.special import erf
 
 from ptv.detect import DetectionFlag, _refine, detect_particles, estimate_background
 from simulator.render.camera_frames import ParticleLighting, local_magnification, record_particles
-from simulator.render.particles import render_particles
+from simulator.render.particle_images import render_particles
 from simulator.render.sensor import Sensor
 from simulator.rigs import load_rig
 

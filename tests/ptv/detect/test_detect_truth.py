@@ -10,7 +10,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from ptv.detect import DetectionFlag, _refine, detect_particles, estimate_background
-from simulator.render.particles import render_particles
+from simulator.render.particle_images import render_particles
 from simulator.render.sensor import Sensor
 
 SENSOR = Sensor(gain=0.4, read_noise=8.0, offset=10.0, full_well=10000, bit_depth=12)

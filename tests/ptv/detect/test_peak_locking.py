@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from ptv.detect import PeakLocking, detect_particles, peak_locking
-from simulator.render.particles import render_particles
+from simulator.render.particle_images import render_particles
 from simulator.render.sensor import Sensor
 
 NOISY = Sensor(gain=0.4, read_noise=8.0, offset=10.0, full_well=10000, bit_depth=12, background=5)

@@ -87,7 +87,7 @@ def test_spot_keeps_its_light_and_moves_with_its_centre(x, y, sx, sy, rho, shift
 def test_residual_of_the_simulators_own_spots_is_zero():
     """The simulator's renderer (an independent implementation) against ours."""
     from ptv.reconstruct import OpticalTransferFunction, residual_image
-    from simulator.render.particles import render_particles
+    from simulator.render.particle_images import render_particles
 
     rng = np.random.default_rng(7)
     xy = rng.uniform(5, 95, (80, 2))

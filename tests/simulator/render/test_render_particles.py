@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.special import erf, erfc
 
-from simulator.render.particles import fraction_on_sensor, render_particles
+from simulator.render.particle_images import fraction_on_sensor, render_particles
 
 
 def formula_image(xy, sigma, electrons, shape):
