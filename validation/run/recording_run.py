@@ -125,6 +125,7 @@ class RecordingRun:
             else:
                 path = calibrations.folder / f"{variant}.h5"
                 cams, described = load_calibrations(path), str(path)
+            through = "true cameras" if variant == TRUE_CAMERAS else f"{variant} calibration"
             target.mkdir()
             settings = run.settings
             if self.scenario.recording.max_acceleration is not None:
@@ -149,7 +150,7 @@ class RecordingRun:
                 fit_window=self.scenario.recording.fit_window,
                 seed=self.scenario.seed,
                 figures=target,
-                label=f"{self.scenario.name}: {described}",
+                label=f"{self.scenario.name}: tracks through the {through}",
             )
             _write_json(target / "scores.json", scores)
 
