@@ -35,6 +35,7 @@ def _held_run(args: argparse.Namespace, out, run, report):
 def run_experiment(args: argparse.Namespace) -> int:
     """Run the scenario's stages, write the report, print the verdict; exit status 1
     when a check that must hold fails."""
+    from validation.report.run_log import time_line
     from validation.run.experiment import run_stages
     from validation.run.run_report import write_report
     from validation.run.scenario import load_scenario
@@ -103,6 +104,7 @@ def run_experiment(args: argparse.Namespace) -> int:
             print(f"warning ({variant}): {warning}")
     for line in summary_lines(results):
         print(line)
+    print(time_line(json.loads((out / "run_log.json").read_text())))
     print(f"report written to {html_path}")
     print(f"every number in {json_path}")
     return 0 if all(check["passed"] for check in results["must_hold"]) else 1
@@ -112,6 +114,7 @@ def run_recorded(args: argparse.Namespace, scenario, out) -> int:
     """``synptv run`` on a scenario with ``[recording]``: render, calibrate, track, fit
     and score the recordings; exit status 1 when a check that must hold fails."""
     from validation.report.recording_report import summary_lines, write_recording_report
+    from validation.report.run_log import time_line
     from validation.run.recording_run import run_recording_stages
 
     r = scenario.recording
@@ -137,6 +140,7 @@ def run_recorded(args: argparse.Namespace, scenario, out) -> int:
     results = json.loads(json_path.read_text())
     for line in summary_lines(results):
         print(line)
+    print(time_line(json.loads((out / "run_log.json").read_text())))
     print(f"report written to {html_path}")
     print(f"every number in {json_path}")
     return 0 if all(check["passed"] for check in results["must_hold"]) else 1

@@ -260,7 +260,7 @@ def _statistics_lines(statistics: dict, snapshots: int) -> list[str]:
 def _print(result: dict, out: Path) -> None:
     """The score in a few lines."""
     print(
-        f"{'dt (ms)':>8s} {'frames':>6s} {'reference':>9s} {'found':>7s} {'yield':>7s} "
+        f"{'dt (ms)':>8s} {'frames':>6s} {'reference':>9s} {'positions':>9s} {'yield':>7s} "
         f"{'ghosts':>7s}  RMS x, y, z (um)"
     )
     for label, s in [(f"{1e3 * s['dt_s']:8.4f}", s) for s in result["per_dt"]] + [
@@ -268,7 +268,7 @@ def _print(result: dict, out: Path) -> None:
     ]:
         rms = ", ".join("–" if v is None else f"{v:.3g}" for v in s["position_rms_um"].values())
         print(
-            f"{label} {s['frames']:6d} {s['n_reference']:9d} {s['n_found']:7d} "
+            f"{label} {s['frames']:6d} {s['n_reference']:9d} {s['n_found']:9d} "
             f"{s['yield']:7.4f} {s['ghost_fraction']:7.4f}  {rms}"
         )
     tracks = result["tracks"]

@@ -25,6 +25,8 @@ import html
 import json
 from pathlib import Path
 
+from validation.report.run_log import time_section, write_run_log
+from validation.workflow.clock import this_run_seconds
 from validation.workflow.files import write_text_atomic
 
 #: (id, what, key path in scores.json, bound, "max" or "min").
@@ -144,7 +146,7 @@ def recording_results(scenario, stages) -> dict:
             "sequences": stages.plan.sequences,
             "steps": list(stages.plan.steps),
         },
-        "seconds": stages.seconds,
+        "seconds": this_run_seconds(stages.times),
         "calibration": table1,
         "method_under_test": under_test,
         "tracks": variants,
@@ -181,7 +183,7 @@ def _value(check: dict) -> str:
     return "-" if check["value"] is None else f"{check['value']:.4g}"
 
 
-def _html(results: dict, figures: list[Path], out: Path) -> str:
+def _html(results: dict, figures: list[Path], out: Path, timing: list[str]) -> str:
     rows = "".join(
         f"<tr><td>{'PASS' if c['passed'] else 'FAIL'}</td><td>{html.escape(c['id'])}</td>"
         f"<td>{html.escape(c['what'])}</td><td>{_value(c)}</td>"
@@ -200,12 +202,14 @@ def _html(results: dict, figures: list[Path], out: Path) -> str:
         f"<p>{html.escape(results['scenario']['description'])}</p>"
         f"<h2>Checks ({html.escape(results['method_under_test'])})</h2>"
         f"<table border='1'><tr><th></th><th>check</th><th>what</th><th>value</th>"
-        f"<th>tolerance</th></tr>{rows}</table><h2>Figures</h2>{images}</body></html>"
+        f"<th>tolerance</th></tr>{rows}</table><h2>Figures</h2>{images}{''.join(timing)}"
+        "</body></html>"
     )
 
 
 def write_recording_report(scenario, stages, out: Path) -> tuple[Path, Path]:
-    """Write ``results.json`` and ``report.html`` into ``out``.
+    """Write ``results.json``, ``report.html`` and ``run_log.json``
+    (:mod:`validation.report.run_log`) into ``out``.
 
     Returns
     -------
@@ -216,6 +220,8 @@ def write_recording_report(scenario, stages, out: Path) -> tuple[Path, Path]:
     results = recording_results(scenario, stages)
     json_path, html_path = out / "results.json", out / "report.html"
     write_text_atomic(json_path, json.dumps(results, indent=2, allow_nan=False) + "\n")
+    reused = {name: t.reused for name, t in stages.times.items() if name != "flow"}
+    log = write_run_log(out, stages.times, reused)
     figures = sorted(p for stage in stages.tracks.values() for p in stage.folder.glob("*.png"))
-    write_text_atomic(html_path, _html(results, figures, out))
+    write_text_atomic(html_path, _html(results, figures, out, time_section(log)))
     return html_path, json_path

@@ -34,7 +34,6 @@ overlaid.
 import json
 import logging
 import shutil
-import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from importlib.metadata import version
@@ -80,6 +79,7 @@ from validation.truth.matching import score_matching
 from validation.truth.sheet_regions import SheetRegions
 from validation.truth.truth_file import TruthFile
 from validation.workflow.chunk_map import map_chunks
+from validation.workflow.clock import StageTime, Stopwatch
 from validation.workflow.parallel import Executor, InProcess
 from validation.workflow.stages import StageOutcome, is_built, run_stage, stage_key, staging_folder
 
@@ -122,15 +122,16 @@ def object_pixel(rig: Rig) -> float:
 
 @dataclass(frozen=True)
 class ExperimentStages:
-    """The stage folders of a run and how long each took (0 when reused); the flow's
-    scales (for results.json) and a DNS's field stage."""
+    """The stage folders of a run and what each took (``times``: name →
+    :class:`~validation.workflow.clock.StageTime`); the flow's scales (for results.json)
+    and a DNS's field stage."""
 
     dataset: StageOutcome
     detections: StageOutcome
     truth: StageOutcome
     calibrations: StageOutcome
     ptv: dict
-    seconds: dict
+    times: dict
     flow: dict
     field: StageOutcome | None = None
 
@@ -226,7 +227,7 @@ class ExperimentRun:
         self.flow = ks_run_flow(scenario, self.render) if scenario.flow.kind == "ks" else None
         self.chunks = snapshot_chunks(self.render.frames)
         self.detector = DetectorSettings(saturation=float(scenario.sensor.max_dn))
-        self.seconds: dict[str, float] = {}
+        self.times: dict[str, StageTime] = {}
         # The PTV options every statistics stage reads; which calibrations run is not one.
         analysis = {k: v for k, v in scenario.as_dict()["ptv"].items() if k != "methods"}
         self.settings_inputs = {
@@ -246,15 +247,15 @@ class ExperimentRun:
     def prepare_flow(self) -> RunFlow:
         """The run's flow: for a DNS, its stage is built (or reused) now."""
         if self.flow is None:
-            start = time.perf_counter()
-            if self.scenario.flow.kind == "grid":
-                self.flow = grid_run_flow(self.scenario.flow, self.scenario.particles.frames)
-            else:
-                self.flow, self.field = dns_run_flow(
-                    self.scenario, self.out, progress=self.bar("flow")
-                )
+            with Stopwatch() as watch:
+                if self.scenario.flow.kind == "grid":
+                    self.flow = grid_run_flow(self.scenario.flow, self.scenario.particles.frames)
+                else:
+                    self.flow, self.field = dns_run_flow(
+                        self.scenario, self.out, progress=self.bar("flow")
+                    )
             reused = self.field is not None and self.field.reused
-            self.seconds["flow"] = 0.0 if reused else time.perf_counter() - start
+            self.times["flow"] = (self.field.time if reused else None) or watch.time
             log.info("%s", self.scenario.flow.describe(self.flow.preset.parameters))
         return self.flow
 
@@ -264,9 +265,13 @@ class ExperimentRun:
         return self.prepare_flow().preset
 
     def timed(self, name, folder, inputs, build, *, resume=False) -> StageOutcome:
-        start = time.perf_counter()
-        outcome = run_stage(folder, inputs, build, name=name, resume=resume)
-        self.seconds[name] = 0.0 if outcome.reused else time.perf_counter() - start
+        """The stage ``name`` reused or built (:func:`run_stage`); its times kept."""
+        with Stopwatch() as watch:
+            outcome = run_stage(folder, inputs, build, name=name, resume=resume)
+        # A reused stage built before its times were kept: this run's (tiny) time.
+        self.times[name] = outcome.time or StageTime(
+            watch.time.wall_s, watch.time.cpu_s, outcome.reused
+        )
         log.info("stage %s %s", name, "reused" if outcome.reused else "built")
         return outcome
 
@@ -665,7 +670,7 @@ def run_stages(
         truth_stage,
         calibrations,
         ptv,
-        run.seconds,
+        run.times,
         flow=run.flow.scales,
         field=run.field,
     )

@@ -49,13 +49,13 @@ TRUE_CAMERAS = "true-cameras"
 
 @dataclass(frozen=True)
 class RecordingStages:
-    """The stage folders of a recorded run, how long each took (0 when reused), and the
-    flow's scales."""
+    """The stage folders of a recorded run, what each took (``times``: name →
+    :class:`~validation.workflow.clock.StageTime`), and the flow's scales."""
 
     dataset: StageOutcome
     calibrations: StageOutcome
     tracks: dict
-    seconds: dict
+    times: dict
     flow: dict
     plan: RecordingPlan
 
@@ -196,7 +196,7 @@ def run_recording_stages(
         dataset,
         calibrations,
         tracks,
-        recorded.run.seconds,
+        recorded.run.times,
         flow=recorded.run.flow.scales,
         plan=recorded.plan,
     )

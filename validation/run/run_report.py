@@ -3,7 +3,8 @@
 Everything is read from the JSON files the stages wrote, so the report of a finished
 run can be rebuilt alone. ``results.json`` holds every number of the report and
 nothing that depends on where or when the run happened (no paths, no timings: those go
-to ``run_log.json``), so the same scenario and seed give the same file.
+to ``run_log.json`` and the report's last table, :mod:`validation.report.run_log`), so the
+same scenario and seed give the same file.
 """
 
 import html
@@ -22,6 +23,7 @@ from validation.report.ipr_report import ipr_html, judged_rungs, reconstruction_
 from validation.report.linking_table import linking_table
 from validation.report.png import save_figure
 from validation.report.run_figures import budget_figure, noise_figure
+from validation.report.run_log import time_section, write_run_log
 from validation.report.sheet_region_table import sheet_region_table
 from validation.run.checks import error_budget
 from validation.run.dns_checks import dns_section
@@ -648,8 +650,9 @@ _SECTIONS = (
 )
 
 
-def render_html(results: dict, scenario: Scenario) -> str:
-    """The report page (figures referenced by relative paths under the run folder)."""
+def render_html(results: dict, scenario: Scenario, log: dict | None = None) -> str:
+    """The report page (figures referenced by relative paths under the run folder), with
+    where the time went when ``log`` (:func:`validation.report.run_log.run_log`) is given."""
     parts = [
         "<!doctype html><html><head><meta charset='utf-8'>",
         f"<title>synptv run: {html.escape(scenario.name)}</title>",
@@ -662,12 +665,14 @@ def render_html(results: dict, scenario: Scenario) -> str:
     ]
     for section in _SECTIONS:
         parts += section(results, scenario)
+    parts += [] if log is None else time_section(log)
     parts.append("</body></html>")
     return "\n".join(parts)
 
 
 def write_report(scenario: Scenario, stages: ExperimentStages, out: Path) -> tuple[Path, Path]:
-    """Write ``results.json``, ``report.html`` and ``run_log.json`` into ``out``.
+    """Write ``results.json``, ``report.html`` and ``run_log.json``
+    (:mod:`validation.report.run_log`) into ``out``.
 
     Returns
     -------
@@ -678,20 +683,17 @@ def write_report(scenario: Scenario, stages: ExperimentStages, out: Path) -> tup
     results = build_results(scenario, stages, out)
     json_path, html_path = out / "results.json", out / "report.html"
     write_text_atomic(json_path, json.dumps(results, indent=2, allow_nan=False) + "\n")
-    failed = results["calibration"].get("failed", {})
-    write_text_atomic(html_path, render_html(results, without_failed(scenario, failed)))
-    log = {
-        "stages_seconds": stages.seconds,
-        "reused": {
-            name: s.reused
-            for name, s in (
-                ("render", stages.dataset),
-                ("detect", stages.detections),
-                ("truth", stages.truth),
-                ("calibrate", stages.calibrations),
-                *((f"ptv {v}", s) for v, s in stages.ptv.items()),
-            )
-        },
+    reused = {
+        name: s.reused
+        for name, s in (
+            ("render", stages.dataset),
+            ("detect", stages.detections),
+            ("truth", stages.truth),
+            ("calibrate", stages.calibrations),
+            *((f"ptv {v}", s) for v, s in stages.ptv.items()),
+        )
     }
-    write_text_atomic(out / "run_log.json", json.dumps(log, indent=2) + "\n")
+    log = write_run_log(out, stages.times, reused)
+    failed = results["calibration"].get("failed", {})
+    write_text_atomic(html_path, render_html(results, without_failed(scenario, failed), log))
     return html_path, json_path

@@ -2,7 +2,8 @@
 
 A stage writes one folder. It is built under a temporary name beside its destination,
 ``stage.json`` (the SHA-256 key of its inputs, which include the keys of the stages it
-reads) is written into it, and it is renamed into place when complete. A later run with
+reads) and what the build took (wall and CPU seconds, :mod:`validation.workflow.clock`)
+are written into it, and it is renamed into place when complete. A later run with
 the same key reuses the folder; a different key, or a folder without a readable
 ``stage.json`` (not made by this module), rebuilds it. An interrupted build leaves only
 a hidden temporary folder. A resumable stage's temporary folder is named after its key
@@ -19,6 +20,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from validation.workflow.clock import StageTime, Stopwatch
+
 STAGE_FILE = "stage.json"
 
 
@@ -30,11 +33,13 @@ def stage_key(inputs: dict) -> str:
 
 @dataclass(frozen=True)
 class StageOutcome:
-    """A stage's folder, its key, and whether it was reused."""
+    """A stage's folder, its key, whether it was reused, and what its build took (None:
+    a stage built before its times were kept)."""
 
     folder: Path
     key: str
     reused: bool
+    time: StageTime | None = None
 
 
 def staging_folder(folder: Path, key: str) -> Path:
@@ -52,6 +57,15 @@ def _recorded_key(folder: Path) -> str | None:
     try:
         return json.loads((folder / STAGE_FILE).read_text())["key"]
     except (OSError, ValueError, KeyError):
+        return None
+
+
+def _recorded_time(folder: Path) -> StageTime | None:
+    """What the build of the stage in ``folder`` took, as its ``stage.json`` says."""
+    try:
+        built = json.loads((folder / STAGE_FILE).read_text())["built"]
+        return StageTime(float(built["wall_s"]), float(built["cpu_s"]), reused=True)
+    except (OSError, ValueError, KeyError, TypeError):
         return None
 
 
@@ -87,7 +101,7 @@ def run_stage(
     folder = Path(folder)
     key = stage_key(inputs)
     if is_built(folder, key):
-        return StageOutcome(folder, key, reused=True)
+        return StageOutcome(folder, key, reused=True, time=_recorded_time(folder))
     folder.parent.mkdir(parents=True, exist_ok=True)
     keep = staging_folder(folder, key) if resume else None
     for stale in folder.parent.glob(f".{folder.name}.partial-*"):
@@ -100,10 +114,12 @@ def run_stage(
         staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.partial-", dir=folder.parent))
     try:
         target = staging / folder.name
-        build(target)
-        (target / STAGE_FILE).write_text(
-            json.dumps({"stage": name, "key": key, "inputs": inputs}, indent=2)
-        )
+        with Stopwatch() as watch:
+            build(target)
+        built = watch.time.as_dict()
+        del built["reused"]
+        record = {"stage": name, "key": key, "inputs": inputs, "built": built}
+        (target / STAGE_FILE).write_text(json.dumps(record, indent=2))
         if folder.exists():
             shutil.rmtree(folder)
         target.rename(folder)
@@ -111,4 +127,4 @@ def run_stage(
     finally:
         if keep is None:
             shutil.rmtree(staging, ignore_errors=True)
-    return StageOutcome(folder, key, reused=False)
+    return StageOutcome(folder, key, reused=False, time=watch.time)
