@@ -14,8 +14,9 @@ Every length is in m, every time in s. A scenario file has ``name``, ``descripti
     [particles]    count, frames, electrons, diameter, shared_first_frame
     [sensor]       gain, read_noise, offset, full_well, bit_depth, background
     [ptv]          methods, analysis_size, r_min, r_max, n_bins, plateau, kolmogorov_c2,
-                   max_speed, tolerance, min_cameras, n_boot (the names of
-                   :mod:`ptv.settings`; the old r_range and bins are read, with a warning)
+                   max_speed, tolerance, min_cameras, n_boot (but for methods and
+                   analysis_size, the names of :mod:`ptv.settings`; the old r_range, bins
+                   and analysis_volume are read, with a warning)
     [checks]       c1_r_min_eta, c1_r_max_l_int
     [output]       images, links
     [recording]    frames, sequences, frame_rate or tau_tau_eta, steps, fit_window: a
