@@ -220,8 +220,7 @@ def write_recording_report(scenario, stages, out: Path) -> tuple[Path, Path]:
     results = recording_results(scenario, stages)
     json_path, html_path = out / "results.json", out / "report.html"
     write_text_atomic(json_path, json.dumps(results, indent=2, allow_nan=False) + "\n")
-    reused = {name: t.reused for name, t in stages.times.items() if name != "flow"}
-    log = write_run_log(out, stages.times, reused)
+    log = write_run_log(out, stages.times)
     figures = sorted(p for stage in stages.tracks.values() for p in stage.folder.glob("*.png"))
     write_text_atomic(html_path, _html(results, figures, out, time_section(log)))
     return html_path, json_path

@@ -16,22 +16,21 @@ from validation.workflow.files import write_text_atomic
 __all__ = ["run_log", "time_line", "time_section", "write_run_log"]
 
 
-def run_log(times: dict[str, StageTime], reused: dict[str, bool]) -> dict:
+def run_log(times: dict[str, StageTime]) -> dict:
     """The JSON of ``run_log.json``.
 
     Parameters
     ----------
     times : dict of str to StageTime
         Every stage's times, in the order they ran (the flow, render, …, each rung).
-    reused : dict of str to bool
-        Whether each stage folder was reused.
 
     Returns
     -------
     dict
         ``stages`` (name → ``wall_s``, ``cpu_s``, ``reused``: a reused stage's times are
         those of its earlier build), ``this_run`` (the sums over the stages built in this
-        run, s) and ``reused``.
+        run, s) and ``reused`` (whether each stage folder was reused; the flow, built in
+        memory, is not a folder).
     """
     now = [t for t in times.values() if not t.reused]
     return {
@@ -40,13 +39,13 @@ def run_log(times: dict[str, StageTime], reused: dict[str, bool]) -> dict:
             "wall_s": round(sum(t.wall_s for t in now), 2),
             "cpu_s": round(sum(t.cpu_s for t in now), 2),
         },
-        "reused": reused,
+        "reused": {name: t.reused for name, t in times.items() if name != "flow"},
     }
 
 
-def write_run_log(out: Path, times: dict[str, StageTime], reused: dict[str, bool]) -> dict:
+def write_run_log(out: Path, times: dict[str, StageTime]) -> dict:
     """Write :func:`run_log`'s JSON to ``out/run_log.json``; return it."""
-    log = run_log(times, reused)
+    log = run_log(times)
     write_text_atomic(Path(out) / "run_log.json", json.dumps(log, indent=2) + "\n")
     return log
 
@@ -78,7 +77,7 @@ def time_line(log: dict) -> str:
     ...     "ptv exact": StageTime(2.8, 2.7),
     ...     "ptv model-free": StageTime(9.7, 18.9),
     ... }
-    >>> print(time_line(run_log(times, reused={})))
+    >>> print(time_line(run_log(times)))
     time: render 92 s, calibrate 13 s, ptv 12 s (2 rungs); 118 s wall, 3.6 min CPU; reused: truth
     """
     groups: dict[str, list[float]] = {}

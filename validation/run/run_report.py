@@ -683,17 +683,7 @@ def write_report(scenario: Scenario, stages: ExperimentStages, out: Path) -> tup
     results = build_results(scenario, stages, out)
     json_path, html_path = out / "results.json", out / "report.html"
     write_text_atomic(json_path, json.dumps(results, indent=2, allow_nan=False) + "\n")
-    reused = {
-        name: s.reused
-        for name, s in (
-            ("render", stages.dataset),
-            ("detect", stages.detections),
-            ("truth", stages.truth),
-            ("calibrate", stages.calibrations),
-            *((f"ptv {v}", s) for v, s in stages.ptv.items()),
-        )
-    }
-    log = write_run_log(out, stages.times, reused)
+    log = write_run_log(out, stages.times)
     failed = results["calibration"].get("failed", {})
     write_text_atomic(html_path, render_html(results, without_failed(scenario, failed), log))
     return html_path, json_path
