@@ -19,6 +19,7 @@ from ptv.reconstruct.mapping import grid_mappings
 from ptv.reconstruct.otf import OpticalTransferFunction
 from ptv.reconstruct.otf_measure import (
     TooFewIsolatedImages,
+    defocus_law,
     measure_camera_otf,
     measure_otf,
     refine_otf,
@@ -36,6 +37,7 @@ __all__ = [
     "Reconstruction",
     "TooFewIsolatedImages",
     "background_level",
+    "defocus_law",
     "draw_spots",
     "find_peaks",
     "grid_mappings",

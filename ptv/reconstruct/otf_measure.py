@@ -489,41 +489,65 @@ def _significant_rho(rho: np.ndarray) -> float:
     return med if abs(med) > max(3 * err, 0.03) else 0.0
 
 
-def _defocus_fill(tables, short, fitted, depth, cy, cx, edges_z) -> None:
-    """Fill the inner cells ``short`` of fitted images from all the region's depths.
+def defocus_law(depth: np.ndarray, sigma: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Particle-image width at depths ``at`` from the defocus law fitted to images.
 
     Defocus blurs a particle image by a disc whose diameter grows linearly with the
-    distance from the focal plane, and adds in quadrature to the diffraction spot: σ²
-    is quadratic in depth. Per region, σ_x² and σ_y² of every fitted image are fitted by
-    least squares with a + b·z + c·z² (one pass, then again without the images beyond 3
-    robust standard deviations: hidden neighbours), which gives σ at the short slabs'
-    centres; their ρ and intensity are the region's medians over all depths. An oblique
-    camera's isolated images lie where its image of the volume is thin, near the
-    volume's front and back faces: at high density its middle slabs hold few.
+    distance from the focal plane, and adds in quadrature to the diffraction spot: σ² is
+    quadratic in depth. σ² = a + b·z + c·z² is fitted to the images by least squares
+    (one pass, then again without the images beyond 3 robust standard deviations: hidden
+    neighbours).
+
+    Parameters
+    ----------
+    depth : ndarray, shape (N,)
+        Depth of each fitted image's particle, m.
+    sigma : ndarray, shape (N,)
+        Its fitted width, px.
+    at : ndarray, shape (M,)
+        Depths to evaluate the law at, m.
+
+    Returns
+    -------
+    ndarray, shape (M,)
+        σ at ``at``, px; NaN where the fitted σ² is not positive (too few images, or too
+        narrow a depth range).
+    """
+    depth, at = np.asarray(depth, dtype=np.float64), np.asarray(at, dtype=np.float64)
+    scale = max(float(np.ptp(at)), 1e-12)
+    design = np.stack([np.ones_like(depth), depth / scale, (depth / scale) ** 2], axis=1)
+    target = np.asarray(sigma, dtype=np.float64) ** 2
+    keep = np.ones(len(depth), dtype=bool)
+    for _ in range(2):
+        coef = np.linalg.lstsq(design[keep], target[keep], rcond=None)[0]
+        residual = target - design @ coef
+        spread = 1.4826 * np.median(np.abs(residual[keep]))
+        keep = np.abs(residual) <= 3 * max(spread, 1e-12)
+    value = np.stack([np.ones_like(at), at / scale, (at / scale) ** 2], axis=1) @ coef
+    with np.errstate(invalid="ignore"):
+        return np.where(value > 0, np.sqrt(np.maximum(value, 0.0)), np.nan)
+
+
+def _defocus_fill(tables, short, fitted, depth, cy, cx, edges_z) -> None:
+    """Fill the inner cells ``short`` of fitted images from all the region's depths:
+    σ_x and σ_y from :func:`defocus_law` fitted to the region's images at every depth,
+    ρ and intensity the region's medians over all depths. An oblique camera's isolated
+    images lie where its image of the volume is thin, near the volume's front and back
+    faces: at high density its middle slabs hold few.
     """
     centres = 0.5 * (edges_z[1:] + edges_z[:-1])
     for r, col in {(int(r), int(col)) for _, r, col in np.argwhere(short)}:
         region = (cy == r) & (cx == col)
         z, params = depth[region], fitted[region]
-        scale = max(float(np.ptp(centres)), 1e-12)
-        design = np.stack([np.ones_like(z), z / scale, (z / scale) ** 2], axis=1)
-        at = np.stack([np.ones_like(centres), centres / scale, (centres / scale) ** 2], axis=1)
+        cells = np.flatnonzero(short[:, r, col])
         for name, column in (("sigma_x", 3), ("sigma_y", 4)):
-            target = params[:, column] ** 2
-            keep = np.ones(len(z), dtype=bool)
-            for _ in range(2):
-                coef = np.linalg.lstsq(design[keep], target[keep], rcond=None)[0]
-                residual = target - design @ coef
-                spread = 1.4826 * np.median(np.abs(residual[keep]))
-                keep = np.abs(residual) <= 3 * max(spread, 1e-12)
-            value = at @ coef
-            cells = np.flatnonzero(short[:, r, col])
-            if (value[cells] <= 0).any():
+            value = defocus_law(z, params[:, column], centres)
+            if not np.isfinite(value[cells]).all():
                 raise TooFewIsolatedImages(
                     f"the defocus law fitted over {len(z)} images gives no width at depths "
                     f"{centres[cells].tolist()} m: too few images, or too narrow a depth range"
                 )
-            tables[name][cells, r, col] = np.sqrt(value[cells])
+            tables[name][cells, r, col] = value[cells]
         tables["rho"][short[:, r, col], r, col] = _significant_rho(params[:, 5])
         tables["intensity"][short[:, r, col], r, col] = np.median(params[:, 0])
 

@@ -1,4 +1,4 @@
-"""Iterative particle reconstruction where particle images crowd (docs/claims.md #55, #56).
+"""Iterative particle reconstruction where particle images crowd (docs/claims.md #55–#57).
 
 On the dense case of :mod:`validation.claims.ipr_scores` (lpt-challenge-small at about
 0.05 particles per pixel):
@@ -10,7 +10,12 @@ On the dense case of :mod:`validation.claims.ipr_scores` (lpt-challenge-small at
 - #56: iterative particle reconstruction with that OTF, through the true cameras, finds
   at least :data:`MIN_FOUND` of the particles with at most :data:`MAX_GHOSTS` ghosts and
   a projected error of at most :data:`MAX_RMS_PX`, the LPT Challenge's best codes at
-  this density (scored as the Challenge scores them, apart from the stack).
+  this density (scored as the Challenge scores them, apart from the stack);
+- #57: the defocus law (σ² quadratic in depth) fitted to the outer depth slabs' isolated
+  images gives the middle slab's σ as specified, within the law's own miss on this rig
+  (the same law fitted to the specification) and the standard errors of the fit and of
+  a direct measurement of the slab: what the stack fills a slab without images with at
+  high density.
 """
 
 import numpy as np
@@ -57,6 +62,35 @@ def _otf_measured(claim: Claim, ctx: ClaimContext) -> ClaimResult:
     )
 
 
+def _defocus_law(claim: Claim, ctx: ClaimContext) -> ClaimResult:
+    scores = ctx.ipr
+    middle = scores.specified_sigma.shape[1] // 2
+    specified = scores.specified_sigma[:, middle]
+    direct = MEDIAN_EFFICIENCY * scores.fitted_spread[:, middle]
+    error = np.hypot(scores.law_se, direct / np.sqrt(scores.isolated[:, middle]))
+    model = np.abs(scores.law_model_error)
+    off = scores.law_sigma - specified
+    beyond = (np.abs(off) - model) / error
+    k = float(norm.isf(FALSE_ALARM / (2 * beyond.size)))
+    worst = float(np.max(beyond))
+    return result(
+        claim,
+        worst,
+        f"each of {beyond.size} cameras: σ of the middle depth slab's isolated images from "
+        f"the stack's defocus law (`ptv.reconstruct.defocus_law`, what `synptv run` fills "
+        f"a slab without images with) fitted to the outer slabs' images alone (fitted apart "
+        f"from the stack), against the slab's median specified σ = d_τ/4 "
+        f"({specified.min():.3f}–{specified.max():.3f} px): off by "
+        f"{', '.join(f'{v:+.4f}' for v in off)} px, within the law's own miss on this rig "
+        f"(the same law fitted to the outer slabs' specified σ: "
+        f"{', '.join(f'{v:.4f}' for v in model)} px) and {k:.2f} SE, SE the fit's and a "
+        f"direct measurement's of the slab ({error.min():.4f}–{error.max():.4f} px) in "
+        f"quadrature; worst {worst:.2f} SE beyond",
+        worst <= k,
+        limit=k,
+    )
+
+
 def _reconstruction(claim: Claim, ctx: ClaimContext) -> ClaimResult:
     s = ctx.ipr
     margins = (
@@ -92,5 +126,12 @@ IPR_CLAIMS: tuple[Claim, ...] = (
         "at 0.05 particles per pixel iterative particle reconstruction finds the particles "
         "as the LPT Challenge's best codes do",
         _reconstruction,
+    ),
+    Claim(
+        "ipr.defocus_law",
+        "docs/run.md §12 (IPR: the OTF's depth law)",
+        "the defocus law that fills a depth slab without isolated particle images gives "
+        "the slab's OTF the width the optics specify",
+        _defocus_law,
     ),
 )

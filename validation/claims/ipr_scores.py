@@ -40,7 +40,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ptv.pipeline.reconstructed import measure_run_otf
-from ptv.reconstruct import IPRSettings, reconstruct
+from ptv.reconstruct import IPRSettings, defocus_law, reconstruct
 from simulator.render.camera_frames import ParticleLighting, record_particles, rig_lighting
 from simulator.render.sensor import Sensor
 from simulator.rigs import load_rig
@@ -90,6 +90,19 @@ class IprScores:
         Robust standard deviation of those images' σ fitted apart from the stack, px.
     isolated : ndarray of int, shape (C, S)
         Those images (fitted apart from the stack).
+    law_sigma : ndarray, shape (C,)
+        σ of the middle slab's isolated images from the stack's defocus law
+        (:func:`ptv.reconstruct.defocus_law`) fitted to the outer slabs' images (fitted
+        apart from the stack), median over the images, px: what the stack fills a middle
+        slab without images with.
+    law_se : ndarray, shape (C,)
+        Its standard error, px.
+    law_model_error : ndarray, shape (C,)
+        What the law itself misses on this rig: σ² = a + b·z + c·z² fitted apart from the
+        stack to the outer slabs' *specified* σ, its median σ at the middle slab's
+        isolated particles less their specified median, px (the law holds σ along the
+        depth only, while an oblique camera's magnification, hence its defocus blur,
+        also changes across its image).
     found, ghosts : float
         Fraction of the reference particles paired with a point; of the points paired
         with no particle.
@@ -112,6 +125,9 @@ class IprScores:
     specified_sigma: np.ndarray
     fitted_spread: np.ndarray
     isolated: np.ndarray
+    law_sigma: np.ndarray
+    law_se: np.ndarray
+    law_model_error: np.ndarray
     found: float
     ghosts: float
     rms_px: float
@@ -140,7 +156,9 @@ def _slab_of(z: np.ndarray, centres: np.ndarray) -> np.ndarray:
 
 def _specification(camera, image, positions, lit, lighting, centres):
     """Per slab: the specified median σ of the lit particles whose images are isolated,
-    the robust spread of those images' fitted σ and their number (module docstring)."""
+    the robust spread of those images' fitted σ and their number (module docstring);
+    the defocus law's σ for the middle slab from the outer slabs' images and its
+    standard error (:func:`_law_prediction`)."""
     spec = specified_spots(camera, positions, lighting)
     imaged = np.flatnonzero(lit & _on_sensor(spec.xy, image.shape, 0.0))
     nearest = cKDTree(spec.xy[imaged]).query(spec.xy[imaged], k=2)[0][:, 1]
@@ -153,7 +171,31 @@ def _specification(camera, image, positions, lit, lighting, centres):
         median[k] = np.median(spec.sigma[alone[slab == k]])
         spread[k] = MAD_TO_SIGMA * np.median(np.abs(sigma - np.median(sigma)))
         count.append(len(sigma))
-    return median, spread, np.array(count)
+    middle = len(centres) // 2
+    outer, inner = (slab != middle) & fits.converged, alone[slab == middle]
+    z_outer, z_inner = positions[alone[outer], 2], positions[inner, 2]
+    law = float(np.median(defocus_law(z_outer, fits.sigma[outer], z_inner)))
+    law_se = _quadratic_law(z_outer, fits.sigma[outer], z_inner)[1]
+    on_spec = _quadratic_law(z_outer, spec.sigma[alone[outer]], z_inner)[0]
+    model = on_spec - float(np.median(spec.sigma[inner]))
+    return median, spread, np.array(count), law, law_se, model
+
+
+def _quadratic_law(depth, sigma, at) -> tuple[float, float]:
+    """σ² = a + b·z + c·z² fitted by plain least squares apart from the stack: the median
+    of its σ at depths ``at``, px, and that σ's standard error at their median depth
+    (the fit's covariance scaled by the residuals' robust variance), px."""
+    scale = float(np.ptp(depth))
+    design = np.stack([np.ones_like(depth), depth / scale, (depth / scale) ** 2], axis=1)
+    target = sigma**2
+    coef = np.linalg.lstsq(design, target, rcond=None)[0]
+    residual = target - design @ coef
+    spread = MAD_TO_SIGMA * np.median(np.abs(residual - np.median(residual)))
+    z = np.asarray(at) / scale
+    value = float(np.median(np.sqrt(coef[0] + coef[1] * z + coef[2] * z * z)))
+    at_median = np.array([1.0, np.median(z), np.median(z) ** 2])
+    variance = spread**2 * at_median @ np.linalg.inv(design.T @ design) @ at_median
+    return value, float(np.sqrt(variance)) / (2 * value)
 
 
 def _score(found_points, positions, reference, cameras, exact_xy, voxel):
@@ -232,7 +274,9 @@ def ipr_scores(snapshots: int, *, seed: int) -> IprScores:
         err_px.append(px)
         err_um.append(um)
     px, um = np.concatenate(err_px), np.concatenate(err_um)
-    median, spread, count = (np.array([s[i] for s in specified]) for i in range(3))
+    median, spread, count, law, law_se, model = (
+        np.array([s[i] for s in specified]) for i in range(6)
+    )
     return IprScores(
         otf_sigma=np.stack([np.stack([o.sigma_x[:, 0, 0], o.sigma_y[:, 0, 0]], 1) for o in otfs]),
         otf_counts=np.stack([o.counts[:, 0, 0] for o in otfs]),
@@ -240,6 +284,9 @@ def ipr_scores(snapshots: int, *, seed: int) -> IprScores:
         specified_sigma=median,
         fitted_spread=spread,
         isolated=count,
+        law_sigma=law,
+        law_se=law_se,
+        law_model_error=model,
         found=found / max(reference_total, 1),
         ghosts=ghosts / max(points, 1),
         rms_px=float(np.sqrt(np.mean(px))),

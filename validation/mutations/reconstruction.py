@@ -1,11 +1,11 @@
-"""Mutations of iterative particle reconstruction (docs/claims.md §5, claims #55, #56).
+"""Mutations of iterative particle reconstruction (docs/claims.md §5, claims #55–#57).
 
-Shaking switched off, the measured OTF 10 % too wide, and the ghost threshold twice what
+Shaking switched off, the measured OTF 10 % too wide, the ghost threshold twice what
 it should be (halved, it is measured in docs/claims.md §5 but not registered: no claim or
-check sees it at these densities). Their probe reconstructs a few particles drawn on
-lpt-challenge-small's four sensors (one of them at a quarter of the others' light, which
-the honest threshold removes, one at half, which it keeps) and measures their OTF per
-depth.
+check sees it at these densities), and the defocus law's σ² taken for σ. Their probes
+reconstruct a few particles drawn on lpt-challenge-small's four sensors (one of them at a
+quarter of the others' light, which the honest threshold removes, one at half, which it
+keeps), measure their OTF per depth, and evaluate the defocus law on exact widths.
 """
 
 from dataclasses import replace
@@ -15,6 +15,7 @@ import numpy as np
 from ptv.reconstruct import (
     IPRSettings,
     OpticalTransferFunction,
+    defocus_law,
     draw_spots,
     reconstruct,
     refine_otf,
@@ -85,6 +86,12 @@ def _measured_otf() -> np.ndarray:
     return np.array([otf.sigma_x.ravel() for otf in refined])
 
 
+def _defocus_law_probe() -> np.ndarray:
+    """The defocus law's σ through the middle of images σ² = 0.4 + z² px² at z = ±1…±2."""
+    depth = np.concatenate([np.linspace(-2.0, -1.0, 5), np.linspace(1.0, 2.0, 5)])
+    return defocus_law(depth, np.sqrt(0.4 + depth**2), np.array([-0.5, 0.0, 0.5]))
+
+
 def _wider(original):
     """The measured OTF with every σ :data:`WIDER` times the fitted one."""
 
@@ -137,5 +144,22 @@ RECONSTRUCTION_MUTATIONS: tuple[Mutation, ...] = (
         ("ipr.reconstruction",),
         ("ipr",),
         _reconstructed,
+    ),
+    Mutation(
+        "otf-defocus-law-unsquared",
+        "the defocus law that fills a depth slab without isolated images gives σ² where σ "
+        "belongs (the square root of the fitted σ² left out)",
+        (
+            Patch(
+                "ptv.reconstruct.otf_measure:defocus_law",
+                edited(
+                    "np.where(value > 0, np.sqrt(np.maximum(value, 0.0)), np.nan)",
+                    "np.where(value > 0, np.maximum(value, 0.0), np.nan)",
+                ),
+            ),
+        ),
+        ("ipr.defocus_law",),
+        ("ipr",),
+        _defocus_law_probe,
     ),
 )

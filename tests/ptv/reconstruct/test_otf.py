@@ -219,3 +219,14 @@ def test_the_defocus_law_fills_a_middle_slab_without_images():
     assert tables["intensity"][1, 0, 0] == pytest.approx(1000.0, rel=0.01)
     assert tables["rho"][1, 0, 0] == 0.0
     assert np.isnan(tables["sigma_x"][[0, 2]]).all()  # the others are left alone
+
+
+def test_the_defocus_law_recovers_an_exact_law_and_gives_no_width_where_it_has_none():
+    """σ² = 1 − z² sampled exactly at |z| ≤ 0.9: the law gives it back at the centre, and
+    NaN at |z| = 2, where σ² would be negative."""
+    from ptv.reconstruct import defocus_law
+
+    z = np.linspace(-0.9, 0.9, 19)
+    sigma = defocus_law(z, np.sqrt(1.0 - z**2), np.array([0.0, 0.5, 2.0, -2.0]))
+    assert sigma[:2] == pytest.approx([1.0, np.sqrt(0.75)], rel=1e-9)
+    assert np.isnan(sigma[2:]).all()
