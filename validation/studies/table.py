@@ -29,6 +29,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
 
 #: The swept parameter of each study, its axis label, and whether it is categorical.
 PARAMETERS = {
@@ -50,6 +51,9 @@ SECOND_PANEL = {"density": "found (IPR) or matching yield, and ghosts (%)"}
 #: many per cent of zero (the density study: IPR within per cents, detect-and-match at
 #: high density off by thousands).
 SYMLOG_STATISTICS = {"density": 10.0}
+#: Studies whose parameter spans decades (the density study: 0.005-0.16 particles per
+#: pixel), drawn on a logarithmic axis.
+LOG_PARAMETER = {"density"}
 R_KEYS = ("10", "40", "100")
 
 
@@ -137,6 +141,10 @@ def study_figure(study: str, rows: Sequence[Mapping], *, title: str = "") -> Fig
     # Categories (Δt subsets) keep one position each, whatever group they appear in.
     categories = list(dict.fromkeys(r[x_key] for r in rows)) if categorical else None
     figure, axes = plt.subplots(2, 2, figsize=(11.0, 8.0), layout="constrained")
+    if study in LOG_PARAMETER:  # before the ticks: a scale set later would replace them
+        for ax in axes.ravel():
+            ax.set_xscale("log")
+            ax.xaxis.set_minor_formatter(NullFormatter())
     scalar = {
         axes[0, 0]: FIRST_PANEL.get(study, CALIBRATION_PANEL),
         axes[0, 1]: (
