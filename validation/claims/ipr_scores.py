@@ -27,6 +27,11 @@ Apart from the stack:
   :func:`validation.truth.spot_fit.fit_spots` (not the stack's fitter); their robust
   standard deviation per cell sets the standard error of the OTF's median of n fitted
   images, 1.2533 s/√n;
+- **the defocus law's reference**: the middle depth slab's specified median σ, against
+  which the stack's :func:`ptv.reconstruct.defocus_law` fitted to the outer slabs'
+  isolated images (fitted as above) is compared; its standard error and what the law
+  itself misses on this rig (the same law fitted to the outer slabs' specified σ) from
+  a plain least-squares fit written here;
 - **the reconstruction's score**, as the LPT Challenge's: points paired one to one with
   the true particles within one voxel (:func:`validation.truth.matching.assign_one_to_one`),
   ``found`` over the lit particles imaged on every sensor, ``ghosts`` the unpaired points,
@@ -157,8 +162,8 @@ def _slab_of(z: np.ndarray, centres: np.ndarray) -> np.ndarray:
 def _specification(camera, image, positions, lit, lighting, centres):
     """Per slab: the specified median σ of the lit particles whose images are isolated,
     the robust spread of those images' fitted σ and their number (module docstring);
-    the defocus law's σ for the middle slab from the outer slabs' images and its
-    standard error (:func:`_law_prediction`)."""
+    for the middle slab, the σ of the stack's defocus law fitted to the outer slabs'
+    images, its standard error and the law's own miss (:class:`IprScores`)."""
     spec = specified_spots(camera, positions, lighting)
     imaged = np.flatnonzero(lit & _on_sensor(spec.xy, image.shape, 0.0))
     nearest = cKDTree(spec.xy[imaged]).query(spec.xy[imaged], k=2)[0][:, 1]
