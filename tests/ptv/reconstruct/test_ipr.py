@@ -141,3 +141,22 @@ def test_grid_mappings_built_once_reconstruct_as_built_each_time(rig_and_box, ot
     assert len(once.positions) > 250
     assert np.array_equal(each.positions, once.positions)
     assert np.array_equal(each.intensities, once.intensities)
+
+
+def test_a_loop_stopped_by_its_cap_while_adding_particles_says_so(
+    rig_and_box, otfs, renderer, caplog
+):
+    """One outer iteration adds the particles and cannot converge (convergence needs two
+    iterations with one camera fewer): a warning names outer_iterations; a loop that
+    converges logs none."""
+    rig, box = rig_and_box
+    _, frames = renderer(rig, box, 700, seed=5)
+    images = [f.image for f in frames]
+    with caplog.at_level("WARNING", logger="ptv.reconstruct.ipr"):
+        reconstruct(images, rig.cameras, otfs, box, settings=IPRSettings(outer_iterations=1))
+    assert "raise outer_iterations" in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="ptv.reconstruct.ipr"):
+        result = reconstruct(images, rig.cameras, otfs, box)
+    assert result.diagnostics.iterations < IPRSettings().outer_iterations
+    assert "outer_iterations" not in caplog.text
