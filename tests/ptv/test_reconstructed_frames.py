@@ -64,3 +64,36 @@ def test_joined_chunks_locate_every_exposure_and_refuse_a_missing_one():
     assert np.array_equal(joined.locate(2, 0, "a")[1], a.points[(-1, 0, "a")])
     with pytest.raises(KeyError, match="snapshot 7"):
         joined.locate(0, 7, "a")
+
+
+def test_a_chunk_whose_reconstructions_did_not_converge_says_how_many(monkeypatch, caplog):
+    """Two of a chunk's three exposures stopped at outer_iterations: one warning names
+    the count and the setting to raise."""
+    from types import SimpleNamespace
+
+    from ptv.pipeline import reconstructed
+    from ptv.reconstruct import IPRSettings
+
+    flags = iter([False, True, False])
+
+    def fake(images, cameras, otfs, box, settings):
+        diagnostics = SimpleNamespace(iterations=3, converged=next(flags))
+        return SimpleNamespace(
+            positions=np.zeros((1, 3)), xy=np.zeros((3, 1, 2)), diagnostics=diagnostics
+        )
+
+    monkeypatch.setattr(reconstructed, "reconstruct", fake)
+    dataset = SimpleNamespace(
+        frames=(1, 1),
+        shared_first_frame=True,
+        cameras=("c0", "c1", "c2"),
+        dt=(1e-3, 2e-3),
+        folder="d",
+        read_frame=lambda k, c, m, frame: np.zeros((4, 4)),
+    )
+    with caplog.at_level("WARNING", logger="ptv.pipeline.reconstructed"):
+        reconstructed.reconstruct_chunk(
+            dataset, (0, 1), cameras=[], otfs=[], box=None, settings=IPRSettings()
+        )
+    assert "in 2 of the 3 exposures" in caplog.text
+    assert "raise [ipr] outer_iterations" in caplog.text
