@@ -373,17 +373,13 @@ def run_variant(variant: str, densities, python: Path, work: Path, true_up_to: f
     }
 
 
-def run(
-    quick: bool, venv: Path = DEFAULT_VENV, densities=None, true_up_to: float = 1.0
-) -> dict:
+def run(quick: bool, venv: Path = DEFAULT_VENV, densities=None, true_up_to: float = 1.0) -> dict:
     """Both variants at ``densities`` (default: the quick or the full list)."""
     python = openlpt_python(venv)
     if densities is None:
         densities = QUICK_DENSITIES if quick else DENSITIES
     with tempfile.TemporaryDirectory(prefix="bench-openlpt-") as work:
-        variants = {
-            v: run_variant(v, densities, python, Path(work), true_up_to) for v in VARIANTS
-        }
+        variants = {v: run_variant(v, densities, python, Path(work), true_up_to) for v in VARIANTS}
     return {
         "machine": machine(),
         "openlpt": openlpt_version(python),
@@ -420,6 +416,51 @@ def markdown(figures: dict) -> str:
     return "\n".join(lines)
 
 
+def figure(rows: list[dict]):
+    """Found and ghosts against the density, both codes, per variant and camera set:
+    ``rows`` as the benchmark prints them (each density's row with its ``variant``)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11.0, 4.2), layout="constrained")
+    styles = {"window": "-", "no window": "--"}
+    colours = {"synptv": "C0", "openlpt": "C3"}
+    markers = {"plates": "o", "true": "s"}
+    for variant in dict.fromkeys(r["variant"] for r in rows):
+        for code in colours:
+            for key in SETS:
+                got = [r for r in rows if r["variant"] == variant and f"{code}_{key}" in r]
+                if not got:
+                    continue
+                ppp = [r["ppp"] for r in got]
+                for ax, what in zip(axes, ("found", "ghosts"), strict=True):
+                    ax.plot(
+                        ppp,
+                        [100 * r[f"{code}_{key}"][what] for r in got],
+                        ls=styles[variant],
+                        marker=markers[key],
+                        color=colours[code],
+                        label=f"{code}, {key} cameras, {variant}",
+                    )
+    for ax, label in zip(axes, ("found (%)", "ghosts (% of the points)"), strict=True):
+        ax.set_xscale("log")
+        ticks = sorted({r["ppp"] for r in rows})
+        ax.set_xticks(ticks, [f"{t:g}" for t in ticks], fontsize=8)
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set_xlabel("particles per pixel of the volume's image")
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+    axes[1].legend(fontsize=7)
+    fig.suptitle(
+        f"IPR on {RIG}, one snapshot per density: synptv (default IPRSettings) beside "
+        "OpenLPT (its GUI's IPR defaults), scored alike",
+        fontsize=9,
+    )
+    return fig
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="0.01 and 0.05 ppp only")
@@ -431,9 +472,14 @@ if __name__ == "__main__":
         default=1.0,
         help="run the true-camera set only up to this density (OpenLPT's POLYNOMIAL is slow)",
     )
+    parser.add_argument("--figure", type=Path, help="also draw found and ghosts to this PNG")
     args = parser.parse_args()
     densities = None if args.ppp is None else [float(v) for v in args.ppp.split(",")]
     result = run(args.quick, args.venv, densities, args.true_up_to)
     json.dump(result, sys.stdout, indent=2)
     print()
     print(markdown(result))
+    if args.figure is not None:
+        figure(
+            [{"variant": v, **row} for v, f in result["variants"].items() for row in f["densities"]]
+        ).savefig(args.figure, dpi=110)
