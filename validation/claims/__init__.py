@@ -105,7 +105,7 @@ def run_claims(
     >>> import validation
     >>> from validation.claims import CLAIMS
     >>> len(CLAIMS), [claim.id for claim in CLAIMS[:3]]
-    (55, ['table3.arithmetic', 'flow.pope_spectrum', 'calib.model_free_beats_tsai_scheimpflug'])
+    (56, ['table3.arithmetic', 'flow.pope_spectrum', 'calib.model_free_beats_tsai_scheimpflug'])
     >>> ctx = validation.ClaimContext("quick")
     >>> results = validation.run_claims(ctx, ids=["flow.pope_spectrum", "optics.snell"])
     >>> [(r.id, r.passed) for r in results]
